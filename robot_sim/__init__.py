@@ -1,0 +1,1 @@
+"""ncbot: robot_sim."""

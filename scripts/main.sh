@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Set up (idempotent), train the default agent, evaluate it, print the results row.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+out="${1:-runs/default}"
+ncbot train pipelines/configs/default.yaml --out "$out"
+ncbot eval "$out/checkpoint.pt" --games 3000 --seat first
+ncbot eval "$out/checkpoint.pt" --games 3000 --seat second

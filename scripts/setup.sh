@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root):
+# the software Vulkan driver SAPIEN renders with, the CPU build of torch from local disk, and ncbot itself.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+log() { printf '[setup] %s\n' "$*"; }
+
+install_lavapipe() {
+  # SAPIEN needs Mesa >= 24.3 (lavapipe with VK_KHR_external_semaphore_fd): take it from bookworm-backports.
+  if [ -f /usr/share/vulkan/icd.d/lvp_icd.json ] && dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null | grep -Eq '^(2[5-9]|24\.3)'; then
+    log "lavapipe already installed"; return
+  fi
+  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+    log "not root or no apt-get: install mesa-vulkan-drivers >= 24.3 yourself (see docs/sapien-on-cpu.md)"; return
+  fi
+  local src=/etc/apt/sources.list.d/debian.sources bp=/etc/apt/sources.list.d/ncbot-backports.sources
+  if [ -f "$src" ] && [ ! -f "$bp" ] && grep -q bookworm "$src"; then
+    # Same mirror as the machine's first stanza, suite bookworm-backports (no host name is written here).
+    awk 'BEGIN{RS="";ORS="\n\n"} NR==1{print}' "$src" | sed -E 's/^Suites:.*/Suites: bookworm-backports/' > "$bp"
+  fi
+  log "installing mesa-vulkan-drivers from bookworm-backports"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
+}
+
+install_python() {
+  if ! python -c "import torch, sys; sys.exit(0 if torch.__version__.startswith('2.13.0') else 1)" 2>/dev/null; then
+    log "installing torch==2.13.0 (CPU build from local disk)"
+    python -m pip install -q torch==2.13.0
+  fi
+  log "installing ncbot and its dependencies"
+  python -m pip install -q -e ".[dev]"
+  # sapien depends on opencv-python (GUI build); both install the cv2 module into the same folder.
+  # Keep only the headless build importable: drop the GUI wheel, then reinstall headless over it.
+  if python -m pip show -q opencv-python >/dev/null 2>&1; then
+    python -m pip uninstall -q -y opencv-python
+    python -m pip install -q --force-reinstall --no-deps "$(python -m pip show opencv-python-headless | awk '/^Version:/{print "opencv-python-headless==" $2}')"
+  fi
+}
+
+install_lavapipe
+install_python
+log "done"
