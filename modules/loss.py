@@ -1,0 +1,142 @@
+"""Competitive DQN loss (paper, Algorithm 2) as a TorchRL `LossModule`.
+
+Target: y = r on terminal steps, else r + gamma * max over the AVAILABLE actions a' of s' (the stored next
+`action_mask`) of the target network's Q(s', a'); the error is taken on Q(s, a) (the paper's Q(s', a') in the
+error term is a typo). Optional double DQN: the online network picks a' among the available actions, the target
+network scores it. The target network is a TorchRL target-parameter copy, refreshed by `HardUpdate` (every C
+updates, the paper) or `SoftUpdate`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torchrl.envs.utils import step_mdp
+from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimators
+from torchrl.objectives.utils import distance_loss
+from torchrl.objectives.value import TD0Estimator
+
+from modules.argmax import MaskedArgmax
+from modules.masks import AVAILABLE_KEY
+from modules.qnet import ACTION_VALUE_KEY
+
+MAX_AVAILABLE_VALUE_KEY = "max_available_value"
+LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
+
+
+class CompetitiveDQNLoss(LossModule):
+    """DQN loss whose bootstrap maximises only over the actions available in the next state."""
+
+    @dataclass
+    class _AcceptedKeys:
+        """Keys read from the sampled transitions."""
+
+        action: str = "action"
+        reward: str = "reward"
+        done: str = "done"
+        terminated: str = "terminated"
+        value: str = MAX_AVAILABLE_VALUE_KEY
+        action_value: str = ACTION_VALUE_KEY
+        action_mask: str = AVAILABLE_KEY
+        priority: str = "td_error"
+
+    default_keys = _AcceptedKeys
+    default_value_estimator = ValueEstimators.TD0
+    tensor_keys: _AcceptedKeys
+    value_network: TensorDictModule
+    value_network_params: TensorDict
+    target_value_network_params: TensorDict
+
+    def __init__(
+        self,
+        qnet: TensorDictModule,
+        *,
+        loss_function: str = "l2",
+        double_dqn: bool = False,
+        delay_value: bool = True,
+    ) -> None:
+        super().__init__()
+        if loss_function not in LOSS_FUNCTIONS:
+            raise ValueError(f"unknown loss_function {loss_function!r}; expected one of {sorted(LOSS_FUNCTIONS)}")
+        self.loss_function = LOSS_FUNCTIONS[loss_function]
+        self.double_dqn = double_dqn
+        self.delay_value = delay_value
+        # Q-network followed by a masked max: reading `observation` and `action_mask` of a state, it writes the
+        # greedy available action and max_{a available} Q(s, a): the bootstrap value when run on s'.
+        value_network = TensorDictSequential(
+            qnet,
+            MaskedArgmax(ACTION_VALUE_KEY, AVAILABLE_KEY, "action", MAX_AVAILABLE_VALUE_KEY),
+        )
+        self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
+
+    def make_value_estimator(self, value_type: ValueEstimators | None = None, **hyperparams) -> None:
+        """Build the TD(0) estimator (the only one that matches the paper's one-step target), e.g. gamma=0.7."""
+        value_type = value_type or self.default_value_estimator
+        if value_type is not ValueEstimators.TD0:
+            raise ValueError(f"CompetitiveDQNLoss supports only the TD0 value estimator, got {value_type}")
+        self._value_estimator = TD0Estimator(**hyperparams, value_network=self.value_network)
+        self._value_estimator.set_keys(
+            value=self.tensor_keys.value,
+            reward=self.tensor_keys.reward,
+            done=self.tensor_keys.done,
+            terminated=self.tensor_keys.terminated,
+        )
+
+    def _forward_value_estimator_keys(self, **kwargs) -> None:
+        if self._value_estimator is not None:
+            self._value_estimator.set_keys(
+                value=self.tensor_keys.value,
+                reward=self.tensor_keys.reward,
+                done=self.tensor_keys.done,
+                terminated=self.tensor_keys.terminated,
+            )
+
+    def _double_dqn_next_value(self, td_copy: TensorDictBase) -> torch.Tensor:
+        """Q_target(s', argmax over available a' of Q_online(s', a'))."""
+        next_online = step_mdp(td_copy, keep_other=False)
+        next_target = next_online.clone(False)
+        with torch.no_grad(), self.value_network_params.data.to_module(self.value_network):
+            self.value_network(next_online)
+        with self.target_value_network_params.to_module(self.value_network):
+            self.value_network(next_target)
+        next_action = next_online.get("action").unsqueeze(-1)
+        return torch.gather(next_target.get(ACTION_VALUE_KEY), -1, next_action)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        """Loss on Q(s, a) against the masked one-step target; writes `td_error` for prioritised replay."""
+        td_copy = tensordict.clone(False)
+        with self.value_network_params.to_module(self.value_network):
+            self.value_network(td_copy)
+        action = tensordict.get(self.tensor_keys.action)
+        q_values = td_copy.get(self.tensor_keys.action_value)
+        predicted = torch.gather(q_values, -1, action.unsqueeze(-1)).squeeze(-1)
+
+        next_value = self._double_dqn_next_value(td_copy) if self.double_dqn else None
+        target_params = None if self.double_dqn else self.target_value_network_params
+        with torch.no_grad():
+            target = self.value_estimator.value_estimate(
+                td_copy, target_params=target_params, next_value=next_value
+            ).squeeze(-1)
+            tensordict.set(self.tensor_keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
+        loss = distance_loss(predicted, target, self.loss_function).mean()
+        return TensorDict(
+            {"loss": loss, "q_mean": predicted.detach().mean(), "target_mean": target.mean()}, batch_size=[]
+        )
+
+
+def make_target_updater(loss: CompetitiveDQNLoss, kind: str = "hard", period: int = 100, tau: float = 0.005):
+    """TorchRL target updater: `hard` copies the online weights every `period` calls of `.step()`, `soft` uses tau.
+
+    TorchRL's `HardUpdate(value_network_update_interval=k)` copies on every (k+1)-th call, hence `period - 1`.
+    """
+    if kind == "hard":
+        if period < 1:
+            raise ValueError(f"loss.target_period must be >= 1, got {period}")
+        return HardUpdate(loss, value_network_update_interval=period - 1)
+    if kind == "soft":
+        if not 0.0 < tau <= 1.0:
+            raise ValueError(f"loss.tau must be in (0, 1], got {tau}")
+        return SoftUpdate(loss, tau=tau)
+    raise ValueError(f"unknown target update {kind!r}; expected 'hard' or 'soft'")

@@ -1,0 +1,57 @@
+"""The agent's policies as TensorDict modules: one greedy (test time) and one epsilon-greedy (for the Collector).
+
+Both run the same chain, so the masks used while learning are the masks used at test time (paper, Algorithm 2):
+Q-network -> look-ahead masks -> masked argmax [-> TorchRL `EGreedyModule`].
+The raw Q-values stay under `action_value` for the logger; the greedy argmax reads `greedy_mask`, exploration
+samples uniformly inside `explore_mask`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torchrl.data import TensorSpec
+from torchrl.modules import EGreedyModule
+
+from modules.argmax import MaskedArgmax
+from modules.masks import EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LookaheadMasks
+from modules.qnet import ACTION_VALUE_KEY
+
+CHOSEN_ACTION_VALUE_KEY = "chosen_action_value"
+
+
+@dataclass
+class AgentPolicies:
+    """The two views of one agent: `greedy` for evaluation, `explore` (with its `egreedy` schedule) for training."""
+
+    greedy: TensorDictSequential
+    explore: TensorDictSequential
+    egreedy: EGreedyModule
+
+
+def make_policies(
+    qnet: TensorDictModule,
+    action_spec: TensorSpec,
+    lookahead: str = "one_step",
+    *,
+    eps_init: float = 1.0,
+    eps_end: float = 0.005,
+    annealing_frames: int = 10_000,
+) -> AgentPolicies:
+    """Chain the Q-network with the look-ahead masks, a masked argmax and an epsilon-greedy layer.
+
+    `action_spec` is the env's unbatched categorical action spec (`env.action_spec_unbatched`).
+    """
+    greedy = TensorDictSequential(
+        qnet,
+        LookaheadMasks(lookahead),
+        MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
+    )
+    egreedy = EGreedyModule(
+        spec=action_spec.clone(),
+        eps_init=eps_init,
+        eps_end=eps_end,
+        annealing_num_steps=max(1, int(annealing_frames)),
+        action_mask_key=EXPLORE_MASK_KEY,
+    )
+    return AgentPolicies(greedy=greedy, explore=TensorDictSequential(greedy, egreedy), egreedy=egreedy)

@@ -1,0 +1,42 @@
+"""The Q-network: a plain fully connected ReLU network, as in the paper (3 hidden layers of 100 or 150 units)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from tensordict.nn import TensorDictModule
+from torch import nn
+
+OBSERVATION_KEY = "observation"
+ACTION_VALUE_KEY = "action_value"
+
+
+def make_qnet(n_features: int, n_actions: int, hidden: Sequence[int] = (100, 100, 100)) -> TensorDictModule:
+    """Build the Q-network as a TensorDict module reading `observation` and writing raw `action_value`.
+
+    Raw (unmasked) Q-values are kept under `action_value` so the logger can record what the network thinks of
+    every action; the masks are applied later by the policy and the loss.
+    """
+    if n_features <= 0 or n_actions <= 0:
+        raise ValueError(f"make_qnet needs positive sizes, got n_features={n_features}, n_actions={n_actions}")
+    hidden = [int(h) for h in hidden]
+    if not hidden or any(h <= 0 for h in hidden):
+        raise ValueError(f"agent.hidden must be a non-empty list of positive layer sizes, got {hidden}")
+    layers: list[nn.Module] = []
+    width = n_features
+    for units in hidden:
+        layers += [nn.Linear(width, units), nn.ReLU()]
+        width = units
+    layers.append(nn.Linear(width, n_actions))
+    return TensorDictModule(nn.Sequential(*layers), in_keys=[OBSERVATION_KEY], out_keys=[ACTION_VALUE_KEY])
+
+
+def seeded_init(module: nn.Module, seed: int) -> None:
+    """Re-initialise every Linear layer from one seed so a run's starting weights depend only on the seed."""
+    generator = torch.Generator().manual_seed(seed)
+    for layer in module.modules():
+        if isinstance(layer, nn.Linear):
+            bound = 1.0 / layer.in_features**0.5
+            with torch.no_grad():
+                layer.weight.uniform_(-bound, bound, generator=generator)
+                layer.bias.uniform_(-bound, bound, generator=generator)
