@@ -1,0 +1,384 @@
+"""`EpisodeLogger`: every training, evaluation and robot episode of a run into size-rolled MCAP files.
+
+One logger per run directory writes `episodes-0000.mcap`, `episodes-0001.mcap`, ... Chunks are zstd
+compressed and closed (written to the OS) at least every `flush_interval_s` seconds and on `flush()`, so a
+process killed with SIGKILL leaves every closed chunk readable and loses only the chunk in progress.
+Log times come from one clock per logger, anchored to wall time and strictly increasing, so the files
+play back in the order things happened.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import time
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from logs import schemas
+from logs.names import NameTables
+from logs.steps import EpisodeAssembler, FinishedEpisode, step_arrays
+
+FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
+DEFAULT_MAX_FILE_BYTES = 256 * 2**20
+
+
+def episode_file_name(index: int) -> str:
+    return f"episodes-{index:04d}.mcap"
+
+
+class EpisodeLogger:
+    """Writes ncbot episodes to MCAP. Use as a context manager (or call `close()`).
+
+    Typical use from a training loop (the env's step output or a collector batch)::
+
+        with EpisodeLogger(run_dir, run_info={"config": cfg_dict}) as log:
+            for batch in collector:                      # (B, T) TensorDict with ("next", ...) keys
+                log.record_steps(batch, phase="train", agent="proposed", seed=0,
+                                 epsilon=eps, env_steps=frames, env=env)
+
+    `record_steps` buffers each batch index's steps until its episode ends, then writes the whole episode:
+    `/step`, `/dialogue` and `/board` messages for every action and one `/episode` summary. The robot
+    simulator uses the same call with `phase="robot"` and adds `log_camera`, `log_joint_states` and
+    `log_transform`. Lower-level `log_step`/`log_dialogue`/`log_board`/`log_episode` take dicts that follow
+    the JSON Schemas in `logs.schemas` for producers that are not TorchRL envs.
+
+    Args:
+        run_dir: directory of the run; created if missing. Existing `episodes-NNNN.mcap` files are kept and
+            numbering (files and episode ids) continues after them, so eval in a second process appends.
+        run_info: JSON-serialisable facts about the run (config, git commit, ...), stored as MCAP metadata
+            `ncbot.run` in every file.
+        max_file_bytes: start a new file once the current one is this large (checked at episode ends, so a
+            file overshoots by at most one episode).
+        board_image_phases: phases whose boards are also drawn as PNG on `/board/image`
+            (`foxglove.CompressedImage`). Default eval and robot only: an image per move costs ~0.5 KB, which
+            would break the 2 KB-per-training-episode budget, and training boards are in `/board` as text.
+        step_phases: phases whose per-action `/step`, `/dialogue` and `/board` messages are written; the
+            `/episode` summary is always written. Default: all phases.
+        flush_interval_s: close the open chunk when it is older than this; bounds what a kill -9 loses.
+        chunk_bytes: also close a chunk when its uncompressed size passes this.
+    """
+
+    def __init__(self, run_dir: str | os.PathLike, run_info: dict[str, Any] | None = None, *,
+                 max_file_bytes: int = DEFAULT_MAX_FILE_BYTES,
+                 board_image_phases: Iterable[str] = ("eval", "robot"),
+                 step_phases: Iterable[str] = schemas.PHASES,
+                 flush_interval_s: float = 1.0, chunk_bytes: int = 2**20) -> None:
+        if max_file_bytes <= 0:
+            raise ValueError(f"max_file_bytes must be positive, got {max_file_bytes}")
+        if flush_interval_s < 0:
+            raise ValueError(f"flush_interval_s must be >= 0, got {flush_interval_s}")
+        self.run_dir = Path(run_dir)
+        if self.run_dir.exists() and not self.run_dir.is_dir():
+            raise NotADirectoryError(f"run_dir {self.run_dir} is a file; expected a directory for episodes-NNNN.mcap")
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.run_info = dict(run_info or {})
+        try:
+            self._run_info_json = json.dumps(self.run_info, default=str)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"run_info must be JSON-serialisable: {error}") from None
+        self.max_file_bytes = int(max_file_bytes)
+        self.board_image_phases = frozenset(board_image_phases)
+        self.step_phases = frozenset(step_phases)
+        for phase in self.board_image_phases | self.step_phases:
+            _check_phase(phase)
+        self.flush_interval_s = float(flush_interval_s)
+        self.chunk_bytes = int(chunk_bytes)
+
+        self._names = NameTables()
+        self._names_source: int | None = None
+        self._assemblers: dict[tuple, EpisodeAssembler] = {}
+        self._clock_anchor_ns = time.time_ns() - time.monotonic_ns()
+        self._opened = time.monotonic()
+        self._last_log_time = 0
+        self._last_flush = time.monotonic()
+        self._file = None
+        self._writer = None
+        self._channels: dict[str, int] = {}
+        self._closed = False
+        existing = sorted(int(m.group(1)) for p in self.run_dir.iterdir() if (m := FILE_PATTERN.match(p.name)))
+        self._file_index = existing[-1] + 1 if existing else 0
+        self._next_episode = _next_episode_id(self.run_dir, existing)
+        self.files: list[Path] = []
+        self._open_file()
+
+    # ----------------------------------------------------------------- high level: TensorDicts
+    def record_steps(self, td: Any, *, phase: str, agent: str, seed: int, epsilon: float | None = None,
+                     env_steps: int | None = None, env: Any = None, game: str | None = None,
+                     extra: dict[str, Any] | None = None) -> list[int]:
+        """Log one env step (batch (B,)) or a collector batch (B, T); return ids of the episodes that ended.
+
+        `td` holds the env keys of docs/design.md (root = state the robot decided in, plus `action` and
+        ("next", ...)) and optionally `action_value` (B, A) Q-values. Steps wait in a per-batch-index buffer
+        until their episode's `done`; batches must therefore come from the same env stream for a given
+        (phase, agent, seed) and batch index. `env` (once is enough) supplies the names of acts, utterances,
+        robot commands and features; `epsilon`, `env_steps` and `extra` go into each `/episode` summary.
+        """
+        _check_phase(phase)
+        if env is not None and id(env) != self._names_source:
+            self.set_names(NameTables.from_env(env))
+            self._names_source = id(env)
+        arrays = step_arrays(td)
+        assembler = self._assemblers.setdefault((phase, agent, seed), EpisodeAssembler())
+        finished = assembler.add(arrays, self._names, want_words=phase in self.step_phases)
+        if game is None:
+            game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
+        ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
+                                   env_steps=env_steps, game=game, extra=extra) for episode in finished]
+        self._maybe_flush()
+        return ids
+
+    def set_names(self, names: NameTables) -> None:
+        """Use these name tables for utterances from now on (also stored as metadata `ncbot.names`)."""
+        self._names = names
+        self._writer.add_metadata("ncbot.names", names.to_metadata())
+
+    def _write_episode(self, episode: FinishedEpisode, *, phase: str, agent: str, seed: int,
+                       epsilon: float | None, env_steps: int | None, game: str,
+                       extra: dict[str, Any] | None) -> int:
+        episode_id = self.new_episode_id()
+        if phase in self.step_phases:
+            draw = phase in self.board_image_phases
+            previous = None
+            turns = iter(episode.dialogue)
+            turn = next(turns, None)
+            for step, board in zip(episode.steps, episode.boards):
+                step["episode"] = episode_id
+                board["episode"] = episode_id
+                self._write_json(schemas.STEP_TOPIC, step)
+                while turn is not None and turn["step"] == step["step"]:  # dialogue is in step order
+                    turn["episode"] = episode_id
+                    self._write_json(schemas.DIALOGUE_TOPIC, turn)
+                    turn = next(turns, None)
+                self._write_json(schemas.BOARD_TOPIC, board)
+                if draw:
+                    self.log_board_image(board["cells"], last_move=_changed_cell(previous, board["cells"]),
+                                         frame_id=f"episode{episode_id}")
+                previous = board["cells"]
+        summary = {"episode": episode_id, "phase": phase, "game": game, "agent": agent, "seed": int(seed),
+                   "seat": episode.seat, "outcome": episode.outcome, "return": round(episode.total_reward, 4),
+                   "length": len(episode.steps), "task_success": episode.outcome in ("win", "draw"),
+                   "truncated": episode.truncated,
+                   "epsilon": None if epsilon is None else round(float(epsilon), 5),
+                   "env_steps": None if env_steps is None else int(env_steps),
+                   "wall_time": round(time.monotonic() - self._opened, 3)}
+        if extra:
+            summary["extra"] = extra
+        self._write_json(schemas.EPISODE_TOPIC, summary)
+        self._maybe_roll()
+        return episode_id
+
+    # ----------------------------------------------------------------- low level: dicts per schema
+    def new_episode_id(self) -> int:
+        """A fresh run-wide episode id (for producers that call `log_episode` themselves)."""
+        episode_id = self._next_episode
+        self._next_episode += 1
+        return episode_id
+
+    def log_step(self, step: dict[str, Any]) -> None:
+        """Write one `/step` message (keys per `schemas.STEP_SCHEMA`)."""
+        self._write_json(schemas.STEP_TOPIC, _checked(step, schemas.STEP_SCHEMA))
+
+    def log_dialogue(self, turn: dict[str, Any]) -> None:
+        """Write one `/dialogue` message (keys per `schemas.DIALOGUE_SCHEMA`)."""
+        self._write_json(schemas.DIALOGUE_TOPIC, _checked(turn, schemas.DIALOGUE_SCHEMA))
+
+    def log_board(self, board: dict[str, Any], image: bool = False) -> None:
+        """Write one `/board` message (keys per `schemas.BOARD_SCHEMA`), and its picture if `image`."""
+        self._write_json(schemas.BOARD_TOPIC, _checked(board, schemas.BOARD_SCHEMA))
+        if image:
+            self.log_board_image(board["cells"], frame_id=f"episode{board['episode']}")
+
+    def log_episode(self, summary: dict[str, Any]) -> None:
+        """Write one `/episode` summary (keys per `schemas.EPISODE_SCHEMA`); may start a new file after it."""
+        summary = _checked(summary, schemas.EPISODE_SCHEMA)
+        _check_phase(summary["phase"])
+        if summary["outcome"] not in schemas.OUTCOMES:
+            raise ValueError(f"outcome must be one of {', '.join(schemas.OUTCOMES)}, got {summary['outcome']!r}")
+        summary.setdefault("wall_time", round(time.monotonic() - self._opened, 3))
+        self._write_json(schemas.EPISODE_TOPIC, summary)
+        self._maybe_roll()
+        self._maybe_flush()
+
+    # ----------------------------------------------------------------- Foxglove types (protobuf)
+    def log_board_image(self, cells: Any, last_move: int = -1, frame_id: str = "board", t: float | None = None) -> None:
+        """Draw the board and write it as a PNG `foxglove.CompressedImage` on `/board/image`."""
+        from logs.board_image import board_png
+
+        self.log_camera(board_png(cells, last_move), image_format="png", frame_id=frame_id, t=t,
+                        topic=schemas.BOARD_IMAGE_TOPIC)
+
+    def log_camera(self, image: bytes, *, image_format: str = "jpeg", frame_id: str = "CameraBottom",
+                   t: float | None = None, topic: str = schemas.CAMERA_TOPIC) -> None:
+        """Write an encoded camera frame (JPEG/PNG bytes) as `foxglove.CompressedImage`.
+
+        `t` is the producer's own time in seconds (e.g. simulation time) and goes into the message
+        timestamp; the MCAP log time always comes from the logger's clock.
+        """
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+
+        if not isinstance(image, (bytes, bytearray)) or not image:
+            raise ValueError("log_camera needs the encoded image as non-empty bytes (e.g. cv2.imencode('.jpg', ...))")
+        message = CompressedImage(frame_id=frame_id, data=bytes(image), format=image_format)
+        self._write_protobuf(topic, message, t)
+
+    def log_joint_states(self, names: Sequence[str], positions: Sequence[float],
+                         velocities: Sequence[float] | None = None, efforts: Sequence[float] | None = None,
+                         t: float | None = None) -> None:
+        """Write joint positions (rad or m) as `foxglove.JointStates` on `/joint_states`."""
+        from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
+
+        if len(names) != len(positions):
+            raise ValueError(f"log_joint_states got {len(names)} names but {len(positions)} positions")
+        joints = []
+        for index, name in enumerate(names):
+            joint = {"name": str(name), "position": float(positions[index])}
+            if velocities is not None:
+                joint["velocity"] = float(velocities[index])
+            if efforts is not None:
+                joint["effort"] = float(efforts[index])
+            joints.append(joint)
+        message = JointStates(joints=joints)
+        self._write_protobuf(schemas.JOINT_STATES_TOPIC, message, t)
+
+    def log_transform(self, parent: str, child: str, translation: Sequence[float],
+                      rotation_xyzw: Sequence[float] = (0.0, 0.0, 0.0, 1.0), t: float | None = None) -> None:
+        """Write a `foxglove.FrameTransform` (child pose in the parent frame) on `/tf`."""
+        from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+
+        if len(translation) != 3 or len(rotation_xyzw) != 4:
+            raise ValueError("log_transform needs translation (x, y, z) and rotation quaternion (x, y, z, w)")
+        x, y, z = (float(v) for v in translation)
+        qx, qy, qz, qw = (float(v) for v in rotation_xyzw)
+        message = FrameTransform(parent_frame_id=parent, child_frame_id=child,
+                                 translation={"x": x, "y": y, "z": z},
+                                 rotation={"x": qx, "y": qy, "z": qz, "w": qw})
+        self._write_protobuf(schemas.TRANSFORM_TOPIC, message, t)
+
+    # ----------------------------------------------------------------- files, chunks, time
+    def flush(self) -> None:
+        """Close the open chunk and hand it to the OS: everything logged so far survives a kill -9."""
+        if self._writer is not None:
+            self._writer.flush()
+            self._file.flush()
+        self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        """Finish the current file (summary + index), close it. Unfinished episodes are dropped."""
+        if self._closed:
+            return
+        self._closed = True
+        self._finish_file()
+
+    def __enter__(self) -> "EpisodeLogger":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def current_file(self) -> Path:
+        return self.files[-1]
+
+    def _now_ns(self) -> int:
+        now = self._clock_anchor_ns + time.monotonic_ns()
+        if now <= self._last_log_time:
+            now = self._last_log_time + 1
+        self._last_log_time = now
+        return now
+
+    def _open_file(self) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        path = self.run_dir / episode_file_name(self._file_index)
+        self._file = open(path, "xb")
+        self._writer = Writer(self._file, chunk_size=self.chunk_bytes, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="ncbot")
+        self._writer.add_metadata("ncbot.run", {"schema_version": str(schemas.SCHEMA_VERSION),
+                                                "file_index": str(self._file_index),
+                                                "first_episode": str(self._next_episode),
+                                                "run_info": self._run_info_json})
+        if self._names.action_names or self._names.feature_names:
+            self._writer.add_metadata("ncbot.names", self._names.to_metadata())
+        self._channels = {}
+        for topic, schema in schemas.JSON_SCHEMAS.items():
+            schema_id = self._writer.register_schema(schema["title"], "jsonschema", schemas.schema_bytes(schema))
+            self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
+        self.files.append(path)
+        self._file.flush()
+
+    def _finish_file(self) -> None:
+        if self._writer is not None:
+            self._writer.finish()
+            self._file.close()
+            self._writer = None
+            self._file = None
+
+    def _maybe_roll(self) -> None:
+        if self._file is not None and self._file.tell() >= self.max_file_bytes:
+            self._finish_file()
+            self._file_index += 1
+            self._open_file()
+
+    def _maybe_flush(self) -> None:
+        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+            self.flush()
+
+    def _write_json(self, topic: str, message: dict[str, Any]) -> None:
+        self._require_open()
+        log_time = self._now_ns()
+        data = json.dumps(message, separators=(",", ":")).encode()
+        self._writer.add_message(self._channels[topic], log_time=log_time, data=data, publish_time=log_time)
+
+    def _write_protobuf(self, topic: str, message: Any, t: float | None) -> None:
+        from mcap_protobuf.schema import register_schema
+
+        self._require_open()
+        log_time = self._now_ns()
+        stamp = log_time if t is None else int(round(float(t) * 1e9))
+        message.timestamp.FromNanoseconds(stamp)
+        if topic not in self._channels:
+            schema_id = register_schema(self._writer, type(message))
+            self._channels[topic] = self._writer.register_channel(topic, "protobuf", schema_id)
+        self._writer.add_message(self._channels[topic], log_time=log_time, data=message.SerializeToString(),
+                                 publish_time=log_time)
+        self._maybe_flush()
+
+    def _require_open(self) -> None:
+        if self._closed:
+            raise ValueError("the EpisodeLogger is closed; open a new one to log more")
+
+
+def _checked(message: dict[str, Any], schema: dict) -> dict[str, Any]:
+    missing = [key for key in schema["required"] if key not in message]
+    if missing:
+        raise ValueError(f"{schema['title']} message is missing {', '.join(missing)}; required: "
+                         f"{', '.join(schema['required'])}")
+    return dict(message)
+
+
+def _check_phase(phase: str) -> None:
+    if phase not in schemas.PHASES:
+        raise ValueError(f"phase must be one of {', '.join(schemas.PHASES)}, got {phase!r}")
+
+
+def _changed_cell(previous: str | None, cells: str) -> int:
+    if previous is None:
+        return -1
+    for index, (before, after) in enumerate(zip(previous, cells)):
+        if before != after:
+            return index
+    return -1
+
+
+def _next_episode_id(run_dir: Path, existing: list[int]) -> int:
+    """Continue episode ids after the largest one in the run's existing files (read with crash recovery)."""
+    if not existing:
+        return 0
+    from logs.reader import read_episodes
+
+    largest = -1
+    for index in existing:
+        for summary in read_episodes(run_dir / episode_file_name(index)):
+            largest = max(largest, int(summary["episode"]))
+    return largest + 1
