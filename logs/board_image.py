@@ -72,3 +72,10 @@ def board_text(cells: np.ndarray | str) -> str:
         if side == 9 and row in (2, 5):
             lines.append(" " + "-" * (len(line) - 1))
     return "\n".join(lines)
+
+
+def changed_cell(previous: str | None, cells: str) -> int:
+    """The first cell that differs between two board strings (the move just made), -1 if none/unknown."""
+    if previous is None or len(previous) != len(cells):
+        return -1
+    return next((index for index, (before, after) in enumerate(zip(previous, cells)) if before != after), -1)

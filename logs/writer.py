@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from logs import schemas
+from logs.board_image import board_png, changed_cell
 from logs.names import NameTables
 from logs.steps import EpisodeAssembler, FinishedEpisode, step_arrays
 
@@ -152,7 +153,7 @@ class EpisodeLogger:
                     turn = next(turns, None)
                 self._write_json(schemas.BOARD_TOPIC, board)
                 if draw:
-                    self.log_board_image(board["cells"], last_move=_changed_cell(previous, board["cells"]),
+                    self.log_board_image(board["cells"], last_move=changed_cell(previous, board["cells"]),
                                          frame_id=f"episode{episode_id}")
                 previous = board["cells"]
         summary = {"episode": episode_id, "phase": phase, "game": game, "agent": agent, "seed": int(seed),
@@ -203,8 +204,6 @@ class EpisodeLogger:
     # ----------------------------------------------------------------- Foxglove types (protobuf)
     def log_board_image(self, cells: Any, last_move: int = -1, frame_id: str = "board", t: float | None = None) -> None:
         """Draw the board and write it as a PNG `foxglove.CompressedImage` on `/board/image`."""
-        from logs.board_image import board_png
-
         self.log_camera(board_png(cells, last_move), image_format="png", frame_id=frame_id, t=t,
                         topic=schemas.BOARD_IMAGE_TOPIC)
 
@@ -360,15 +359,6 @@ def _checked(message: dict[str, Any], schema: dict) -> dict[str, Any]:
 def _check_phase(phase: str) -> None:
     if phase not in schemas.PHASES:
         raise ValueError(f"phase must be one of {', '.join(schemas.PHASES)}, got {phase!r}")
-
-
-def _changed_cell(previous: str | None, cells: str) -> int:
-    if previous is None:
-        return -1
-    for index, (before, after) in enumerate(zip(previous, cells)):
-        if before != after:
-            return index
-    return -1
 
 
 def _next_episode_id(run_dir: Path, existing: list[int]) -> int:

@@ -1,0 +1,96 @@
+"""What `ncbot logs inspect` reports: channels, counts, time span, episodes by phase, truncation."""
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from logs import schemas
+from logs.reader import LogReader
+
+
+def summarize(path: str | Path, reader: LogReader | None = None) -> dict[str, Any]:
+    """One JSON-ready dict describing a log file or run directory (keys: episodes, by_phase, channels,
+    truncated, files, time_span, messages, agents, bytes_per_episode)."""
+    reader = reader or LogReader(path)
+    episodes = [message.data for message in reader.messages([schemas.EPISODE_TOPIC])]
+    reader.require_ncbot()
+    scans = [reader.scans[file] for file in reader.files]
+
+    channels: dict[str, dict[str, Any]] = {}
+    for scan in scans:
+        for topic, (schema_name, encoding) in scan.channels.items():
+            entry = channels.setdefault(topic, {"schema": schema_name, "encoding": encoding, "messages": 0})
+            entry["messages"] += scan.counts.get(topic, 0)
+    starts = [scan.start_ns for scan in scans if scan.start_ns is not None]
+    ends = [scan.end_ns for scan in scans if scan.end_ns is not None]
+    time_span = None
+    if starts:
+        start, end = min(starts), max(ends)
+        time_span = {"start": _iso(start), "end": _iso(end), "seconds": round((end - start) / 1e9, 3)}
+    total_bytes = sum(scan.size for scan in scans)
+    return {
+        "path": str(reader.path),
+        "files": [{"path": str(scan.path), "bytes": scan.size, "complete": scan.complete,
+                   "truncated": scan.truncated, "cut_bytes": scan.cut_bytes, "error": scan.error} for scan in scans],
+        "truncated": any(scan.truncated for scan in scans),
+        "channels": channels,
+        "messages": sum(entry["messages"] for entry in channels.values()),
+        "time_span": time_span,
+        "episodes": len(episodes),
+        "agents": sorted({str(e.get("agent")) for e in episodes}),
+        "by_phase": by_phase(episodes),
+        "bytes_per_episode": round(total_bytes / len(episodes), 1) if episodes else None,
+    }
+
+
+def by_phase(episodes: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per phase: episode count, outcome counts, task success, mean length/return/reward per step."""
+    groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for episode in episodes:
+        groups[str(episode.get("phase"))].append(episode)
+    result = {}
+    for phase in sorted(groups, key=lambda p: (schemas.PHASES + (p,)).index(p)):
+        group = groups[phase]
+        lengths = [int(e.get("length", 0)) for e in group]
+        returns = [float(e.get("return", 0.0)) for e in group]
+        outcomes = Counter(str(e.get("outcome")) for e in group)
+        result[phase] = {
+            "episodes": len(group),
+            "outcomes": {name: outcomes.get(name, 0) for name in schemas.OUTCOMES},
+            "task_success": round(sum(bool(e.get("task_success")) for e in group) / len(group), 4),
+            "mean_length": round(sum(lengths) / len(group), 3),
+            "mean_return": round(sum(returns) / len(group), 4),
+            "reward_per_step": round(sum(returns) / max(1, sum(lengths)), 4),
+            "truncated": sum(bool(e.get("truncated")) for e in group),
+        }
+    return result
+
+
+def _iso(ns: int) -> str:
+    return datetime.fromtimestamp(ns / 1e9, tz=timezone.utc).isoformat(timespec="milliseconds")
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """The human-readable form of `summarize` for the terminal."""
+    lines = [f"log: {summary['path']}"]
+    for file in summary["files"]:
+        state = "complete" if file["complete"] else f"TRUNCATED: {file['cut_bytes']} bytes cut off ({file['error']})"
+        lines.append(f"  {file['path']}  {file['bytes']} bytes  {state}")
+    lines.append("channels:")
+    for topic, entry in sorted(summary["channels"].items()):
+        lines.append(f"  {topic:<28} {entry['schema']:<26} {entry['encoding']:<9} {entry['messages']:>9} messages")
+    span = summary["time_span"]
+    if span:
+        lines.append(f"time span: {span['start']} .. {span['end']} ({span['seconds']} s)")
+    per_episode = summary["bytes_per_episode"]
+    lines.append(f"episodes: {summary['episodes']}" + (f"  ({per_episode} bytes per episode on disk)" if per_episode else "")
+                 + (f"  agents: {', '.join(summary['agents'])}" if summary["agents"] else ""))
+    for phase, stats in summary["by_phase"].items():
+        outcomes = " ".join(f"{name}={count}" for name, count in stats["outcomes"].items())
+        lines.append(f"  {phase:<6} {stats['episodes']:>7} episodes  {outcomes}  task success {stats['task_success']:.4f}"
+                     f"  mean length {stats['mean_length']:.2f}  reward/step {stats['reward_per_step']:.4f}"
+                     f"  truncated {stats['truncated']}")
+    lines.append("truncated: " + ("yes (recovered everything up to the cut)" if summary["truncated"] else "no"))
+    return "\n".join(lines)
