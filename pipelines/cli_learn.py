@@ -1,8 +1,113 @@
-"""`ncbot` commands of the learn area (placeholder until its issue lands)."""
+"""`ncbot train`, `ncbot eval`, `ncbot ablate`, `ncbot table`: the learning area's commands.
+
+Heavy imports (torch, torchrl) happen inside the commands so `ncbot --help` stays fast. Library errors
+(ValueError / FileNotFoundError) become one line and exit code 2 in `pipelines.cli.main`.
+"""
 from __future__ import annotations
+
+import json
+from typing import Optional
 
 import typer
 
 
+def train_command(
+    config: Optional[str] = typer.Argument(None, help="YAML run config, e.g. pipelines/configs/default.yaml."),
+    overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides, e.g. optim.lr=0.0005."),
+    out: Optional[str] = typer.Option(None, "--out", help="Run folder (default runs/<config name>)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed (overrides train.seed)."),
+    episodes: Optional[int] = typer.Option(None, "--episodes", help="Stop after N training games instead of frames."),
+    resume: Optional[str] = typer.Option(None, "--resume", help="Continue the run in this folder from its last checkpoint."),
+    no_mcap: bool = typer.Option(False, "--no-mcap", help="Do not write the MCAP episode log."),
+    no_progress: bool = typer.Option(False, "--no-progress", help="Hide the progress bar."),
+) -> None:
+    """Train an agent (competitive DQN or a baseline) and write checkpoint, eval.json, curve PNG and MCAP log."""
+    from pipelines.train import resolve_run, train
+
+    config_path, extra = config, list(overrides or [])
+    if resume and config_path and "=" in config_path:  # `ncbot train --resume DIR key=value`
+        config_path, extra = None, [config_path, *extra]
+    run_config, run_dir, resuming = resolve_run(config_path, extra, out=out, seed=seed, episodes=episodes,
+                                                resume=resume, mcap=not no_mcap)
+    if no_progress:
+        run_config.logger.progress = False
+    report = train(run_config, run_dir, resume=resuming)
+    typer.echo(f"run folder: {run_dir}")
+    typer.echo(_results_header())
+    for seat in ("first", "second"):
+        typer.echo(_results_row(report[seat], seat))
+    reached = report["time_to_0995_s"]
+    typer.echo(f"frames {report['frames']}, updates {report['updates']}, games {report['episodes']}, "
+               f"train wall time {report['train_wall_time_s']:.1f} s, "
+               f"task success >= 0.995 at {'%.1f s' % reached if reached is not None else 'never'}")
+
+
+def _results_header() -> str:
+    return "| seat | games | win | draw | loss | task success (95% CI) | avg reward | avg return | avg length |\n" \
+           "|---|---|---|---|---|---|---|---|---|"
+
+
+def _results_row(result: dict, seat: str) -> str:
+    low, high = result["task_success_ci95"]
+    return (f"| {seat} | {result['games']} | {result['win']:.4f} | {result['draw']:.4f} | {result['loss']:.4f} | "
+            f"{result['task_success']:.4f} [{low:.4f}, {high:.4f}] | {result['avg_reward']:.4f} | "
+            f"{result['avg_return']:.3f} | {result['avg_length']:.2f} |")
+
+
+def eval_command(
+    checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
+    games: int = typer.Option(3000, "--games", help="Number of greedy test games."),
+    opponent: str = typer.Option("random", "--opponent", help="Simulated user's move policy (envs.opponents name)."),
+    seat: str = typer.Option("alternate", "--seat", help="The robot's seat: first | second | alternate."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
+    mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
+) -> None:
+    """Play greedy test games with a trained agent and report the paper's metrics."""
+    import torch
+
+    from pipelines.evaluate import evaluate_checkpoint
+
+    torch.set_num_threads(1)
+    result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap)
+    if as_json:
+        typer.echo(json.dumps(result.to_dict()))
+    else:
+        typer.echo(_results_header())
+        typer.echo(_results_row(result.to_dict(), seat))
+
+
+def ablate_command(
+    config: str = typer.Argument(..., help="Ablation grid YAML, e.g. pipelines/configs/ablation.yaml."),
+    seeds: int = typer.Option(3, "--seeds", help="Seeds per grid cell."),
+    workers: int = typer.Option(2, "--workers", help="Runs in parallel."),
+    backend: str = typer.Option("local", "--backend", help="local (process pool) or ray."),
+    out: Optional[str] = typer.Option(None, "--out", help="Runs folder (default from the grid file)."),
+) -> None:
+    """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
+    from pipelines.ablate import run_ablation
+
+    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out)
+    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
+               f"{summary['failed']} failed; runs in {summary['runs_dir']}")
+    if summary["failed"]:
+        raise typer.Exit(1)
+
+
+def table_command(
+    runs_dir: str = typer.Argument(..., help="Folder of runs written by ncbot ablate."),
+    out: Optional[str] = typer.Option(None, "--out", help="Markdown file to write (default RUNS_DIR/table.md)."),
+) -> None:
+    """Paper-style table (mean ± std over seeds, paper's numbers beside ours) and learning-curve PNGs per agent."""
+    from pipelines.table import write_table
+
+    text = write_table(runs_dir, out)
+    typer.echo(text)
+
+
 def register(app: typer.Typer) -> None:
     """Add this area's commands to the root app."""
+    app.command("train")(train_command)
+    app.command("eval")(eval_command)
+    app.command("ablate")(ablate_command)
+    app.command("table")(table_command)

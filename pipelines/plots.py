@@ -1,0 +1,84 @@
+"""Learning curves as PNG (matplotlib, Agg): what people look at after a run, like the paper's figures."""
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+CURVES = (
+    ("avg_reward", "avg reward / action"),
+    ("task_success", "task success"),
+    ("avg_length", "dialogue length"),
+    ("loss", "training loss"),
+)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | os.PathLike) -> Path:
+    """Save through a temp file + rename so a crash never leaves half a PNG."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(temp, dpi=110, bbox_inches="tight")
+    os.replace(temp, path)
+    return path
+
+
+def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLike, title: str = "") -> Path:
+    """Periodic-evaluation metrics and training loss, over env frames (left) and wall time (right)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(CURVES), 2, figsize=(10, 9), sharex="col")
+    frames = [h["frames"] for h in history]
+    seconds = [h["wall_time"] for h in history]
+    for row, (key, label) in enumerate(CURVES):
+        values = [h.get(key, float("nan")) for h in history]
+        for col, xs in enumerate((frames, seconds)):
+            ax = axes[row, col]
+            ax.plot(xs, values, marker="o", markersize=3)
+            ax.grid(alpha=0.3)
+            if col == 0:
+                ax.set_ylabel(label)
+            if key == "task_success":
+                ax.axhline(0.995, color="grey", linestyle="--", linewidth=0.8)
+    axes[-1, 0].set_xlabel("env frames (robot actions)")
+    axes[-1, 1].set_xlabel("wall time (s, shared 2-core machine)")
+    fig.suptitle(title or "learning curve (greedy evaluation vs random user)")
+    path = _save(fig, path)
+    plt.close(fig)
+    return path
+
+
+def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str | os.PathLike, title: str = "") -> Path:
+    """Task success and avg reward per agent: mean over seeds (line) and min..max band; x = env frames."""
+    import numpy as np
+
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for name, runs in sorted(curves.items()):
+        runs = [r for r in runs if r]
+        if not runs:
+            continue
+        length = min(len(r) for r in runs)
+        frames = np.array([h["frames"] for h in runs[0][:length]])
+        for ax, key in zip(axes, ("task_success", "avg_reward")):
+            values = np.array([[h.get(key, np.nan) for h in r[:length]] for r in runs])
+            (line,) = ax.plot(frames, values.mean(0), label=name)
+            ax.fill_between(frames, values.min(0), values.max(0), alpha=0.2, color=line.get_color())
+    for ax, label in zip(axes, ("task success", "avg reward / action")):
+        ax.set_xlabel("env frames")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title or "learning curves per agent (mean over seeds, band = min..max)")
+    path = _save(fig, path)
+    plt.close(fig)
+    return path

@@ -1,0 +1,36 @@
+"""One place that turns the `env` section of a run config into `envs.make_env(...)` calls.
+
+Training, periodic evaluation and `ncbot eval` all build their envs here, so a seat or opponent means the same
+thing everywhere.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+SEATS = {"first": "robot", "second": "human", "alternate": "alternate"}
+
+
+def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | None = None,
+                 opponent: str | None = None):
+    """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random)."""
+    from envs import make_env
+
+    return make_env(
+        game=env_config.game,
+        batch_size=(int(batch_size),),
+        temporal=env_config.temporal,
+        free_move=env_config.free_move,
+        seed=int(seed),
+        first=first or env_config.first,
+        opponent=opponent or env_config.opponent,
+        max_steps=env_config.max_steps,
+        **env_config.options,
+    )
+
+
+def seat_to_first(seat: str) -> str:
+    """`--seat first|second|alternate` (the robot's seat) -> the env's `first` option."""
+    try:
+        return SEATS[seat]
+    except KeyError:
+        raise ValueError(f"unknown seat {seat!r}; expected one of {', '.join(SEATS)}") from None

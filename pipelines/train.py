@@ -1,0 +1,268 @@
+"""The whole training story of one run, top to bottom (TorchRL sota-dqn style):
+
+config -> batched dialogue env -> Q-network + look-ahead policies -> Collector -> replay buffer -> competitive DQN
+loss + target updater -> periodic greedy evaluation and checkpoints -> MCAP log -> final checkpoint, eval.json and
+learning-curve PNG.
+
+Resuming (`resume=True`) reloads the newest periodic checkpoint, which holds the networks, optimiser, epsilon,
+counters, RNG state, evaluation history AND the replay buffer (config `checkpoint.save_buffer`; when it is off the
+buffer is rebuilt from fresh experience and updates wait for the burn-in again). The env restarts from fresh games:
+a game in progress at the kill is lost, so a resumed run is a faithful continuation but not bit-identical to an
+uninterrupted one.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import random
+import time
+from contextlib import nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, atomic_write_text, latest_training_state, save_periodic
+from pipelines.config import RunConfig, config_from_dict, dump_config
+
+# Keys a transition needs for the loss; everything else the policy wrote (masks, Q-values) stays out of the buffer.
+TRANSITION_KEYS = (
+    "observation", "action_mask", "action",
+    ("next", "observation"), ("next", "action_mask"), ("next", "reward"),
+    ("next", "done"), ("next", "terminated"), ("next", "truncated"),
+)
+SUCCESS_THRESHOLD = 0.995
+EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+def frames_per_batch(config: RunConfig) -> int:
+    """Collector batch rounded to a multiple of the env batch (a batched env steps all its games at once)."""
+    batch = config.env.batch_size
+    return max(batch, (config.collector.frames_per_batch // batch) * batch)
+
+
+def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_THRESHOLD) -> float | None:
+    """Wall time of the first periodic evaluation whose task success reached `threshold`."""
+    for record in history:
+        if record["task_success"] >= threshold:
+            return record["wall_time"]
+    return None
+
+
+def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> dict[str, Any]:
+    """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json)."""
+    from torchrl.collectors import Collector
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+    from tqdm import tqdm
+
+    from modules.loss import CompetitiveDQNLoss, make_target_updater
+    from modules.policy import make_policies
+    from modules.qnet import make_qnet, seeded_init
+    from pipelines.evaluate import evaluate_agent
+    from pipelines.plots import plot_learning_curve
+    from pipelines.run_env import make_run_env
+
+    logging.getLogger("torchrl").setLevel(logging.WARNING)
+    started = time.monotonic()
+    out_dir = Path(out_dir)
+    state = latest_training_state(out_dir) if resume else None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(dump_config(config), out_dir / "config.yaml")
+    torch.set_num_threads(config.train.num_threads)
+    seed = config.train.seed
+    seed_everything(seed)
+
+    # --- env and agent -------------------------------------------------------------------------------------------
+    frames_done = state["frames"] if state else 0
+    env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done)
+    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
+    seeded_init(qnet, seed)
+    agent = make_policies(
+        qnet, env.action_spec_unbatched, config.lookahead,
+        eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
+        annealing_frames=config.collector.annealing_frames,
+    )
+
+    # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
+    loss_module = CompetitiveDQNLoss(
+        qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn
+    )
+    loss_module.make_value_estimator(gamma=config.loss.gamma)
+    target_updater = make_target_updater(
+        loss_module, config.loss.target_update, config.loss.target_period, config.loss.tau
+    )
+    optimizer = torch.optim.Adam(
+        loss_module.parameters(), lr=config.optim.lr, weight_decay=config.optim.weight_decay
+    )
+    buffer = TensorDictReplayBuffer(
+        storage=LazyTensorStorage(config.buffer.size), batch_size=config.buffer.batch_size
+    )
+
+    counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
+    history: list[dict[str, Any]] = []
+    if state:
+        qnet.load_state_dict(state["qnet"])
+        loss_module.load_state_dict(state["loss"])
+        optimizer.load_state_dict(state["optimizer"])
+        agent.egreedy.load_state_dict(state["egreedy"])
+        if hasattr(target_updater, "counter"):
+            target_updater.counter = state.get("target_counter", 0)
+        if state.get("buffer") is not None:
+            buffer.load_state_dict(state["buffer"])
+        torch.set_rng_state(state["rng"])
+        counters.update({k: state[k] for k in ("frames", "updates", "episodes")})
+        counters["wall_offset"] = state["wall_time"]
+        history = list(state["history"])
+
+    # --- the Collector: exploratory games with the same masks as at test time -----------------------------------
+    batch_frames = frames_per_batch(config)
+    stop_on_episodes = config.train.episodes is not None
+    remaining = -1 if stop_on_episodes else max(0, config.collector.total_frames - counters["frames"])
+    collector = None
+    if remaining != 0:
+        collector = Collector(
+            env, agent.explore, frames_per_batch=batch_frames, total_frames=remaining,
+            auto_register_policy_transforms=False,
+        )
+
+    def periodic_eval(recent_loss: float) -> dict[str, Any]:
+        result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, seat="alternate",
+                                seed=seed + EVAL_SEED_OFFSET)
+        record = {"frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+                  "wall_time": round(counters["wall_offset"] + time.monotonic() - started, 3),
+                  "loss": recent_loss, "epsilon": float(agent.egreedy.eps), **result.to_dict()}
+        history.append(record)
+        return record
+
+    def training_state() -> dict[str, Any]:
+        return {
+            "config": config.to_dict(), "n_features": env.n_features, "n_actions": env.n_actions,
+            "qnet": qnet.state_dict(), "loss": loss_module.state_dict(), "optimizer": optimizer.state_dict(),
+            "egreedy": agent.egreedy.state_dict(),
+            "target_counter": getattr(target_updater, "counter", 0),
+            "buffer": buffer.state_dict() if config.checkpoint.save_buffer else None,
+            "rng": torch.get_rng_state(), "history": history,
+            "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+            "wall_time": counters["wall_offset"] + time.monotonic() - started,
+        }
+
+    mcap_logger = _open_mcap(config, out_dir)
+    next_eval = (counters["frames"] // config.train.eval_every_frames + 1) * config.train.eval_every_frames
+    next_ckpt = (counters["frames"] // config.checkpoint.every_frames + 1) * config.checkpoint.every_frames
+    bar_total = config.train.episodes if stop_on_episodes else config.collector.total_frames
+    bar = tqdm(total=bar_total, initial=counters["episodes"] if stop_on_episodes else counters["frames"],
+               unit="game" if stop_on_episodes else "frame", disable=not config.logger.progress,
+               dynamic_ncols=True, desc=f"train {config.env.game} {config.agent.name}")
+    losses: list[float] = []
+    last_eval = history[-1] if history else None
+    with mcap_logger or nullcontext():
+        for batch in collector or ():
+            frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
+            counters["frames"] += frames
+            counters["episodes"] += episodes_ended
+            buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
+            if mcap_logger is not None:
+                mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
+                                         epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
+            agent.egreedy.step(frames)
+
+            # --- learning: several updates per collected batch once the burn-in is in the buffer ----------------
+            if len(buffer) >= config.collector.init_random_frames:
+                for _ in range(config.optim.updates_per_batch):
+                    sample = buffer.sample()
+                    loss = loss_module(sample)["loss"]
+                    optimizer.zero_grad(set_to_none=True)
+                    loss.backward()
+                    torch.nn.utils.clip_grad_norm_(loss_module.parameters(), config.optim.max_grad_norm)
+                    optimizer.step()
+                    target_updater.step()
+                    counters["updates"] += 1
+                    losses.append(loss.item())
+
+            # --- periodic greedy evaluation and checkpoint --------------------------------------------------------
+            finished = (counters["episodes"] >= config.train.episodes) if stop_on_episodes else \
+                counters["frames"] >= config.collector.total_frames
+            if counters["frames"] >= next_eval or finished:
+                last_eval = periodic_eval(float(np.mean(losses)) if losses else float("nan"))
+                losses.clear()
+                next_eval += config.train.eval_every_frames * max(1, (counters["frames"] - next_eval) // config.train.eval_every_frames + 1)
+            if counters["frames"] >= next_ckpt:
+                save_periodic(training_state(), out_dir, counters["frames"], config.checkpoint.keep)
+                next_ckpt += config.checkpoint.every_frames * max(1, (counters["frames"] - next_ckpt) // config.checkpoint.every_frames + 1)
+            bar.update(episodes_ended if stop_on_episodes else frames)
+            bar.set_postfix(eps=f"{float(agent.egreedy.eps):.3f}", upd=counters["updates"],
+                            success=f"{last_eval['task_success']:.3f}" if last_eval else "-", refresh=False)
+            if finished:
+                break
+        bar.close()
+        if collector is not None:
+            collector.shutdown()
+
+        # --- final agent, evaluation from both seats, curve ---------------------------------------------------------
+        if not history or history[-1]["frames"] != counters["frames"]:
+            periodic_eval(float(np.mean(losses)) if losses else float("nan"))
+        final = {"format": FORMAT, "config": config.to_dict(), "n_features": env.n_features,
+                 "n_actions": env.n_actions, "qnet": qnet.state_dict(), "frames": counters["frames"],
+                 "updates": counters["updates"], "episodes": counters["episodes"]}
+        atomic_save(final, out_dir / FINAL_NAME)
+        report: dict[str, Any] = {
+            "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+            "train_wall_time_s": round(counters["wall_offset"] + time.monotonic() - started, 2),
+            "time_to_0995_s": time_to_success(history),
+        }
+        for seat in ("first", "second"):
+            result = evaluate_agent(config, agent.greedy, games=config.eval.games, seat=seat, seed=seed + 2 * EVAL_SEED_OFFSET,
+                                    logger=mcap_logger, agent_name=config.agent.name)
+            report[seat] = result.to_dict()
+        report["history"] = history
+    atomic_write_text(json.dumps(report, indent=2) + "\n", out_dir / "eval.json")
+    plot_learning_curve(history, out_dir / "learning_curve.png",
+                        title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")
+    env.close()
+    return report
+
+
+def _open_mcap(config: RunConfig, out_dir: Path):
+    """The run's MCAP episode log (logs.EpisodeLogger), or None when switched off."""
+    if not config.logger.mcap:
+        return None
+    from logs import EpisodeLogger
+
+    return EpisodeLogger(out_dir, run_info={"command": "train", "config": config.to_dict()})
+
+
+def resolve_run(config_path: str | None, overrides: list[str], *, out: str | None, seed: int | None,
+                episodes: int | None, resume: str | None, mcap: bool) -> tuple[RunConfig, Path, bool]:
+    """CLI arguments -> (config, run folder, resume?). With --resume the run's own config.yaml is the base."""
+    import yaml
+
+    from pipelines.config import apply_overrides, load_config
+
+    if resume:
+        run_dir = Path(resume)
+        saved = run_dir / "config.yaml"
+        if not saved.is_file():
+            raise FileNotFoundError(f"cannot resume: {str(saved)!r} not found (expected a run folder of ncbot train)")
+        data = yaml.safe_load(saved.read_text()) or {}
+        config = config_from_dict(apply_overrides(data, overrides))
+    else:
+        if config_path is None:
+            raise ValueError("ncbot train needs a CONFIG file (e.g. pipelines/configs/default.yaml) or --resume DIR")
+        config = load_config(config_path, overrides)
+        run_dir = Path(out) if out else Path("runs") / Path(config_path).stem
+    if seed is not None:
+        config.train.seed = seed
+    if episodes is not None:
+        if episodes <= 0:
+            raise ValueError(f"--episodes must be a positive number of training games, got {episodes}")
+        config.train.episodes = episodes
+    if not mcap:
+        config.logger.mcap = False
+    return config, run_dir, bool(resume)
