@@ -22,6 +22,7 @@ from logs.steps import EpisodeAssembler, FinishedEpisode, step_arrays
 
 FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
 DEFAULT_MAX_FILE_BYTES = 256 * 2**20
+MESSAGE_RECORD_OVERHEAD = 31  # MCAP Message record header: opcode, length, channel, sequence, two times
 
 
 def episode_file_name(index: int) -> str:
@@ -93,6 +94,7 @@ class EpisodeLogger:
         self._opened = time.monotonic()
         self._last_log_time = 0
         self._last_flush = time.monotonic()
+        self._pending_bytes = 0  # uncompressed bytes in the open chunk (upper bound of what it adds to the file)
         self._file = None
         self._writer = None
         self._channels: dict[str, int] = {}
@@ -260,6 +262,7 @@ class EpisodeLogger:
         if self._writer is not None:
             self._writer.flush()
             self._file.flush()
+        self._pending_bytes = 0
         self._last_flush = time.monotonic()
 
     def close(self) -> None:
@@ -314,7 +317,11 @@ class EpisodeLogger:
             self._file = None
 
     def _maybe_roll(self) -> None:
-        if self._file is not None and self._file.tell() >= self.max_file_bytes:
+        if self._file is None:
+            return
+        if self._file.tell() + self._pending_bytes >= self.max_file_bytes:
+            self.flush()  # the open chunk might push the file over: write it to learn the real size
+        if self._file.tell() >= self.max_file_bytes:
             self._finish_file()
             self._file_index += 1
             self._open_file()
@@ -327,6 +334,7 @@ class EpisodeLogger:
         self._require_open()
         log_time = self._now_ns()
         data = json.dumps(message, separators=(",", ":")).encode()
+        self._pending_bytes += len(data) + MESSAGE_RECORD_OVERHEAD
         self._writer.add_message(self._channels[topic], log_time=log_time, data=data, publish_time=log_time)
 
     def _write_protobuf(self, topic: str, message: Any, t: float | None) -> None:
@@ -339,8 +347,9 @@ class EpisodeLogger:
         if topic not in self._channels:
             schema_id = register_schema(self._writer, type(message))
             self._channels[topic] = self._writer.register_channel(topic, "protobuf", schema_id)
-        self._writer.add_message(self._channels[topic], log_time=log_time, data=message.SerializeToString(),
-                                 publish_time=log_time)
+        data = message.SerializeToString()
+        self._pending_bytes += len(data) + MESSAGE_RECORD_OVERHEAD
+        self._writer.add_message(self._channels[topic], log_time=log_time, data=data, publish_time=log_time)
         self._maybe_flush()
 
     def _require_open(self) -> None:
