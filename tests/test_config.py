@@ -1,0 +1,85 @@
+"""Config validation: every shipped YAML loads; unknown keys or wrong types exit 2 with one line naming the key."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pipelines.config import apply_overrides, config_from_dict, dump_config, load_config
+
+CONFIGS = Path(__file__).resolve().parents[1] / "pipelines" / "configs"
+
+
+@pytest.mark.parametrize("path", sorted(p for p in CONFIGS.rglob("*.yaml") if p.name != "ablation.yaml"), ids=str)
+def test_every_shipped_run_config_is_valid(path: Path) -> None:
+    config = load_config(path)
+    assert config.agent.name in ("dqn_original", "dqn_variant", "proposed")
+
+
+def test_paper_configs_carry_the_paper_hyper_parameters() -> None:
+    papers = sorted((CONFIGS / "paper").glob("*.yaml"))
+    assert len(papers) == 12
+    for path in papers:
+        config = load_config(path)
+        assert (config.buffer.size, config.buffer.batch_size) == (10_000, 2)
+        assert config.collector.init_random_frames == 1_000
+        assert config.loss.gamma == 0.7 and config.collector.eps_end == 0.005
+        assert config.collector.total_frames == 400_000
+        assert config.agent.hidden in ([100] * 3, [150] * 3)
+
+
+def test_overrides_set_nested_keys_with_yaml_types(tmp_path: Path) -> None:
+    config = load_config(CONFIGS / "default.yaml", ["optim.lr=5e-4", "agent.hidden=[64, 64]", "env.temporal=false"])
+    assert config.optim.lr == 5e-4 and config.agent.hidden == [64, 64] and config.env.temporal is False
+    # the resolved config round-trips through YAML
+    saved = tmp_path / "config.yaml"
+    saved.write_text(dump_config(config))
+    assert load_config(saved) == config
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"optim": {"learning_rate": 1}}, "unknown config key 'optim.learning_rate'; allowed: lr"),
+        ({"optimizer": {}}, "unknown config key 'optimizer'"),
+        ({"optim": {"lr": "fast"}}, "'optim.lr' must be a number"),
+        ({"env": {"batch_size": 1.5}}, "'env.batch_size' must be an integer"),
+        ({"env": {"temporal": "yes"}}, "'env.temporal' must be true/false"),
+        ({"agent": {"name": "dqn"}}, "'agent.name' must be one of 'dqn_original'"),
+        ({"agent": {"hidden": [100, "x"]}}, "'agent.hidden[1]' must be an integer"),
+        ({"loss": {"gamma": 1.5}}, "'loss.gamma' must be between 0 and 1"),
+        ({"buffer": {"size": 0}}, "'buffer.size' must be > 0"),
+        ({"env": 3}, "section 'env' must be a mapping"),
+    ],
+)
+def test_bad_values_give_one_line_naming_the_key(data: dict, message: str) -> None:
+    with pytest.raises(ValueError) as error:
+        config_from_dict(data)
+    assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_override_without_equals_is_rejected() -> None:
+    with pytest.raises(ValueError, match="section.key=value"):
+        apply_overrides({}, ["optim.lr"])
+
+
+def _ncbot(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipelines.cli", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("optim:\n  lr: 0.001\n  momentum: 0.9\n")
+    result = _ncbot("train", str(bad), "--out", str(tmp_path / "run"), cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "ncbot: error: unknown config key 'optim.momentum'; allowed: lr, updates_per_batch, max_grad_norm, weight_decay"
+    ]
+    result = _ncbot("train", str(CONFIGS / "default.yaml"), "buffer.batch_size=big", cwd=tmp_path)
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and "'buffer.batch_size' must be an integer" in result.stderr
+    result = _ncbot("train", str(tmp_path / "missing.yaml"), cwd=tmp_path)
+    assert result.returncode == 2 and "not found" in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "run").exists()
