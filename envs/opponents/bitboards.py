@@ -1,0 +1,231 @@
+"""Bitboard game engines for tree search: the same rules as ``envs.rules``, cut down for speed.
+
+MCTS spends nearly all its time in random playouts, so positions here are small tuples of 9-bit ints and
+every question ("is this a line?", "which squares of this subgrid are free?") is one lookup in a table
+precomputed over all 512 masks. Sides are 0 (to move first in the position we were given) and 1; results are
+``ONGOING`` (-1), 0 or 1 (that side won) or ``DRAW`` (2). ``tests/test_opponents.py`` checks these engines
+against ``envs.rules`` on random games of both games and both free-move variants.
+
+Ultimate positions: ``(subs0, subs1, decided, macro0, macro1, target, turn, n_empty, result)`` with
+``subs*`` tuples of nine 9-bit masks (bit p = square p of subgrid k), ``decided`` a 9-bit mask of won or
+drawn subgrids, ``macro*`` the subgrids each side owns, ``target`` the subgrid the side to move must play in
+(-1: free). Standard positions: ``(bits0, bits1, turn, result)``.
+"""
+from __future__ import annotations
+
+from envs.rules import LINES_3X3, SUBGRID_CELLS
+
+ONGOING, DRAW = -1, 2
+FULL = 0b111111111
+
+LINE_MASKS = tuple(sum(1 << i for i in line) for line in LINES_3X3)
+IS_LINE = tuple(any(mask & line == line for line in LINE_MASKS) for mask in range(512))
+FREE_SQUARES = tuple(tuple(p for p in range(9) if not mask >> p & 1) for mask in range(512))
+N_FREE = tuple(len(squares) for squares in FREE_SQUARES)
+CELL_OF = tuple(tuple(row) for row in SUBGRID_CELLS)  # (subgrid, square) -> full-grid cell
+SUBGRID_OF = tuple((c // 27) * 3 + (c % 9) // 3 for c in range(81))
+SQUARE_OF = tuple(((c // 9) % 3) * 3 + (c % 9) % 3 for c in range(81))
+
+
+class StandardBits:
+    """3x3 Noughts & Crosses on two 9-bit masks."""
+
+    n_cells = 9
+
+    def from_board(self, board: list[int], mover: int, last_move: int = -1, owners=None) -> tuple:
+        """Position from a board of codes (0 empty, else the player's code); ``mover`` is the code to move."""
+        bits0 = sum(1 << c for c in range(9) if board[c] == mover)
+        bits1 = sum(1 << c for c in range(9) if board[c] not in (0, mover))
+        result = 1 if IS_LINE[bits1] else 0 if IS_LINE[bits0] else DRAW if (bits0 | bits1) == FULL else ONGOING
+        return (bits0, bits1, 0, result)
+
+    def result(self, pos: tuple) -> int:
+        return pos[3]
+
+    def turn(self, pos: tuple) -> int:
+        return pos[2]
+
+    def moves(self, pos: tuple) -> list[int]:
+        if pos[3] != ONGOING:
+            return []
+        return list(FREE_SQUARES[pos[0] | pos[1]])
+
+    def play(self, pos: tuple, cell: int) -> tuple:
+        bits0, bits1, turn, _ = pos
+        if turn == 0:
+            bits0 |= 1 << cell
+            mine = bits0
+        else:
+            bits1 |= 1 << cell
+            mine = bits1
+        result = turn if IS_LINE[mine] else DRAW if (bits0 | bits1) == FULL else ONGOING
+        return (bits0, bits1, turn ^ 1, result)
+
+    def rollout(self, pos: tuple, rand) -> int:
+        """Play uniformly random moves to the end; the result (0, 1 or DRAW)."""
+        bits = [pos[0], pos[1]]
+        turn, result = pos[2], pos[3]
+        if result != ONGOING:
+            return result
+        while True:
+            free = FREE_SQUARES[bits[0] | bits[1]]
+            mine = bits[turn] | 1 << free[int(rand() * len(free))]
+            bits[turn] = mine
+            if IS_LINE[mine]:
+                return turn
+            if len(free) == 1:
+                return DRAW
+            turn ^= 1
+
+
+class UltimateBits:
+    """Ultimate Noughts & Crosses on per-subgrid 9-bit masks; ``anywhere`` selects the free-move rule."""
+
+    n_cells = 81
+
+    def __init__(self, free_move: str = "anywhere") -> None:
+        self.anywhere = free_move == "anywhere"
+
+    def from_board(self, board: list[int], mover: int, last_move: int = -1, owners=None) -> tuple:
+        """Position from codes (0 empty), the code to move, the last cell (-1) and optional subgrid owners.
+
+        ``owners`` (9 codes: 0 open, a player's code, 3 drawn) makes ownership exact. Without it owners are
+        read from the board; a subgrid holding lines of both sides (possible only with ``anywhere``, where the
+        board cannot tell who was first) is credited to code 1, as ``envs.opponents.lines.subgrid_owners`` does.
+        """
+        subs0 = tuple(sum(1 << p for p in range(9) if board[CELL_OF[k][p]] == mover) for k in range(9))
+        subs1 = tuple(sum(1 << p for p in range(9) if board[CELL_OF[k][p]] not in (0, mover)) for k in range(9))
+        macro0 = macro1 = decided = 0
+        for k in range(9):
+            if owners is not None:
+                code = int(owners[k])
+                side = -1 if code == 0 else DRAW if code == 3 else 0 if code == mover else 1
+            elif IS_LINE[subs0[k]] and IS_LINE[subs1[k]]:
+                side = 0 if mover == 1 else 1
+            else:
+                side = 0 if IS_LINE[subs0[k]] else 1 if IS_LINE[subs1[k]] else DRAW if (subs0[k] | subs1[k]) == FULL else -1
+            if side != -1:
+                decided |= 1 << k
+                if side == 0:
+                    macro0 |= 1 << k
+                elif side == 1:
+                    macro1 |= 1 << k
+        n_empty = sum(1 for c in range(81) if board[c] == 0)
+        target = -1
+        if last_move >= 0 and not decided >> SQUARE_OF[last_move] & 1:
+            target = SQUARE_OF[last_move]
+        if IS_LINE[macro1]:
+            result = 1
+        elif IS_LINE[macro0]:
+            result = 0
+        else:
+            result = ONGOING
+        pos = (subs0, subs1, decided, macro0, macro1, target, 0, n_empty, result)
+        if result == ONGOING and not self.moves(pos):
+            pos = pos[:8] + (DRAW,)
+        return pos
+
+    def result(self, pos: tuple) -> int:
+        return pos[8]
+
+    def turn(self, pos: tuple) -> int:
+        return pos[6]
+
+    def moves(self, pos: tuple) -> list[int]:
+        subs0, subs1, decided, _, _, target, _, _, result = pos
+        if result != ONGOING:
+            return []
+        if target >= 0:
+            return [CELL_OF[target][p] for p in FREE_SQUARES[subs0[target] | subs1[target]]]
+        cells = [
+            CELL_OF[k][p]
+            for k in range(9)
+            if self.anywhere or not decided >> k & 1
+            for p in FREE_SQUARES[subs0[k] | subs1[k]]
+        ]
+        cells.sort()
+        return cells
+
+    def play(self, pos: tuple, cell: int) -> tuple:
+        subs0, subs1, decided, macro0, macro1, _, turn, n_empty, _ = pos
+        k, p = SUBGRID_OF[cell], SQUARE_OF[cell]
+        result = ONGOING
+        if turn == 0:
+            mine = subs0[k] | 1 << p
+            subs0 = subs0[:k] + (mine,) + subs0[k + 1:]
+        else:
+            mine = subs1[k] | 1 << p
+            subs1 = subs1[:k] + (mine,) + subs1[k + 1:]
+        if not decided >> k & 1:
+            if IS_LINE[mine]:
+                decided |= 1 << k
+                if turn == 0:
+                    macro0 |= 1 << k
+                    result = 0 if IS_LINE[macro0] else ONGOING
+                else:
+                    macro1 |= 1 << k
+                    result = 1 if IS_LINE[macro1] else ONGOING
+            elif (subs0[k] | subs1[k]) == FULL:
+                decided |= 1 << k
+        target = -1 if decided >> p & 1 else p
+        n_empty -= 1
+        if result == ONGOING and (n_empty == 0 if self.anywhere else decided == FULL):
+            result = DRAW
+        return (subs0, subs1, decided, macro0, macro1, target, turn ^ 1, n_empty, result)
+
+    def rollout(self, pos: tuple, rand) -> int:
+        """Play uniformly random legal moves to the end; the result (0, 1 or DRAW). The hot loop of MCTS."""
+        subs0, subs1, decided, macro0, macro1, target, turn, n_empty, result = pos
+        if result != ONGOING:
+            return result
+        subs = [list(subs0), list(subs1)]
+        macro = [macro0, macro1]
+        anywhere = self.anywhere
+        while True:
+            mine_subs = subs[turn]
+            other_subs = subs[turn ^ 1]
+            if target >= 0:
+                k = target
+                free = FREE_SQUARES[mine_subs[k] | other_subs[k]]
+                p = free[int(rand() * len(free))]
+            else:  # free move: uniform over the allowed empty squares, walking subgrids by their free counts
+                if anywhere:
+                    r = int(rand() * n_empty)
+                    for k in range(9):
+                        free = FREE_SQUARES[mine_subs[k] | other_subs[k]]
+                        if r < len(free):
+                            break
+                        r -= len(free)
+                else:
+                    open_free = [
+                        (k, FREE_SQUARES[mine_subs[k] | other_subs[k]]) for k in range(9) if not decided >> k & 1
+                    ]
+                    r = int(rand() * sum(len(free) for _, free in open_free))
+                    for k, free in open_free:
+                        if r < len(free):
+                            break
+                        r -= len(free)
+                p = free[r]
+            mine = mine_subs[k] | 1 << p
+            mine_subs[k] = mine
+            n_empty -= 1
+            if not decided >> k & 1:
+                if IS_LINE[mine]:
+                    decided |= 1 << k
+                    owned = macro[turn] | 1 << k
+                    macro[turn] = owned
+                    if IS_LINE[owned]:
+                        return turn
+                elif (mine | other_subs[k]) == FULL:
+                    decided |= 1 << k
+            if anywhere:
+                if n_empty == 0:
+                    return DRAW
+            elif decided == FULL:
+                return DRAW
+            target = -1 if decided >> p & 1 else p
+            turn ^= 1
+
+
+def make_bits(game: str, free_move: str = "anywhere") -> StandardBits | UltimateBits:
+    return StandardBits() if game == "standard" else UltimateBits(free_move)

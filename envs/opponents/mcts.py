@@ -1,0 +1,116 @@
+"""``mcts:N``: plain UCT with N simulations and uniformly random playouts, for both games and both rule variants.
+
+One search per game in the batch, each on the bitboard engines of ``bitboards.py`` (the random playouts are
+the hot loop). Each decision draws one seed from the caller's torch generator for a private ``random.Random``,
+so results are reproducible from the generator alone. The root's moves are the caller's legal cells: the
+opponent never contradicts the env, even where the board alone leaves subgrid ownership ambiguous.
+"""
+from __future__ import annotations
+
+import math
+import random
+
+import torch
+
+from envs.opponents.base import Opponent, register_opponent
+from envs.opponents.bitboards import DRAW, make_bits
+
+DEFAULT_EXPLORATION = 1.4  # UCB1's sqrt(2), rewards in [0, 1] (win 1, draw 0.5, loss 0)
+
+
+class _Node:
+    """A search-tree node; ``wins`` are counted for ``mover``, the side whose move led here."""
+
+    __slots__ = ("pos", "untried", "children", "visits", "wins", "move", "mover")
+
+    def __init__(self, pos: tuple, untried: list[int], move: int, mover: int) -> None:
+        self.pos = pos
+        self.untried = untried
+        self.children: list[_Node] = []
+        self.visits = 0
+        self.wins = 0.0
+        self.move = move
+        self.mover = mover
+
+
+def uct_search(engine, pos: tuple, root_moves: list[int], simulations: int, rng: random.Random,
+               exploration: float = DEFAULT_EXPLORATION) -> tuple[int, dict[int, tuple[int, float]]]:
+    """Run ``simulations`` UCT iterations from ``pos``; the most visited root move and per-move (visits, win rate)."""
+    rand = rng.random
+    root = _Node(pos, list(root_moves), -1, -1)
+    for _ in range(simulations):
+        node = root
+        path = [root]
+        while not node.untried and node.children:  # selection: UCB1 over fully expanded nodes
+            log_parent = math.log(node.visits)
+            best, best_score = None, -1.0
+            for child in node.children:
+                score = child.wins / child.visits + exploration * math.sqrt(log_parent / child.visits)
+                if score > best_score:
+                    best, best_score = child, score
+            node = best
+            path.append(node)
+        if node.untried:  # expansion: one random untried move
+            untried = node.untried
+            i = int(rand() * len(untried))
+            untried[i], untried[-1] = untried[-1], untried[i]
+            move = untried.pop()
+            child_pos = engine.play(node.pos, move)
+            child = _Node(child_pos, engine.moves(child_pos), move, engine.turn(node.pos))
+            node.children.append(child)
+            node = child
+            path.append(child)
+        result = engine.rollout(node.pos, rand)  # simulation
+        for visited in path:  # backpropagation
+            visited.visits += 1
+            if result == visited.mover:
+                visited.wins += 1.0
+            elif result == DRAW:
+                visited.wins += 0.5
+    stats = {child.move: (child.visits, child.wins / child.visits) for child in root.children}
+    most = max(visits for visits, _ in stats.values())
+    best_moves = sorted(move for move, (visits, _) in stats.items() if visits == most)
+    return best_moves[int(rand() * len(best_moves))], stats
+
+
+class MCTSOpponent(Opponent):
+    """UCT with ``simulations`` random playouts per decision (the paper's future work asks for MCTS opponents)."""
+
+    def __init__(self, simulations: int, game: str = "standard", free_move: str = "anywhere", seed: int = 0,
+                 exploration: float = DEFAULT_EXPLORATION) -> None:
+        super().__init__(game, free_move, seed)
+        if simulations < 1:
+            raise ValueError(f"mcts needs at least 1 simulation, got {simulations}")
+        self.simulations = int(simulations)
+        self.exploration = float(exploration)
+        self.engine = make_bits(self.game, self.free_move)
+        self.name = f"mcts:{self.simulations}"
+
+    def _select(self, boards, last_move, legal, player, generator, owners):
+        cells = torch.zeros(boards.shape[0], dtype=torch.long)
+        has_move = legal.any(dim=1)
+        seeds = torch.randint(0, 2**62, (boards.shape[0],), generator=generator).tolist()
+        board_rows, last_moves, legal_rows = boards.tolist(), last_move.tolist(), legal.tolist()
+        owner_rows = owners.tolist() if owners is not None else [None] * boards.shape[0]
+        for row in torch.nonzero(has_move).flatten().tolist():
+            root_moves = [cell for cell, ok in enumerate(legal_rows[row]) if ok]
+            if len(root_moves) == 1:
+                cells[row] = root_moves[0]
+                continue
+            pos = self.engine.from_board(board_rows[row], player, last_moves[row], owner_rows[row])
+            move, _ = uct_search(self.engine, pos, root_moves, self.simulations, random.Random(seeds[row]), self.exploration)
+            cells[row] = move
+        return cells
+
+
+def _mcts_factory(arg, *, game, free_move, seed):
+    try:
+        simulations = int(arg) if arg is not None else None
+    except ValueError:
+        simulations = None
+    if simulations is None or simulations < 1:
+        raise ValueError(f"opponent 'mcts' needs a positive simulation count, e.g. 'mcts:100'; got 'mcts:{arg or ''}'")
+    return MCTSOpponent(simulations, game, free_move, seed)
+
+
+register_opponent("mcts", _mcts_factory, usage="mcts:N")
