@@ -83,11 +83,12 @@ def ablate_command(
     workers: int = typer.Option(2, "--workers", help="Runs in parallel."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray."),
     out: Optional[str] = typer.Option(None, "--out", help="Runs folder (default from the grid file)."),
+    only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
     from pipelines.ablate import run_ablation
 
-    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out)
+    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:

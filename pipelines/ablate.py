@@ -1,0 +1,150 @@
+"""`ncbot ablate`: run a grid of training runs in parallel processes (local pool or Ray), skipping finished ones.
+
+Each run is a separate `ncbot train` process (its own torch thread, its own crash domain), so a failing run does
+not take the grid down and an interrupted grid resumes: runs with `eval.json` are skipped, runs with periodic
+checkpoints but no `eval.json` are continued with `--resume`.
+"""
+from __future__ import annotations
+
+import itertools
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+GRID_AXES = ("suite", "game", "agent", "temporal", "lookahead")
+
+
+@dataclass
+class PlannedRun:
+    """One cell of the grid: where it goes and how `ncbot train` is called for it."""
+
+    name: str
+    run_dir: Path
+    config: Path
+    overrides: list[str] = field(default_factory=list)
+
+    def command(self) -> list[str]:
+        if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
+            return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
+        return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
+                "--out", str(self.run_dir), "--no-progress"]
+
+    @property
+    def finished(self) -> bool:
+        return (self.run_dir / "eval.json").is_file()
+
+
+def load_grid(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"ablation grid {str(path)!r} not found (expected e.g. pipelines/configs/ablation.yaml)")
+    grid = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(grid, dict):
+        raise ValueError(f"ablation grid {str(path)!r} must be a mapping with 'suites' and 'grid'")
+    unknown = set(grid) - {"runs_dir", "suites", "grid", "baselines_with_temporal"}
+    if unknown:
+        raise ValueError(f"unknown key '{sorted(unknown)[0]}' in ablation grid; allowed: runs_dir, suites, grid, baselines_with_temporal")
+    for key in ("suites", "grid"):
+        if not isinstance(grid.get(key), dict):
+            raise ValueError(f"ablation grid {str(path)!r} needs a '{key}' mapping")
+    bad_axes = set(grid["grid"]) - set(GRID_AXES)
+    if bad_axes:
+        raise ValueError(f"unknown grid axis '{sorted(bad_axes)[0]}'; allowed: {', '.join(GRID_AXES)}")
+    return grid
+
+
+def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None = None) -> list[PlannedRun]:
+    """Every (suite, game, agent, temporal, look-ahead, seed) cell of the grid, validated before anything runs."""
+    from pipelines.config import load_config
+
+    grid_path = Path(grid_path)
+    grid = load_grid(grid_path)
+    if seeds <= 0:
+        raise ValueError(f"--seeds must be a positive number, got {seeds}")
+    runs_dir = Path(runs_dir or grid.get("runs_dir", "runs/ablation"))
+    axes = grid["grid"]
+    values = {axis: axes.get(axis, [None]) for axis in GRID_AXES}
+    planned = []
+    for suite, game, agent, temporal, lookahead in itertools.product(*(values[a] for a in GRID_AXES)):
+        if suite not in grid["suites"]:
+            raise ValueError(f"grid suite {suite!r} is not defined under 'suites' ({', '.join(grid['suites'])})")
+        entry = grid["suites"][suite].get(game)
+        if entry is None:
+            raise ValueError(f"suite {suite!r} has no config for game row {game!r}")
+        if agent != "proposed" and temporal and not grid.get("baselines_with_temporal", False):
+            continue
+        config = (grid_path.parent / entry["config"]).resolve()
+        overrides = list(entry.get("overrides", [])) + [f"agent.name={agent}", f"env.temporal={str(bool(temporal)).lower()}"]
+        if lookahead is not None:
+            overrides.append(f"agent.lookahead={lookahead}")
+        cell = f"{agent}-{'temporal' if temporal else 'notemporal'}" + (f"-{lookahead}" if lookahead else "")
+        for seed in range(seeds):
+            load_config(config, overrides + [f"train.seed={seed}"])  # fail early, with the key, before any run starts
+            planned.append(PlannedRun(
+                name=f"{suite}/{game}/{cell}/seed{seed}", run_dir=runs_dir / suite / game / cell / f"seed{seed}",
+                config=config, overrides=overrides + [f"train.seed={seed}"],
+            ))
+    return planned
+
+
+def _run_local(run: PlannedRun) -> tuple[str, int]:
+    """One `ncbot train` subprocess; its output goes to the run's train.log."""
+    run.run_dir.mkdir(parents=True, exist_ok=True)
+    with open(run.run_dir / "train.log", "a") as log:
+        code = subprocess.run(run.command(), stdout=log, stderr=subprocess.STDOUT).returncode
+    return run.name, code
+
+
+def _ray_available() -> bool:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
+                 out: str | Path | None = None, only: str | None = None) -> dict[str, Any]:
+    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
+    from tqdm import tqdm
+
+    if backend not in ("local", "ray"):
+        raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
+    if backend == "ray" and not _ray_available():
+        raise ValueError("backend 'ray' needs the optional extra: pip install 'ncbot[ray]' (ray is not importable)")
+    if workers <= 0:
+        raise ValueError(f"--workers must be positive, got {workers}")
+    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
+    if only:
+        planned = [run for run in planned if only in run.name]
+    todo = [run for run in planned if not run.finished]
+    failed: list[str] = []
+    bar = tqdm(total=len(todo), unit="run", desc="ablate")
+    if backend == "local":
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for future in as_completed([pool.submit(_run_local, run) for run in todo]):
+                name, code = future.result()
+                if code != 0:
+                    failed.append(name)
+                bar.update(1)
+    else:
+        import ray
+
+        ray.init(num_cpus=workers, include_dashboard=False, ignore_reinit_error=True, log_to_driver=False)
+        remote = ray.remote(num_cpus=1)(_run_local)
+        pending = [remote.remote(run) for run in todo]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            name, code = ray.get(ready[0])
+            if code != 0:
+                failed.append(name)
+            bar.update(1)
+    bar.close()
+    runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
+    return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
+            "failed_runs": failed, "runs_dir": str(runs_dir)}
