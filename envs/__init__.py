@@ -1,1 +1,42 @@
-"""ncbot: envs."""
+"""ncbot envs: the exact rules, the batched engine and the multimodal dialogue game as a TorchRL env.
+
+Imports stay light: torch/torchrl are loaded when ``make_env`` is first called. Importing this package also
+registers the Gymnasium id ``ncbot/NoughtsCrosses-v0`` (see ``envs.gym_wrapper``).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+GYM_ID = "ncbot/NoughtsCrosses-v0"
+
+
+def make_env(
+    game: str = "standard",
+    batch_size: Any = (1,),
+    temporal: bool = True,
+    free_move: str = "anywhere",
+    seed: int = 0,
+    **options: Any,
+):
+    """Build the batched dialogue game env (a TorchRL ``EnvBase`` with batch size ``(B,)``).
+
+    Options: ``starts`` robot|human|alternate|random (who makes the first game move; default robot),
+    ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
+    object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
+    uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100).
+    """
+    from envs.dialogue_env import DialogueGameEnv
+
+    return DialogueGameEnv(game=game, batch_size=batch_size, temporal=temporal, free_move=free_move, seed=seed, **options)
+
+
+def _register_gym() -> None:
+    try:
+        from gymnasium.envs.registration import register, registry
+    except ImportError:  # gymnasium is a dependency; stay importable without it anyway
+        return
+    if GYM_ID not in registry:
+        register(id=GYM_ID, entry_point="envs.gym_wrapper:NoughtsCrossesGymEnv")
+
+
+_register_gym()

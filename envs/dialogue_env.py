@@ -1,0 +1,383 @@
+"""The multimodal dialogue game as a batched TorchRL env: one episode is one conversation with a simulated user.
+
+Why stateful and batched: EnvBase costs ~70 µs per call whatever the batch, so the env keeps B games as
+tensors and advances all of them with whole-batch ops; the simulated user (its dialogue reply and, on its
+turn, its game move) runs inside ``step``, so the learner sees the single-agent MDP of the paper.
+
+Flow of a dialogue: greeting, name, play request (the user may decline, or ask to play itself), then the
+game: on its turn the robot takes a square (GameMove) and the user answers at once with its own move;
+when the user starts, the robot first says "your turn" (Request(userGameMove)). After the game: feedback
+(win / loose / draw) and closing, which ends the episode. The act filter (Naive Bayes over the example
+dialogues) and the legal squares form ``action_mask``; an act outside it is refused: -5, nothing changes
+except the action count. See docs/env.md for rewards, features and every key.
+"""
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from envs import dialogue as dlg
+from envs.engine import FREE_MOVE_CHOICES, make_engine
+
+GAME_CHOICES = ("standard", "ultimate")
+STARTS_CHOICES = ("robot", "human", "alternate", "random")
+ILLEGAL_ACT_REWARD = -5.0  # the paper's penalty for a repeated move, applied to every refused act (ours)
+ROBOT, USER = 1, 2
+
+
+class DialogueGameEnv(EnvBase):
+    """Batched Noughts & Crosses dialogue env (3x3 or Ultimate); build it with ``envs.make_env``.
+
+    Metadata: ``action_names``, ``templates``, ``robot_commands`` (per action), ``feature_names``,
+    ``user_act_names``, ``words``, ``n_actions``, ``n_features``, ``game``, ``cells``; ``user_utterance(id)``
+    gives the text of a ``user_utterance`` id and ``describe_action(a)`` the robot's line for an action.
+    """
+
+    batch_locked = True
+
+    def __init__(
+        self,
+        game: str = "standard",
+        batch_size: int | tuple[int, ...] | torch.Size = (1,),
+        temporal: bool = True,
+        free_move: str = "anywhere",
+        seed: int = 0,
+        starts: str = "robot",
+        opponent: Any = "random",
+        asr_confidence: tuple[float, float] = (0.0, 1.0),
+        max_actions: int = 100,
+    ) -> None:
+        batch = _check_batch(batch_size)
+        if game not in GAME_CHOICES:
+            raise ValueError(f"game must be one of {', '.join(GAME_CHOICES)}; got {game!r}")
+        if free_move not in FREE_MOVE_CHOICES:
+            raise ValueError(f"free_move must be one of {', '.join(FREE_MOVE_CHOICES)}; got {free_move!r}")
+        if starts not in STARTS_CHOICES:
+            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {starts!r}")
+        low, high = _check_confidence(asr_confidence)
+        if not isinstance(max_actions, int) or max_actions < 1:
+            raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
+        super().__init__(batch_size=torch.Size([batch]), device="cpu")
+        self.game, self.free_move, self.temporal, self.starts = game, free_move, bool(temporal), starts
+        self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
+        self.engine = make_engine(game, free_move)
+        self.cells = self.engine.cells
+        self.model = dlg.build_dialogue_model(game, free_move)
+        self.opponent, self._opponent_takes_owners = self._resolve_opponent(opponent, seed)
+        self._describe()
+        self._make_specs(batch)
+        self._rng = torch.Generator().manual_seed(int(seed))
+        self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
+        self._init_state(batch)
+        self.set_seed(int(seed))
+
+    # ------------------------------------------------------------------ construction helpers
+    def _resolve_opponent(self, opponent: Any, seed: int) -> tuple[Any, bool]:
+        """None for the inline uniform-random user; else an object with ``select`` (by name or given)."""
+        if isinstance(opponent, str):
+            if opponent == "random":
+                return None, False
+            from envs.opponents import make_opponent, opponent_choices
+
+            try:
+                opponent = make_opponent(opponent, game=self.game, free_move=self.free_move, seed=seed)
+            except (KeyError, ValueError) as error:
+                raise ValueError(f"opponent {opponent!r} unknown or invalid ({error}); choices: {', '.join(opponent_choices())}") from None
+        if not callable(getattr(opponent, "select", None)):
+            raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
+        takes_owners = "owners" in inspect.signature(opponent.select).parameters
+        return opponent, takes_owners
+
+    def _describe(self) -> None:
+        cells, model = self.cells, self.model
+        self.action_names = dlg.action_names(cells)
+        self.n_actions = len(self.action_names)
+        self.templates = [dlg.TEMPLATES[0]] * cells + list(dlg.TEMPLATES[1:])
+        self.robot_commands = [dlg.TYPE_COMMANDS[0]] * cells + list(dlg.TYPE_COMMANDS[1:])
+        self.user_act_names = list(dlg.USER_ACTS)
+        self.words = list(model.words)
+        width = len(str(cells - 1))
+        names = [f"robot_move[{c:0{width}d}]" for c in range(cells)]
+        names += [f"human_move[{c:0{width}d}]" for c in range(cells)]
+        names += [f"command[{c}]" for c in dlg.ROBOT_COMMANDS]
+        names += [f"word[{w}]" for w in model.words]
+        if self.temporal:
+            names += [f"time[{c:0{width}d}]" for c in range(cells)]
+        self.feature_names = names
+        self.n_features = len(names)
+
+    def _make_specs(self, batch: int) -> None:
+        cells, actions, n_utt = self.cells, self.n_actions, len(self.model.utterance_texts)
+        shape = torch.Size([batch])
+
+        def flag(width: int) -> Categorical:
+            return Categorical(2, shape=(batch, width), dtype=torch.bool)
+
+        def ints(low: int, high: int, width: int = 1, dtype=torch.int64) -> Bounded:
+            return Bounded(low=low, high=high, shape=(batch, width), dtype=dtype)
+
+        self.observation_spec = Composite(
+            observation=Bounded(low=0.0, high=1.0, shape=(batch, self.n_features), dtype=torch.float32),
+            action_mask=flag(actions),
+            dialogue_mask=flag(actions),
+            lookahead_reward=Bounded(low=-5.0, high=5.0, shape=(batch, actions), dtype=torch.float32),
+            winning_actions=flag(actions),
+            board=ints(0, 2, cells, torch.int8),
+            outcome=ints(0, 3, 1, torch.int8),
+            robot_first=flag(1),
+            turn=Unbounded(shape=(batch, 1), dtype=torch.int64),
+            user_act=ints(-1, len(dlg.USER_ACTS) - 1),
+            user_move=ints(-1, cells - 1),
+            user_utterance=ints(-1, n_utt - 1),
+            shape=shape,
+        )
+        self.action_spec = Categorical(actions, shape=shape, dtype=torch.int64)
+        self.reward_spec = Unbounded(shape=(batch, 1), dtype=torch.float32)
+        self.done_spec = Composite(done=flag(1), terminated=flag(1), truncated=flag(1), shape=shape)
+
+    def _init_state(self, batch: int) -> None:
+        self.boards = self.engine.new(batch)
+        self._agreed = torch.zeros(batch, dtype=torch.bool)
+        self._closed = torch.zeros(batch, dtype=torch.bool)
+        self._last_sys = torch.zeros(batch, dtype=torch.int64)
+        self._last_user = torch.zeros(batch, dtype=torch.int64)
+        self._robot_first = torch.ones(batch, dtype=torch.bool)
+        self._episodes = torch.zeros(batch, dtype=torch.int64)
+        self._turn = torch.zeros(batch, dtype=torch.int64)
+        self._user_act = torch.full((batch,), -1, dtype=torch.int64)
+        self._user_move = torch.full((batch,), -1, dtype=torch.int64)
+        self._user_utterance = torch.full((batch,), -1, dtype=torch.int64)
+        self._user_words = torch.zeros(batch, len(self.model.words))
+        self._refresh()
+
+    # ------------------------------------------------------------------ metadata helpers
+    def user_utterance(self, utterance_id: int) -> str:
+        """Text of a ``user_utterance`` id ("" for -1, silence)."""
+        utterance_id = int(utterance_id)
+        if utterance_id == -1:
+            return ""
+        if not 0 <= utterance_id < len(self.model.utterance_texts):
+            raise ValueError(f"utterance id {utterance_id} out of range: expected -1..{len(self.model.utterance_texts) - 1}")
+        return self.model.utterance_texts[utterance_id]
+
+    def describe_action(self, action: int) -> str:
+        """The robot's template utterance with its bracketed command, e.g. "I take this one. [who=rob, what=draw, where=b2]"."""
+        action = self._check_action_index(int(action))
+        if action < self.cells:
+            from envs.rules import make_game
+
+            where = make_game(self.game, self.free_move).cell_name(action)
+            return f"{self.templates[action]} [who=rob, what=draw, where={where}]"
+        return f"{self.templates[action]} [who=rob, what={self.robot_commands[action]}]"
+
+    def _check_action_index(self, action: int) -> int:
+        if not 0 <= action < self.n_actions:
+            raise ValueError(f"action {action} is out of range: expected 0..{self.n_actions - 1} ({self.n_actions} dialogue acts of the {self.game} game)")
+        return action
+
+    # ------------------------------------------------------------------ dynamics
+    def _phase(self) -> torch.Tensor:
+        boards = self.boards
+        robot_to_move = (boards.n_marks % 2 == 0) == self._robot_first
+        phase = torch.where(robot_to_move, dlg.ROBOT_TO_MOVE, dlg.USER_TO_MOVE)
+        phase = torch.where(self._agreed, phase, dlg.PRE_GAME)
+        phase = torch.where(boards.outcome > 0, boards.outcome + (dlg.ROBOT_WON - 1), phase)
+        return torch.where(self._closed, dlg.CLOSED, phase)
+
+    def _refresh(self) -> None:
+        """Recompute the mask, look-ahead and observation of the current state (after a step or reset)."""
+        cells, model = self.cells, self.model
+        phase = self._phase()
+        types = model.filter_allowed[self._last_sys, self._last_user, phase]  # (B, T)
+        robot_turn = phase == dlg.ROBOT_TO_MOVE
+        move_ok = types[:, :1] & robot_turn.unsqueeze(1)
+        legal = self.engine.legal(self.boards) & move_ok
+        mask = torch.cat([legal, types[:, 1:]], dim=1)
+        self._mask = mask
+        self._dialogue_mask = torch.cat([types[:, :1].expand(-1, cells), types[:, 1:]], dim=1)
+        lookahead = torch.full(mask.shape, ILLEGAL_ACT_REWARD)
+        lookahead[:, cells:].masked_fill_(mask[:, cells:], 0.0)
+        if bool(legal.any()):
+            move_rewards = self.engine.move_rewards(self.boards, ROBOT)
+            lookahead[:, :cells] = torch.where(legal, move_rewards, ILLEGAL_ACT_REWARD)
+        self._lookahead = lookahead
+
+    def _observation(self) -> torch.Tensor:
+        boards, model = self.boards, self.model
+        words = torch.maximum(model.template_words[self._last_sys], self._user_words)
+        parts = [(boards.board == ROBOT).float(), (boards.board == USER).float(), model.template_commands[self._last_sys], words]
+        if self.temporal:
+            parts.append(boards.move_order.float() / boards.n_marks.clamp(min=1).unsqueeze(1).float())
+        return torch.cat(parts, dim=1)
+
+    def _output(self) -> TensorDict:
+        mask = self._mask
+        batch = self.batch_size
+        return TensorDict(
+            {
+                "observation": self._observation(),
+                "action_mask": mask,
+                "dialogue_mask": self._dialogue_mask,
+                "lookahead_reward": self._lookahead,
+                "winning_actions": mask & (self._lookahead == 5.0),
+                "board": self.boards.board.clone(),
+                "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
+                "robot_first": self._robot_first.unsqueeze(1).clone(),
+                "turn": self._turn.unsqueeze(1).clone(),
+                "user_act": self._user_act.unsqueeze(1).clone(),
+                "user_move": self._user_move.unsqueeze(1).clone(),
+                "user_utterance": self._user_utterance.unsqueeze(1).clone(),
+                "terminated": self._closed.unsqueeze(1).clone(),
+            },
+            batch_size=batch,
+        )
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDict:
+        rows = None
+        if tensordict is not None and "_reset" in tensordict.keys():
+            rows = tensordict.get("_reset").reshape(-1).bool()
+        if rows is None:
+            rows = torch.ones(self.batch_size[0], dtype=torch.bool)
+        if bool(rows.any()):
+            self._reset_rows(rows)
+        out = self._output()
+        out.set("truncated", (self._turn >= self.max_actions).unsqueeze(1) & ~out.get("terminated"))
+        out.set("done", out.get("terminated") | out.get("truncated"))
+        return out
+
+    def _reset_rows(self, rows: torch.Tensor) -> None:
+        fresh = self.engine.new(rows.shape[0])
+        self.boards.copy_rows_from(fresh, rows)
+        for flag in (self._agreed, self._closed):
+            flag.masked_fill_(rows, False)
+        for counter in (self._last_sys, self._last_user, self._turn):
+            counter.masked_fill_(rows, 0)
+        for value in (self._user_act, self._user_move, self._user_utterance):
+            value.masked_fill_(rows, -1)
+        self._user_words.masked_fill_(rows.unsqueeze(1), 0.0)
+        if self.starts == "robot":
+            first = torch.ones_like(rows)
+        elif self.starts == "human":
+            first = torch.zeros_like(rows)
+        elif self.starts == "alternate":
+            first = self._episodes % 2 == 0
+        else:
+            first = torch.rand(rows.shape, generator=self._rng) < 0.5
+        self._robot_first = torch.where(rows, first, self._robot_first)
+        self._episodes += rows.long()
+        self._refresh()
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDict:
+        action = tensordict.get("action").reshape(-1).long()
+        if action.shape[0] != self.batch_size[0]:
+            raise ValueError(f"action must hold {self.batch_size[0]} entries (one per game), got shape {tuple(tensordict.get('action').shape)}")
+        low, high = int(action.min()), int(action.max())
+        if low < 0 or high >= self.n_actions:
+            self._check_action_index(low if low < 0 else high)
+        cells, model = self.cells, self.model
+        index = action.unsqueeze(1)
+        accepted = self._mask.gather(1, index).squeeze(1)
+        reward = self._lookahead.gather(1, index)
+        act_type = torch.where(action < cells, dlg.MOVE, action - cells + 1)
+
+        robot_moves = accepted & (act_type == dlg.MOVE)
+        if bool(robot_moves.any()):
+            self.engine.play(self.boards, action, ROBOT, robot_moves)
+        self._agreed |= accepted & (act_type == dlg.REPLY_YES)
+        self._closed |= accepted & (act_type == dlg.CLOSING)
+
+        # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
+        phase = self._phase()
+        counts = model.reply_counts[act_type, phase]
+        pick = (torch.rand(counts.shape, generator=self._rng) * counts).long()
+        utterance = model.reply_options[act_type, phase, pick.clamp(max=model.reply_options.shape[-1] - 1)]
+        utterance = torch.where(accepted & (counts > 0), utterance, -1)
+        user_act = torch.where(utterance >= 0, model.utterance_acts[utterance.clamp(min=0)], -1)
+        asks_move = (act_type == dlg.MOVE) | (act_type == dlg.REQUEST_USER_MOVE)
+        user_moves = accepted & asks_move & (phase == dlg.USER_TO_MOVE)
+        user_move = torch.full_like(action, -1)
+        if bool(user_moves.any()):
+            cells_taken = self._user_cells(user_moves)
+            self.engine.play(self.boards, cells_taken, USER, user_moves)
+            user_move = torch.where(user_moves, cells_taken, -1)
+        # a move utterance without a move (an act the data never shows) is silence
+        silent = (user_act == dlg.USER_MOVE) & ~user_moves
+        utterance = torch.where(silent, -1, utterance)
+        user_act = torch.where(silent, -1, user_act)
+        self._agreed |= accepted & (act_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES)
+
+        confidence = self.asr_low + (self.asr_high - self.asr_low) * torch.rand(self._user_words.shape, generator=self._rng)
+        heard = model.utterance_words[utterance.clamp(min=0)] * (utterance >= 0).unsqueeze(1) * confidence
+        self._user_words = torch.where(accepted.unsqueeze(1), heard, self._user_words)
+        self._last_sys = torch.where(accepted, act_type + 1, self._last_sys)
+        self._last_user = torch.where(accepted, user_act + 1, self._last_user)
+        self._user_act, self._user_move, self._user_utterance = user_act, user_move, utterance
+        self._turn += 1
+        self._refresh()
+
+        out = self._output()
+        terminated = out.get("terminated")
+        truncated = (self._turn >= self.max_actions).unsqueeze(1) & ~terminated
+        out.set("reward", reward)
+        out.set("truncated", truncated)
+        out.set("done", terminated | truncated)
+        return out
+
+    def _user_cells(self, rows: torch.Tensor) -> torch.Tensor:
+        """(B,) the user's square in ``rows`` (others 0): uniform among legal ones, or the opponent's choice."""
+        legal = self.engine.legal(self.boards) & rows.unsqueeze(1)
+        if self.opponent is None:
+            return (torch.rand(legal.shape, generator=self._rng) + legal).argmax(1)
+        index = rows.nonzero().squeeze(1)
+        boards = self.boards
+        kwargs = {"owners": boards.owners[index].to(torch.int8)} if self._opponent_takes_owners and self.game == "ultimate" else {}
+        chosen = torch.as_tensor(
+            self.opponent.select(boards.board[index], boards.last_move[index], legal[index], USER, self._rng, **kwargs)
+        ).reshape(-1).long()
+        if chosen.shape[0] != index.shape[0] or not bool(legal[index].gather(1, chosen.clamp(0, self.cells - 1).unsqueeze(1)).all()):
+            raise ValueError(f"opponent {self.opponent!r} returned an illegal or malformed move {chosen.tolist()}")
+        cells = torch.zeros(rows.shape[0], dtype=torch.int64)
+        cells[index] = chosen
+        return cells
+
+    def rand_action(self, tensordict: TensorDictBase | None = None) -> TensorDictBase:
+        """A uniformly random action among those the mask allows (never a masked one)."""
+        if tensordict is None:
+            tensordict = TensorDict(batch_size=self.batch_size)
+        mask = tensordict.get("action_mask", None)
+        if mask is None:
+            mask = self._mask
+        tensordict.set("action", (torch.rand(mask.shape, generator=self._action_rng) + mask).argmax(-1))
+        return tensordict
+
+    def _set_seed(self, seed: int | None) -> None:
+        seed = 0 if seed is None else int(seed)
+        self._rng.manual_seed(seed)
+        self._action_rng.manual_seed(seed + 1)
+
+
+def _check_batch(batch_size: Any) -> int:
+    if isinstance(batch_size, int):
+        batch_size = (batch_size,)
+    try:
+        dims = tuple(int(b) for b in batch_size)
+    except TypeError:
+        raise ValueError(f"batch_size must be an int or a 1-tuple like (64,), got {batch_size!r}") from None
+    if len(dims) != 1 or dims[0] < 1:
+        raise ValueError(f"batch_size must be a 1-tuple with a positive size like (64,), got {batch_size!r}")
+    return dims[0]
+
+
+def _check_confidence(bounds: Any) -> tuple[float, float]:
+    try:
+        low, high = (float(v) for v in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(f"asr_confidence must be (low, high) of a uniform distribution in [0, 1], got {bounds!r}") from None
+    if not 0.0 <= low <= high <= 1.0:
+        raise ValueError(f"asr_confidence must satisfy 0 <= low <= high <= 1, got {bounds!r}")
+    return low, high

@@ -1,0 +1,339 @@
+"""Batched tensor engine for 3x3 and Ultimate Noughts & Crosses: whole-batch torch ops, no Python loop over games.
+
+Why tables: every 3x3 grid (the whole 3x3 board, or one Ultimate subgrid) has one of 3^9 = 19,683 contents.
+Precomputing, for each, "has a line", "is full", "every line blocked" and the bitmask of squares that would
+complete a line lets the engine answer those questions for a whole batch with a single gather. The grid of
+subgrid owners (open, robot, human, drawn) has 4^9 = 262,144 contents and gets the same treatment. This is
+what makes the one-step look-ahead of all 81 Ultimate moves cheap: it is a handful of (B, 81) integer ops
+instead of replaying 81 boards.
+
+Marks: 0 empty, 1 and 2 the two players (in the env 1 = robot, 2 = human, whoever starts). Cells are numbered
+row-major on the full grid (as in ``envs.rules``). Boards are ``(B, cells)`` int8.
+
+Outcome codes: 0 game on, 1 / 2 that player won, 3 draw.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from functools import lru_cache
+
+import numpy as np
+import torch
+
+FREE_MOVE_CHOICES = ("anywhere", "open_subgrids")
+LINES_3X3 = np.array([(0, 1, 2), (3, 4, 5), (6, 7, 8), (0, 3, 6), (1, 4, 7), (2, 5, 8), (0, 4, 8), (2, 4, 6)])
+DRAWN = 3
+
+# Look-ahead outcome codes of a move (see ``move_rewards``), in priority order.
+REWARD_WIN, REWARD_DRAW, REWARD_LOSE, REWARD_ABOUT_TO_WIN, REWARD_ABOUT_TO_DRAW = 5.0, 1.0, -5.0, 5.0, 1.0
+
+
+@dataclass(frozen=True)
+class GridTables:
+    """Per-content facts about a 3x3 grid, indexed by its base-``radix`` code sum(v_i * radix^i).
+
+    ``win_bits[p]``: bitmask of empty squares whose taking by ``p`` completes a line of ``p``.
+    ``has_line[p]``: the grid holds a line of ``p``. ``full``: no empty square. ``dead``: every line holds
+    marks of both players or a value >= 3 (a drawn subgrid), so nobody can ever complete one.
+    Index 0 of ``win_bits``/``has_line`` is unused so a player code indexes them directly.
+    """
+
+    win_bits: torch.Tensor  # (3, N) int64
+    has_line: torch.Tensor  # (3, N) bool
+    full: torch.Tensor  # (N,) bool
+    dead: torch.Tensor  # (N,) bool
+
+
+@lru_cache(maxsize=2)
+def grid_tables(radix: int) -> GridTables:
+    """Build (once) the tables for grids whose squares take values 0..radix-1 (3: marks; 4: owners)."""
+    codes = np.arange(radix**9, dtype=np.int64)
+    digits = (codes[:, None] // radix ** np.arange(9)) % radix  # (N, 9)
+    on_lines = digits[:, LINES_3X3]  # (N, 8, 3)
+    empty = on_lines == 0
+    cell_bit = (1 << LINES_3X3).astype(np.int64)  # (8, 3)
+    n = len(codes)
+    win_bits = np.zeros((3, n), dtype=np.int64)
+    has_line = np.zeros((3, n), dtype=bool)
+    for player in (1, 2):
+        count = (on_lines == player).sum(-1)  # (N, 8)
+        completing = empty & (count == 2)[..., None]
+        win_bits[player] = np.bitwise_or.reduce(np.where(completing, cell_bit, 0).reshape(n, -1), axis=1)
+        has_line[player] = (count == 3).any(-1)
+    blocked = ((on_lines == 1).any(-1) & (on_lines == 2).any(-1)) | (on_lines >= 3).any(-1)
+    return GridTables(
+        win_bits=torch.from_numpy(win_bits),
+        has_line=torch.from_numpy(has_line),
+        full=torch.from_numpy((digits != 0).all(-1)),
+        dead=torch.from_numpy(blocked.all(-1)),
+    )
+
+
+@dataclass
+class Boards:
+    """The batched game state; every field has the batch as its first dimension.
+
+    ``codes`` holds the base-3 code of each 3x3 grid (1 for the 3x3 game, 9 subgrids for Ultimate) so table
+    look-ups need no re-encoding; ``owners`` the subgrid owners (Ultimate; 0 open, 1, 2, 3 drawn) which
+    depend on the order of play and so cannot be derived from the board. ``move_order[c]`` is the 1-based
+    number of the move that took cell c (0 if empty): the source of the temporal features.
+    """
+
+    board: torch.Tensor  # (B, cells) int8
+    codes: torch.Tensor  # (B, grids) int64
+    owners: torch.Tensor  # (B, 9) int64 (ultimate) / (B, 1) unused for 3x3
+    last_move: torch.Tensor  # (B,) int64, -1 before the first move
+    n_marks: torch.Tensor  # (B,) int64
+    move_order: torch.Tensor  # (B, cells) int64
+    outcome: torch.Tensor  # (B,) int64
+
+    def copy_rows_from(self, other: "Boards", rows: torch.Tensor) -> None:
+        """Overwrite the rows selected by the bool mask ``rows`` with ``other``'s (used by resets)."""
+        for field in fields(self):
+            mine, theirs = getattr(self, field.name), getattr(other, field.name)
+            mine[rows] = theirs[rows]
+
+
+class _Engine:
+    """What both games share: state creation and the player-agnostic helpers."""
+
+    game: str
+    cells: int
+    grids: int
+
+    def __init__(self) -> None:
+        self.tables = grid_tables(3)
+        self.pow3 = 3 ** torch.arange(9, dtype=torch.int64)
+
+    def new(self, batch: int) -> Boards:
+        """``batch`` empty boards."""
+        return Boards(
+            board=torch.zeros(batch, self.cells, dtype=torch.int8),
+            codes=torch.zeros(batch, self.grids, dtype=torch.int64),
+            owners=torch.zeros(batch, 9 if self.grids == 9 else 1, dtype=torch.int64),
+            last_move=torch.full((batch,), -1, dtype=torch.int64),
+            n_marks=torch.zeros(batch, dtype=torch.int64),
+            move_order=torch.zeros(batch, self.cells, dtype=torch.int64),
+            outcome=torch.zeros(batch, dtype=torch.int64),
+        )
+
+    def from_boards(self, boards: torch.Tensor, last_move: torch.Tensor | None = None) -> Boards:
+        """State from raw boards; only valid for 3x3 (Ultimate owners depend on move order: replay instead)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def _place(state: Boards, cells: torch.Tensor, player: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
+        """Put ``player``'s mark on ``cells`` in the ``active`` rows; returns the clamped cell index (B,)."""
+        cells = torch.where(active, cells, torch.zeros_like(cells))
+        index = cells.unsqueeze(1)
+        old = state.board.gather(1, index)
+        state.board.scatter_(1, index, torch.where(active.unsqueeze(1), player.unsqueeze(1).to(torch.int8), old))
+        state.n_marks += active.long()
+        old_order = state.move_order.gather(1, index)
+        state.move_order.scatter_(1, index, torch.where(active.unsqueeze(1), state.n_marks.unsqueeze(1), old_order))
+        state.last_move = torch.where(active, cells, state.last_move)
+        return cells
+
+    def legal(self, state: Boards) -> torch.Tensor:
+        """(B, cells) bool: squares the player to move may take; all False once the game is over."""
+        raise NotImplementedError
+
+    def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
+        """In place: ``player`` (int or (B,)) takes ``cells`` (B,) in the ``active`` rows (default all).
+
+        The caller guarantees the moves are legal (use ``legal``); the engine does not re-check, for speed.
+        """
+        raise NotImplementedError
+
+    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+        """(B, cells) float32: the paper's one-step reward if ``player`` took each cell now (legal cells only).
+
+        Priority: +5 the move wins; +1 it ends the game in a draw; -5 "about to lose": afterwards the opponent
+        has a legal move that wins at once; +1 "about to draw": the move makes the position dead (no line can
+        be completed by anyone any more) when it was not before; +5 "about to win": afterwards ``player``
+        has a square that would win the game if it were ``player``'s turn (in Ultimate ignoring where the
+        opponent's reply sends it); else 0. Entries of illegal cells are meaningless (the env overwrites them).
+        """
+        raise NotImplementedError
+
+    @staticmethod
+    def _as_player(player: torch.Tensor | int, like: torch.Tensor) -> torch.Tensor:
+        if isinstance(player, int):
+            return torch.full_like(like, player)
+        return player.long()
+
+
+class StandardEngine(_Engine):
+    """3x3: one grid; its base-3 code answers every question."""
+
+    game = "standard"
+    cells = 9
+    grids = 1
+
+    def from_boards(self, boards: torch.Tensor, last_move: torch.Tensor | None = None) -> Boards:
+        """State of arbitrary 3x3 ``boards`` (B, 9) (move order unknown: cells get order 1..n in index order)."""
+        state = self.new(boards.shape[0])
+        state.board.copy_(boards.to(torch.int8))
+        state.codes[:, 0] = (boards.long() * self.pow3).sum(1)
+        state.n_marks = (boards != 0).sum(1)
+        state.move_order = (boards != 0).long().cumsum(1) * (boards != 0)
+        if last_move is not None:
+            state.last_move = last_move.clone()
+        self._update_outcome(state)
+        return state
+
+    def _update_outcome(self, state: Boards) -> None:
+        code = state.codes[:, 0]
+        tables = self.tables
+        state.outcome = torch.where(
+            tables.has_line[1, code], 1, torch.where(tables.has_line[2, code], 2, torch.where(tables.full[code], DRAWN, 0))
+        )
+
+    def legal(self, state: Boards) -> torch.Tensor:
+        return (state.board == 0) & (state.outcome == 0).unsqueeze(1)
+
+    def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
+        if active is None:
+            active = torch.ones_like(cells, dtype=torch.bool)
+        player = self._as_player(player, cells)
+        cells = self._place(state, cells, player, active)
+        state.codes[:, 0] += torch.where(active, player * self.pow3[cells], 0)
+        self._update_outcome(state)
+
+    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+        tables, opponent = self.tables, 3 - player
+        code = state.codes[:, :1]  # (B, 1)
+        empty = state.board == 0
+        after = torch.where(empty, code + player * self.pow3, code)  # (B, 9): code after taking each cell
+        win = tables.has_line[player][after]
+        draw = tables.full[after] & ~win
+        about_to_lose = tables.win_bits[opponent][after] != 0
+        about_to_draw = tables.dead[after] & ~tables.dead[code]
+        about_to_win = tables.win_bits[player][after] != 0
+        return _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
+
+
+def _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win) -> torch.Tensor:
+    """Combine the per-move events into the paper's reward, highest-priority event first."""
+    reward = torch.where(about_to_win, REWARD_ABOUT_TO_WIN, 0.0)
+    reward = torch.where(about_to_draw, REWARD_ABOUT_TO_DRAW, reward)
+    reward = torch.where(about_to_lose, REWARD_LOSE, reward)
+    reward = torch.where(draw, REWARD_DRAW, reward)
+    return torch.where(win, REWARD_WIN, reward).float()
+
+
+class UltimateEngine(_Engine):
+    """Ultimate: nine subgrid codes plus the owner grid; the look-ahead works on bitmasks of subgrids."""
+
+    game = "ultimate"
+    cells = 81
+    grids = 9
+
+    def __init__(self, free_move: str = "anywhere") -> None:
+        if free_move not in FREE_MOVE_CHOICES:
+            raise ValueError(f"free_move must be one of {', '.join(FREE_MOVE_CHOICES)}; got {free_move!r}")
+        super().__init__()
+        self.free_move = free_move
+        self.meta = grid_tables(4)
+        cell = torch.arange(81)
+        self.subgrid_of = (cell // 27) * 3 + (cell % 9) // 3  # (81,) subgrid holding the cell
+        self.position_of = ((cell // 9) % 3) * 3 + (cell % 9) % 3  # (81,) position inside it = redirect target
+        self.pow4 = 4 ** torch.arange(9, dtype=torch.int64)
+        self.subgrid_bit = 1 << self.subgrid_of  # (81,)
+        self.bit9 = 1 << torch.arange(9)
+        self.cell_pow3 = self.pow3[self.position_of]  # (81,)
+
+    def legal(self, state: Boards) -> torch.Tensor:
+        empty = state.board == 0
+        last = state.last_move
+        target = self.position_of[last.clamp(min=0)]  # (B,)
+        forced = (last >= 0) & (state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0)
+        in_target = self.subgrid_of.unsqueeze(0) == target.unsqueeze(1)
+        if self.free_move == "anywhere":
+            free = empty
+        else:
+            free = empty & (state.owners[:, self.subgrid_of] == 0)
+        legal = torch.where(forced.unsqueeze(1), empty & in_target, free)
+        return legal & (state.outcome == 0).unsqueeze(1)
+
+    def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
+        if active is None:
+            active = torch.ones_like(cells, dtype=torch.bool)
+        player = self._as_player(player, cells)
+        cells = self._place(state, cells, player, active)
+        sub = self.subgrid_of[cells].unsqueeze(1)
+        code = state.codes.gather(1, sub).squeeze(1) + torch.where(active, player * self.cell_pow3[cells], 0)
+        state.codes.scatter_(1, sub, code.unsqueeze(1))
+        owner = state.owners.gather(1, sub).squeeze(1)
+        deciding = active & (owner == 0)
+        won = deciding & self.tables.has_line[player, code]
+        drawn = deciding & ~won & self.tables.full[code]
+        owner = torch.where(won, player, torch.where(drawn, DRAWN, owner))
+        state.owners.scatter_(1, sub, owner.unsqueeze(1))
+        meta = (state.owners * self.pow4).sum(1)
+        game_won = active & self.meta.has_line[player, meta]
+        no_move_left = active & ~self._next_player_can_move(state)
+        outcome = torch.where(game_won, player, torch.where(no_move_left, DRAWN, state.outcome))
+        state.outcome = torch.where(active & (state.outcome == 0), outcome, state.outcome)
+
+    def _next_player_can_move(self, state: Boards) -> torch.Tensor:
+        """(B,) whether the player to move has any legal square (ignoring whether the game was won)."""
+        target = self.position_of[state.last_move.clamp(min=0)]
+        target_open = state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0
+        if self.free_move == "anywhere":
+            free = state.n_marks < 81
+        else:
+            free = (state.owners == 0).any(1)
+        return target_open | free
+
+    def _open_bits(self, table_bits: torch.Tensor, owners: torch.Tensor) -> torch.Tensor:
+        """(B,) bitmask over subgrids: open subgrids whose ``table_bits`` entry is non-zero."""
+        return (((table_bits != 0) & (owners == 0)).long() * self.bit9).sum(1)
+
+    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+        tables, meta, opponent = self.tables, self.meta, 3 - player
+        sub, pos = self.subgrid_of, self.position_of  # (81,)
+        empty = state.board == 0
+        owner_s = state.owners[:, sub]  # (B, 81) owner of each candidate's subgrid
+        code_s = state.codes[:, sub]
+        code_after = torch.where(empty, code_s + player * self.cell_pow3, code_s)
+        open_s = owner_s == 0
+        wins_sub = open_s & tables.has_line[player][code_after]
+        draws_sub = open_s & ~wins_sub & tables.full[code_after]
+        owner_after_s = owner_s + wins_sub.long() * player + draws_sub.long() * DRAWN
+        meta_code = (state.owners * self.pow4).sum(1, keepdim=True)  # (B, 1)
+        meta_after = meta_code + (owner_after_s - owner_s) * self.pow4[sub]  # (B, 81)
+        win = meta.has_line[player][meta_after]
+
+        # Where the opponent is sent, and whether it can move at all.
+        owner_target = torch.where(pos == sub, owner_after_s, state.owners[:, pos])
+        target_open = owner_target == 0
+        if self.free_move == "anywhere":
+            free_has_moves = (state.n_marks < 80).unsqueeze(1)
+        else:
+            open_bits = ((state.owners == 0).long() * self.bit9).sum(1, keepdim=True)
+            open_after = torch.where(owner_after_s == 0, open_bits, open_bits & ~self.subgrid_bit)
+            free_has_moves = open_after != 0
+        draw = ~win & ~target_open & ~free_has_moves
+
+        def threats(who: int) -> torch.Tensor:
+            """(B, 81) bitmask of open subgrids where ``who`` could complete a line, after each candidate."""
+            now = self._open_bits(tables.win_bits[who][state.codes], state.owners).unsqueeze(1)
+            in_s = (tables.win_bits[who][code_after] != 0) & (owner_after_s == 0)
+            return (now & ~self.subgrid_bit) | (in_s.long() * self.subgrid_bit)
+
+        opponent_threats = threats(opponent) & meta.win_bits[opponent][meta_after]
+        opponent_wins = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
+        about_to_lose = opponent_wins
+        about_to_draw = meta.dead[meta_after] & ~meta.dead[meta_code]
+        about_to_win = (threats(player) & meta.win_bits[player][meta_after]) != 0
+        return _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
+
+
+def make_engine(game: str, free_move: str = "anywhere") -> StandardEngine | UltimateEngine:
+    """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise."""
+    if game == "standard":
+        return StandardEngine()
+    if game == "ultimate":
+        return UltimateEngine(free_move)
+    raise ValueError(f"game must be one of standard, ultimate; got {game!r}")
