@@ -74,6 +74,7 @@ class EpisodeAssembler:
 
     def __init__(self) -> None:
         self.pending: dict[int, PendingEpisode] = {}
+        self.abandoned = 0  # unfinished episodes dropped because a new one began at their batch index
 
     def add(self, arrays: dict[str, np.ndarray], names: NameTables, want_words: bool = True) -> list[FinishedEpisode]:
         """Add every (b, t) step of a batch; return the episodes whose last step was in it, in time order."""
@@ -83,6 +84,12 @@ class EpisodeAssembler:
         for t in range(steps):
             for b in range(batch):
                 episode = self.pending.get(b)
+                if episode is not None and episode.steps and "turn" in arrays and int(arrays["turn"][b, t].reshape(-1)[0]) == 0:
+                    # a new episode starts where an unfinished one was waiting: its stream was abandoned
+                    # (e.g. an evaluation env closed mid-game); drop it rather than glue two games together
+                    del self.pending[b]
+                    self.abandoned += 1
+                    episode = None
                 if episode is None:
                     episode = self.pending[b] = PendingEpisode()
                     if "robot_first" in arrays:

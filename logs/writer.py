@@ -53,8 +53,10 @@ class EpisodeLogger:
         max_file_bytes: start a new file once the current one is this large (checked at episode ends, so a
             file overshoots by at most one episode).
         board_image_phases: phases whose boards are also drawn as PNG on `/board/image`
-            (`foxglove.CompressedImage`). Default eval and robot only: an image per move costs ~0.5 KB, which
-            would break the 2 KB-per-training-episode budget, and training boards are in `/board` as text.
+            (`foxglove.CompressedImage`) so Foxglove shows the game. Default: robot games only. An image per
+            move costs ~0.4 KB and ~0.1 ms, which would break the 2 KB-per-training-episode budget and slow
+            the thousands of periodic evaluation games; every phase still has the board as text on `/board`,
+            and `ncbot logs to-rerun` draws images from it. Pass ("eval", "robot") for a standalone eval log.
         step_phases: phases whose per-action `/step`, `/dialogue` and `/board` messages are written; the
             `/episode` summary is always written. Default: all phases.
         flush_interval_s: close the open chunk when it is older than this; bounds what a kill -9 loses.
@@ -63,7 +65,7 @@ class EpisodeLogger:
 
     def __init__(self, run_dir: str | os.PathLike, run_info: dict[str, Any] | None = None, *,
                  max_file_bytes: int = DEFAULT_MAX_FILE_BYTES,
-                 board_image_phases: Iterable[str] = ("eval", "robot"),
+                 board_image_phases: Iterable[str] = ("robot",),
                  step_phases: Iterable[str] = schemas.PHASES,
                  flush_interval_s: float = 1.0, chunk_bytes: int = 2**20) -> None:
         if max_file_bytes <= 0:

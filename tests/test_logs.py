@@ -82,7 +82,7 @@ def test_unfinished_episodes_wait_across_calls_and_single_steps_equal_a_batch(tm
     td = fake_batch(3, 12, DONE_AT, seed=3)
     with EpisodeLogger(tmp_path / "batch") as log:
         log.record_steps(td, phase="eval", agent="a", seed=0, env=NamedEnv())
-    with EpisodeLogger(tmp_path / "steps") as log:
+    with EpisodeLogger(tmp_path / "steps", board_image_phases=("eval",)) as log:
         ids = []
         for t in range(12):  # one env step at a time, batch size (B,)
             ids += log.record_steps(td[:, t], phase="eval", agent="a", seed=0, env=NamedEnv())
@@ -235,3 +235,14 @@ def test_foreign_mcap_is_rejected(tmp_path: Path) -> None:
         writer.finish()
     with pytest.raises(ValueError, match="without ncbot channels"):
         summarize(path)
+
+
+def test_an_abandoned_episode_is_not_glued_to_the_next_one(tmp_path: Path) -> None:
+    first = fake_batch(2, 4, {})  # two games cut off after 4 steps (e.g. an eval env closed mid-game)
+    second = fake_batch(2, 5, {0: [4], 1: [4]}, seed=1)  # fresh games: turn starts again at 0
+    with EpisodeLogger(tmp_path) as log:
+        assert log.record_steps(first, phase="eval", agent="a", seed=0) == []
+        assert log.record_steps(second, phase="eval", agent="a", seed=0) == [0, 1]
+    records = read_episode_records(tmp_path)
+    assert [len(records[i].steps) for i in (0, 1)] == [5, 5]
+    assert [s["step"] for s in records[0].steps] == [0, 1, 2, 3, 4]

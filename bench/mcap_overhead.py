@@ -1,0 +1,191 @@
+"""What MCAP logging costs: time added to training and bytes per 3x3 training episode (targets: <= 10 %, <= 2 KB).
+
+Three measurements, each printed with the figures it produced:
+
+  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, with and
+          without `EpisodeLogger.record_steps` (phase train, random Q-values of the available actions so the
+          /step messages are as large as in training). This is the WORST case for the time ratio: real
+          training also spends time on gradient updates that logging does not touch.
+  train   the same `ncbot train` run twice, with and without `--no-mcap` (skip with --skip-train).
+  encode  the /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
+          same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
+          logs/README.md.
+
+Timing on a shared 2-core machine is noisy: each variant is run `--repeats` times, interleaved, and the
+median is reported.
+
+    python bench/mcap_overhead.py                       # all three, 3x3
+    python bench/mcap_overhead.py --game ultimate --skip-train
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+torch.set_num_threads(1)
+
+
+def random_policy_run(game: str, batch: int, steps: int, seed: int, log_dir: Path | None) -> dict:
+    """Step the real env `steps` times with random legal actions; optionally log every step."""
+    from envs import make_env
+    from logs import EpisodeLogger
+
+    env = make_env(game=game, batch_size=(batch,), seed=seed)
+    generator = torch.Generator().manual_seed(seed)
+    logger = EpisodeLogger(log_dir, run_info={"bench": "mcap_overhead"}) if log_dir is not None else None
+    td = env.reset()
+    episodes = 0
+    started = time.perf_counter()
+    for _ in range(steps):
+        mask = td["action_mask"]
+        td["action"] = torch.multinomial(mask.float(), 1, generator=generator).squeeze(-1)
+        td["action_value"] = torch.randn(mask.shape, generator=generator) * 2.0
+        td, next_root = env.step_and_maybe_reset(td)
+        episodes += int(td["next", "done"].sum())
+        if logger is not None:
+            logger.record_steps(td, phase="train", agent="random", seed=seed, epsilon=1.0, env_steps=0, env=env)
+        td = next_root
+    if logger is not None:
+        logger.close()
+    elapsed = time.perf_counter() - started
+    env.close()
+    return {"seconds": elapsed, "episodes": episodes, "env_steps": steps * batch}
+
+
+def bench_env(game: str, batch: int, steps: int, repeats: int) -> Path:
+    timings: dict[str, list[float]] = {"off": [], "on": []}
+    sizes = []
+    keep = Path(tempfile.mkdtemp(prefix="mcap_bench_"))
+    for repeat in range(repeats):
+        for variant in ("off", "on"):
+            log_dir = keep / f"run{repeat}" if variant == "on" else None
+            result = random_policy_run(game, batch, steps, seed=repeat, log_dir=log_dir)
+            timings[variant].append(result["seconds"])
+            if log_dir is not None:
+                total = sum(p.stat().st_size for p in log_dir.glob("*.mcap"))
+                sizes.append((total, result["episodes"], result["env_steps"]))
+    off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
+    total_bytes = sum(s[0] for s in sizes)
+    total_episodes = sum(s[1] for s in sizes)
+    total_steps = sum(s[2] for s in sizes)
+    print(f"[env] {game}, batch {batch}, {steps} batched steps x {repeats} repeats (random policy, real env)")
+    print(f"  without logging: median {off:.3f} s   with logging: median {on:.3f} s   "
+          f"-> +{100 * (on - off) / off:.1f} % of an env-only loop "
+          f"({1e6 * (on - off) / (total_steps / repeats):.1f} us per logged env step)")
+    print(f"  disk: {total_bytes / total_episodes:.0f} bytes per training episode "
+          f"({total_episodes} episodes, {total_steps / total_episodes:.2f} steps each, {total_bytes} bytes)")
+    return keep / "run0"
+
+
+def bench_train(config: str, episodes: int, repeats: int) -> None:
+    timings: dict[str, list[float]] = {"off": [], "on": []}
+    bytes_per_episode = []
+    for repeat in range(repeats):
+        for variant in ("off", "on"):
+            out = Path(tempfile.mkdtemp(prefix=f"mcap_train_{variant}_"))
+            command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out),
+                       "--episodes", str(episodes), "--no-progress", "--seed", "0"]
+            if variant == "off":
+                command.append("--no-mcap")
+            started = time.perf_counter()
+            subprocess.run(command, check=True, capture_output=True, text=True)
+            timings[variant].append(time.perf_counter() - started)
+            if variant == "on":
+                from logs.summary import summarize
+
+                summary = summarize(out)
+                bytes_per_episode.append(summary["bytes_per_episode"])
+                by_phase = {phase: stats["episodes"] for phase, stats in summary["by_phase"].items()}
+    off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
+    print(f"[train] ncbot train {config} --episodes {episodes}, {repeats} repeats (whole command wall time)")
+    print(f"  --no-mcap: median {off:.1f} s   with MCAP: median {on:.1f} s   -> +{100 * (on - off) / off:.1f} %")
+    print(f"  disk: {statistics.median(bytes_per_episode):.0f} bytes per logged episode "
+          f"(train and eval episodes together: {by_phase})")
+
+
+def bench_encoding(log_dir: Path) -> None:
+    from mcap.writer import CompressionType, Writer
+
+    from logs.reader import LogReader
+
+    steps = [m.data for m in LogReader(log_dir).messages(["/step"])]
+    step_type, descriptor_set = _protobuf_step_type()
+    results = {}
+    for encoding in ("json", "protobuf"):
+        path = log_dir.parent / f"steps-{encoding}.mcap"
+        started = time.perf_counter()
+        with open(path, "wb") as handle:
+            writer = Writer(handle, compression=CompressionType.ZSTD)
+            writer.start()
+            if encoding == "json":
+                schema = writer.register_schema("ncbot.Step", "jsonschema", b"{}")
+            else:
+                schema = writer.register_schema("ncbot.Step", "protobuf", descriptor_set)
+            channel = writer.register_channel("/step", encoding, schema)
+            for index, step in enumerate(steps):
+                if encoding == "json":
+                    data = json.dumps(step, separators=(",", ":")).encode()
+                else:
+                    data = step_type(episode=step["episode"], step=step["step"], who=step["who"], act=step["act"],
+                                     mask=step["mask"], A=step.get("A", []), A_hat=step.get("A_hat", []),
+                                     q=step.get("q", []), reward=step["reward"], on=step.get("on", []),
+                                     val_index=[int(i) for i, _ in step.get("val", [])],
+                                     val_value=[v for _, v in step.get("val", [])]).SerializeToString()
+                writer.add_message(channel, log_time=index, publish_time=index, data=data)
+            writer.finish()
+        results[encoding] = (path.stat().st_size, time.perf_counter() - started)
+    print(f"[encode] {len(steps)} /step messages from the env run, zstd-chunked MCAP")
+    for encoding, (size, seconds) in results.items():
+        print(f"  {encoding:<8} {size:>9} bytes ({size / len(steps):.1f} per step)  "
+              f"{1e6 * seconds / len(steps):.1f} us per message to encode and write")
+
+
+def _protobuf_step_type():
+    """A protobuf message with the /step fields, built at run time (no protoc needed)."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    proto = descriptor_pb2.FileDescriptorProto(name="ncbot_step.proto", package="ncbot", syntax="proto3")
+    message = proto.message_type.add(name="Step")
+    field = descriptor_pb2.FieldDescriptorProto
+    spec = [("episode", field.TYPE_INT64, False), ("step", field.TYPE_INT32, False), ("who", field.TYPE_STRING, False),
+            ("act", field.TYPE_INT32, False), ("mask", field.TYPE_INT32, True), ("A", field.TYPE_INT32, True),
+            ("A_hat", field.TYPE_INT32, True), ("q", field.TYPE_FLOAT, True), ("reward", field.TYPE_FLOAT, False),
+            ("on", field.TYPE_INT32, True), ("val_index", field.TYPE_INT32, True), ("val_value", field.TYPE_FLOAT, True)]
+    for number, (name, kind, repeated) in enumerate(spec, start=1):
+        message.field.add(name=name, number=number, type=kind,
+                          label=field.LABEL_REPEATED if repeated else field.LABEL_OPTIONAL)
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(proto)
+    descriptor_set = descriptor_pb2.FileDescriptorSet(file=[proto]).SerializeToString()
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName("ncbot.Step")), descriptor_set
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--game", default="standard", choices=["standard", "ultimate"])
+    parser.add_argument("--batch", type=int, default=128, help="env batch size (the default training config uses 128)")
+    parser.add_argument("--steps", type=int, default=300, help="batched env steps per run")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--config", default="pipelines/configs/default.yaml", help="training config for [train]")
+    parser.add_argument("--train-episodes", type=int, default=3000)
+    parser.add_argument("--skip-train", action="store_true")
+    args = parser.parse_args()
+    os.chdir(Path(__file__).resolve().parent.parent)
+    log_dir = bench_env(args.game, args.batch, args.steps, args.repeats)
+    bench_encoding(log_dir)
+    if not args.skip_train:
+        bench_train(args.config, args.train_episodes, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
