@@ -1,0 +1,141 @@
+"""The batched engine agrees with the scalar rules on >= 100,000 random positions per game/variant, and its
+one-step rewards agree with a brute-force reading of the reward definitions that shares no code with it."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from envs.engine import grid_tables, make_engine
+from envs.rules import LINES_3X3, SUBGRID_CELLS, Standard, Ultimate
+
+torch.set_num_threads(1)
+VARIANTS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]
+OUTCOME_CODE = {None: 0, "x": 1, "o": 2, "draw": 3}
+
+
+def rules_of(game: str, free_move: str):
+    return Standard() if game == "standard" else Ultimate(free_move)
+
+
+def random_games(game: str, free_move: str, n_games: int, seed: int):
+    """Play ``n_games`` random games in lockstep with the engine and the rules; yield per ply both views."""
+    engine, rules = make_engine(game, free_move), rules_of(game, free_move)
+    generator = torch.Generator().manual_seed(seed)
+    state = engine.new(n_games)
+    states = [rules.new() for _ in range(n_games)]
+    for _ in range(engine.cells + 1):
+        legal = engine.legal(state)
+        yield engine, rules, state, states, legal
+        active = legal.any(1)
+        if not bool(active.any()):
+            return
+        cells = (torch.rand(legal.shape, generator=generator) + legal).argmax(1)
+        engine.play(state, cells, 1 + state.n_marks % 2, active)
+        for i in active.nonzero().flatten().tolist():
+            states[i] = rules.play(states[i], int(cells[i]))
+
+
+@pytest.mark.parametrize("game,free_move", VARIANTS)
+def test_engine_agrees_with_rules_on_100k_positions(game: str, free_move: str) -> None:
+    n_games = 13_500 if game == "standard" else 1_900
+    checked = 0
+    for engine, rules, state, states, legal in random_games(game, free_move, n_games, seed=7):
+        expected = np.zeros(tuple(legal.shape), dtype=bool)
+        for i, s in enumerate(states):
+            expected[i, rules.legal(s)] = True
+        assert np.array_equal(legal.numpy(), expected)
+        outcomes = [OUTCOME_CODE[rules.outcome(s)] for s in states]
+        assert state.outcome.tolist() == outcomes
+        if game == "ultimate":
+            assert state.owners.tolist() == [list(s.subgrids) for s in states]
+        assert state.board.tolist() == [list(s.board) for s in states]
+        checked += int(legal.any(1).sum())  # positions of games still in progress
+    assert checked >= 100_000
+
+
+def test_tables_match_direct_line_checks() -> None:
+    tables = grid_tables(3)
+    rng = np.random.default_rng(0)
+    for code in rng.integers(0, 3**9, size=2000):
+        grid = [(int(code) // 3**i) % 3 for i in range(9)]
+        for p in (1, 2):
+            line = any(all(grid[c] == p for c in ln) for ln in LINES_3X3)
+            assert bool(tables.has_line[p, code]) == line
+            wins = {c for c in range(9) if grid[c] == 0 and any(c in ln and sum(grid[d] == p for d in ln) == 2 for ln in LINES_3X3)}
+            bits = int(tables.win_bits[p, code])
+            assert {c for c in range(9) if bits >> c & 1} == wins
+        assert bool(tables.full[code]) == (0 not in grid)
+
+
+# ---------------------------------------------------------------- independent reading of the rewards
+def _line_done(marks, p) -> bool:
+    return any(all(marks[c] == p for c in ln) for ln in LINES_3X3)
+
+
+def _dead(values) -> bool:
+    """No line of ``values`` (3x3 grid; 3 = drawn subgrid) can still be completed by either player."""
+    return all(3 in [values[c] for c in ln] or {1, 2} <= {values[c] for c in ln} for ln in LINES_3X3)
+
+
+def _meta(rules, s):
+    return list(s.board) if isinstance(rules, Standard) else list(s.subgrids)
+
+
+def _threat(rules, s, p) -> bool:
+    """Would ``p`` win the game by taking some empty square (ignoring turn and redirect)?"""
+    if isinstance(rules, Standard):
+        return any(s.board[c] == 0 and _line_done([p if i == c else v for i, v in enumerate(s.board)], p) for c in range(9))
+    for k, cells in enumerate(SUBGRID_CELLS):
+        if s.subgrids[k] != 0:
+            continue
+        for c in cells:
+            if s.board[c] == 0:
+                marks = [p if d == c else s.board[d] for d in cells]
+                if _line_done(marks, p) and _line_done([p if i == k else v for i, v in enumerate(s.subgrids)], p):
+                    return True
+    return False
+
+
+def brute_force_reward(rules, s, cell) -> float:
+    p = rules.mark_to_move(s)
+    after = rules.play(s, cell)
+    result = rules.outcome(after)
+    if result == "draw":
+        return 1.0
+    if result is not None:
+        return 5.0
+    if any(rules.outcome(rules.play(after, reply)) not in (None, "draw") for reply in rules.legal(after)):
+        return -5.0
+    if _dead(_meta(rules, after)) and not _dead(_meta(rules, s)):
+        return 1.0
+    if _threat(rules, after, p):
+        return 5.0
+    return 0.0
+
+
+@pytest.mark.parametrize("game,free_move", VARIANTS)
+def test_move_rewards_match_brute_force(game: str, free_move: str) -> None:
+    n_games, every = (300, 1) if game == "standard" else (24, 3)
+    compared = 0
+    for ply, (engine, rules, state, states, legal) in enumerate(random_games(game, free_move, n_games, seed=3)):
+        if ply % every:
+            continue
+        player = 1 + state.n_marks % 2
+        for p in (1, 2):
+            rows = (player == p) & legal.any(1)
+            if not bool(rows.any()):
+                continue
+            rewards = engine.move_rewards(state, p)
+            for i in rows.nonzero().flatten().tolist():
+                for cell in legal[i].nonzero().flatten().tolist():
+                    assert float(rewards[i, cell]) == brute_force_reward(rules, states[i], cell), (i, cell, rules.render(states[i]))
+                    compared += 1
+    assert compared > 1000
+
+
+def test_engine_rejects_unknown_game_and_variant() -> None:
+    with pytest.raises(ValueError, match="game must be one of standard, ultimate"):
+        make_engine("chess")
+    with pytest.raises(ValueError, match="free_move must be one of anywhere, open_subgrids"):
+        make_engine("ultimate", "sometimes")
