@@ -115,7 +115,8 @@ class LogReader:
         if not self.scans:
             self.scan()
         topics = {topic for scan in self.scans.values() for topic in scan.channels}
-        if not topics & set(schemas.NCBOT_TOPICS):
+        ours = any("ncbot.run" in scan.metadata for scan in self.scans.values())  # also a file killed early
+        if not (topics & set(schemas.NCBOT_TOPICS) or ours):
             found = ", ".join(sorted(topics)) or "no channels"
             raise ValueError(f"{self.path} is an MCAP file without ncbot channels ({found}); expected "
                              f"{', '.join(schemas.NCBOT_TOPICS)} as written by logs.EpisodeLogger")
@@ -192,10 +193,13 @@ def _decoder(channel: tuple[str, str, str], schema_of: dict) -> Any:
 
 
 # --------------------------------------------------------------------------- convenience readers
-def read_episodes(path: str | Path) -> list[dict[str, Any]]:
-    """All `/episode` summaries of a file or run directory, in log order."""
+def read_episodes(path: str | Path, require_ncbot: bool = True) -> list[dict[str, Any]]:
+    """All `/episode` summaries of a file or run directory, in log order (ValueError on a foreign MCAP)."""
     reader = LogReader(path)
-    return [message.data for message in reader.messages([schemas.EPISODE_TOPIC])]
+    episodes = [message.data for message in reader.messages([schemas.EPISODE_TOPIC])]
+    if require_ncbot:
+        reader.require_ncbot()
+    return episodes
 
 
 @dataclass

@@ -373,13 +373,13 @@ def _check_phase(phase: str) -> None:
 
 
 def _next_episode_id(run_dir: Path, existing: list[int]) -> int:
-    """Continue episode ids after the largest one in the run's existing files (read with crash recovery)."""
-    if not existing:
-        return 0
+    """Continue after the largest episode id of the run: ids grow with file index, so the newest file that
+    holds any episode has it (files are read with crash recovery)."""
     from logs.reader import read_episodes
 
-    largest = -1
-    for index in existing:
-        for summary in read_episodes(run_dir / episode_file_name(index)):
-            largest = max(largest, int(summary["episode"]))
-    return largest + 1
+    for index in reversed(existing):
+        ids = [int(summary["episode"]) for summary in read_episodes(run_dir / episode_file_name(index),
+                                                                       require_ncbot=False)]
+        if ids:
+            return max(ids) + 1
+    return 0
