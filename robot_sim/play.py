@@ -1,0 +1,393 @@
+"""The closed loop: Pepper plays whole games in the simulator against the simulated human.
+
+The robot perceives only through rendered mouth-camera frames (the vision package's move recogniser,
+Algorithm 1 of the paper) and the dialogue (the env's simulated ASR); it decides with a policy over the SAME
+dialogue env state the agent was trained on, and acts through the simulator. The glue is an "external"
+opponent handed to the env: when the env needs the human's move, the simulated person draws on the sheet
+(choosing on the TRUE board), the recogniser watches the frames, and the cell it reports is what the env,
+and therefore the robot's state, believes. Wins, draws and losses are judged on the true board; every move
+the recogniser got wrong is counted.
+
+One game = one episode: everything goes through `logs.EpisodeLogger` (camera frames as
+`foxglove.CompressedImage`, joint states, transforms, dialogue, the believed board per step, and the true board
+per step in the episode summary); a PNG snapshot of the camera view closes each game.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robot_sim.human import HumanConfig, SimulatedHuman
+from robot_sim.motion import RobotMotion
+from robot_sim.scene import PepperScene, SceneConfig, check_game
+from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
+from robot_sim.speech import Speaker
+
+STARTS_CHOICES = ("robot", "human", "alternate", "random")
+
+
+@dataclass
+class RobotPlayConfig:
+    """Everything `ncbot robot play` can change; defaults are the paper's set-up on our simulator."""
+
+    game: str = "standard"
+    games: int = 1
+    seed: int = 0
+    #: Who opens each game (the env's option): robot (the paper's demo), human, alternate, random.
+    starts: str = "robot"
+    free_move: str = "anywhere"
+    camera_width: int = 640
+    camera_height: int = 480
+    shader: str = "default"
+    #: Simulated seconds between two logged camera frames while the robot moves.
+    robot_frame_period: float = 0.5
+    human: HumanConfig = field(default_factory=HumanConfig)
+    #: Ultimate: False = as in the paper, the robot points and says its move and the human draws it.
+    ultimate_robot_draws: bool = False
+    #: Frames the recogniser may take after the human withdrew before the move counts as unseen.
+    max_perception_frames: int = 20
+    jpeg_quality: int = 80
+    #: Speak through espeak-ng into WAV files (only if installed).
+    audio: bool = False
+    agent_name: str = "lookahead"
+
+    def validate(self) -> None:
+        check_game(self.game)
+        if self.games < 1:
+            raise ValueError(f"games must be at least 1; got {self.games}")
+        if self.starts not in STARTS_CHOICES:
+            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {self.starts!r}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")
+
+
+@dataclass
+class GameRecord:
+    """What happened in one game, judged on the true board."""
+
+    index: int
+    outcome: str                      # win | draw | loss | unfinished (robot's view of the true game)
+    robot_first: bool
+    actions: int
+    misrecognised_moves: int = 0
+    unseen_moves: int = 0
+    human_moves: int = 0
+    robot_moves: int = 0
+    robot_move_seconds: list[float] = field(default_factory=list)
+    dialogue_act_seconds: list[float] = field(default_factory=list)
+    human_turn_seconds: list[float] = field(default_factory=list)
+    frames: int = 0
+    snapshot: str | None = None
+    ik_failures: int = 0
+
+
+class PerceivedHumanOpponent:
+    """An env opponent whose moves are whatever the robot perceived the simulated human draw."""
+
+    def __init__(self, perceive: Callable[[np.ndarray], int]) -> None:
+        self.perceive = perceive
+
+    def select(self, boards, last_move, legal, player, generator=None):
+        import torch
+
+        moves = [self.perceive(row.numpy().astype(bool)) for row in legal]
+        return torch.tensor(moves, dtype=torch.int64)
+
+
+def _rgb_to_bgr(frame: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(frame[:, :, ::-1])
+
+
+def _write_png_atomic(path: Path, image_bgr: np.ndarray) -> None:
+    import cv2
+
+    ok, data = cv2.imencode(".png", image_bgr)
+    if not ok:
+        raise ValueError(f"could not encode the snapshot for {path}")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".snap-", suffix=".png")
+    with os.fdopen(fd, "wb") as handle:
+        handle.write(data.tobytes())
+    os.replace(tmp, path)
+
+
+class RobotGameRunner:
+    """Plays `config.games` games with `policy` (a callable TensorDict -> TensorDict writing `action`)."""
+
+    def __init__(self, config: RobotPlayConfig, policy: Callable, out_dir: str | Path | None = None,
+                 logger: Any = None) -> None:
+        config.validate()
+        self.config = config
+        self.policy = policy
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        if self.out_dir is not None:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.logger = logger
+        self.speaker = Speaker(self.out_dir / "speech" if (config.audio and self.out_dir) else None)
+        self.records: list[GameRecord] = []
+        from envs.rules import make_game
+        from vision.recogniser import MoveRecogniser
+
+        self.rules = make_game(config.game, config.free_move)
+        self.grid = check_game(config.game)
+        self.recogniser = MoveRecogniser(grid=self.grid)
+        self.last_frame: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ logging of sensor streams
+    def _log_frame(self, frame: np.ndarray, t: float) -> None:
+        self.last_frame = frame
+        self._record.frames += 1
+        if self.logger is None:
+            return
+        import cv2
+
+        ok, jpeg = cv2.imencode(".jpg", _rgb_to_bgr(frame), [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality])
+        if ok:
+            self.logger.log_camera(jpeg.tobytes(), t=t)
+        scene = self.scene
+        self.logger.log_joint_states(scene.joint_names, scene.qpos.tolist(), t=t)
+        x, y, yaw = scene.base_pose()
+        self.logger.log_transform("world", "base_footprint", (x, y, 0.0), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)), t=t)
+        cam = scene.links["CameraBottom_frame"].entity_pose
+        w, qx, qy, qz = (float(v) for v in cam.q)
+        self.logger.log_transform("world", "CameraBottom", tuple(float(v) for v in cam.p), (qx, qy, qz, w), t=t)
+
+    # ------------------------------------------------------------------ the human's turn, as the robot sees it
+    def _perceive_human_move(self, legal: np.ndarray) -> int:
+        """Run the simulated human's move in the scene and return the cell the recogniser reports."""
+        started = time.perf_counter()
+        record = self._record
+        human_mark = 1 if self._robot_mark == 2 else 2
+        true_cell = self.human.choose(self.true_state, human_mark)
+        kind = MARK_OF_PLAYER["x" if human_mark == 1 else "o"]
+        known = [0 if ok else 1 for ok in legal]  # only legal cells can hold the new move
+        self.recogniser.reset()
+        found: list = []
+
+        def watch(frame: np.ndarray, t: float) -> None:
+            self._log_frame(frame, t)
+            if not found:
+                result = self.recogniser.update(_rgb_to_bgr(frame), known)
+                if result.status == "move":
+                    found.append(result)
+
+        self.human.draw(true_cell, kind, watch)
+        period = self.config.human.frame_period
+        for _ in range(self.config.max_perception_frames):
+            if found:
+                break
+            self.scene.step(period)
+            watch(self.scene.render(), self.scene.time)
+        self.true_state = self.rules.play(self.true_state, true_cell)
+        self._true_boards.append(self._true_digits())
+        record.human_moves += 1
+        if found:
+            cell = int(found[0].move)
+            label = found[0].label
+            if cell != true_cell or label != ("x" if human_mark == 1 else "o"):
+                record.misrecognised_moves += 1
+        else:
+            # Nothing recognised: the robot asks where the move went and the person answers (ASR).
+            record.unseen_moves += 1
+            self.speaker.say("I could not see your move, where did you draw?")
+            cell = true_cell
+        if not legal[cell]:  # cannot happen (known marks every illegal cell), kept as a guard for the env
+            cell = int(np.flatnonzero(legal)[0])
+        record.human_turn_seconds.append(time.perf_counter() - started)
+        return cell
+
+    def _true_digits(self) -> str:
+        """True board in the env's convention (1 robot, 2 human) as a digit string."""
+        return "".join("0" if v == 0 else ("1" if v == self._robot_mark else "2") for v in self.true_state.board)
+
+    # ------------------------------------------------------------------ the robot's turn
+    def _act(self, action: int, env) -> None:
+        """Say the act's template and do its command: a gesture, or the game move in the scene."""
+        self.speaker.say(env.templates[action])
+        command = env.robot_commands[action]
+        if action < env.cells:
+            record = self._record
+            record.robot_moves += 1
+            legal = self.rules.legal(self.true_state)
+            kind = MARK_OF_PLAYER["x" if self._robot_mark == 1 else "o"]
+            if action in legal:
+                self.true_state = self.rules.play(self.true_state, action)
+            else:
+                self._robot_off_board = True  # the robot believed a cell empty that is not: a perception error
+            mark = MarkSpec(action, kind, int(self._mark_rng.integers(2**31)), ROBOT_INK, 0.6)
+            if self.grid == 3 or self.config.ultimate_robot_draws:
+                self.motion.draw_mark(mark, self.scene.canvas_to_world)
+            else:
+                self.motion.point_at(self.scene.cell_world(action))
+                self.human.draw_for_robot(action, kind, self._log_frame, ROBOT_INK)
+            self._true_boards.append(self._true_digits())
+        elif command in ("hello", "please", "happy", "no", "think", "asr", "read"):
+            self.motion.gesture(command)
+
+    # ------------------------------------------------------------------ one game
+    def play_game(self, index: int) -> GameRecord:
+        from envs import make_env
+        from tensordict import TensorDict
+        from torchrl.envs.utils import step_mdp
+
+        cfg = self.config
+        seed = cfg.seed * 1000 + index
+        self.scene = PepperScene(SceneConfig(game=cfg.game, camera_width=cfg.camera_width,
+                                             camera_height=cfg.camera_height, shader=cfg.shader))
+        self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
+        self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
+        self._mark_rng = np.random.default_rng(seed + 17)
+        opponent = PerceivedHumanOpponent(self._perceive_human_move)
+        starts = cfg.starts
+        if starts == "alternate":
+            starts = "robot" if index % 2 == 0 else "human"
+        env = make_env(cfg.game, batch_size=(1,), seed=seed, starts=starts, free_move=cfg.free_move, opponent=opponent)
+        td = env.reset()
+        robot_first = bool(td["robot_first"].item())
+        self._robot_mark = 1 if robot_first else 2
+        self.true_state = self.rules.new()
+        self._true_boards: list[str] = []
+        self._robot_off_board = False
+        self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0)
+        self._log_frame(self.scene.render(), self.scene.time)
+        while True:
+            started = time.perf_counter()
+            td = self.policy(td)
+            action = int(td["action"].reshape(-1)[0])
+            self._act(action, env)
+            if action < env.cells:
+                self._check_own_mark(action)
+                record.robot_move_seconds.append(time.perf_counter() - started)
+            else:
+                record.dialogue_act_seconds.append(time.perf_counter() - started)
+            td = env.step(td)
+            record.actions += 1
+            if self.logger is not None:
+                done = bool(td["next", "done"].item())
+                extra = self._episode_extra(record) if done else None
+                self.logger.record_steps(td, phase="robot", agent=cfg.agent_name, seed=seed, env=env, extra=extra)
+            if bool(td["next", "done"].item()) or self._robot_off_board:
+                break
+            td = step_mdp(td)
+        record.outcome = self._true_outcome()
+        record.ik_failures = self.motion.stats.ik_failures
+        if self.out_dir is not None and self.last_frame is not None:
+            path = self.out_dir / f"game-{index:03d}.png"
+            _write_png_atomic(path, self._annotated(self.last_frame, record))
+            record.snapshot = str(path)
+        return record
+
+    def _check_own_mark(self, cell: int) -> None:
+        """After drawing, look at the sheet once (the robot's own check that its mark landed in the cell)."""
+        self.last_frame = frame = self.scene.render()
+        self._own_mark_checks = getattr(self, "_own_mark_checks", 0) + 1
+        from vision.grid import read_page
+
+        try:
+            reading = read_page(_rgb_to_bgr(frame), self.grid, self.recogniser.classifier)
+            self._own_mark_misses = getattr(self, "_own_mark_misses", 0) + (reading.cells[cell] == "")
+        except ValueError:
+            self._own_mark_misses = getattr(self, "_own_mark_misses", 0) + 1
+
+    def _true_outcome(self) -> str:
+        if self._robot_off_board:
+            return "unfinished"
+        result = self.rules.outcome(self.true_state)
+        if result is None:
+            return "unfinished"
+        if result == "draw":
+            return "draw"
+        return "win" if (result == "x") == (self._robot_mark == 1) else "loss"
+
+    def _episode_extra(self, record: GameRecord) -> dict[str, Any]:
+        return {"true_boards": list(self._true_boards), "true_outcome": self._true_outcome(),
+                "misrecognised_moves": record.misrecognised_moves, "unseen_moves": record.unseen_moves,
+                "robot_first": record.robot_first}
+
+    def _annotated(self, frame: np.ndarray, record: GameRecord) -> np.ndarray:
+        import cv2
+
+        image = _rgb_to_bgr(frame).copy()
+        text = f"game {record.index}: {record.outcome}  misrecognised {record.misrecognised_moves}"
+        cv2.putText(image, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(image, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
+        return image
+
+    # ------------------------------------------------------------------ many games
+    def run(self, progress: bool = True) -> dict[str, Any]:
+        from tqdm import tqdm
+
+        bar = tqdm(range(self.config.games), desc="robot games", unit="game", disable=not progress)
+        for index in bar:
+            self.records.append(self.play_game(index))
+            bar.set_postfix(outcome=self.records[-1].outcome, misrec=sum(r.misrecognised_moves for r in self.records))
+        return self.report()
+
+    def report(self) -> dict[str, Any]:
+        """The JSON report of `ncbot robot play` (first keys as in the issue, then details)."""
+        records = self.records
+        moves = [s for r in records for s in r.robot_move_seconds]
+        acts = [s for r in records for s in r.dialogue_act_seconds]
+        human = [s for r in records for s in r.human_turn_seconds]
+
+        def mean(values: list[float]) -> float | None:
+            return round(float(np.mean(values)), 3) if values else None
+
+        return {
+            "games": len(records),
+            "wins": sum(r.outcome == "win" for r in records),
+            "draws": sum(r.outcome == "draw" for r in records),
+            "losses": sum(r.outcome == "loss" for r in records),
+            "misrecognised_moves": sum(r.misrecognised_moves for r in records),
+            "seconds_per_robot_turn": mean(moves),
+            "unfinished": sum(r.outcome == "unfinished" for r in records),
+            "unseen_moves": sum(r.unseen_moves for r in records),
+            "human_moves": sum(r.human_moves for r in records),
+            "robot_moves": sum(r.robot_moves for r in records),
+            "own_mark_misread": int(getattr(self, "_own_mark_misses", 0)),
+            "max_seconds_per_robot_turn": round(max(moves), 3) if moves else None,
+            "seconds_per_dialogue_act": mean(acts),
+            "seconds_per_human_turn": mean(human),
+            "frames": sum(r.frames for r in records),
+            "ik_failures": sum(r.ik_failures for r in records),
+            "game": self.config.game,
+            "agent": self.config.agent_name,
+            "seed": self.config.seed,
+            "snapshots": [r.snapshot for r in records if r.snapshot],
+        }
+
+
+def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
+                     log_mcap: bool = True, progress: bool = True) -> dict[str, Any]:
+    """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
+    from robot_sim.policy import LookaheadOnlyPolicy
+
+    config.validate()
+    if policy is None:
+        policy = LookaheadOnlyPolicy(seed=config.seed)
+    logger = None
+    if out_dir is not None and log_mcap:
+        from logs import EpisodeLogger
+
+        logger = EpisodeLogger(out_dir, run_info={"robot_play": asdict(config)})
+    try:
+        runner = RobotGameRunner(config, policy, out_dir=out_dir, logger=logger)
+        report = runner.run(progress=progress)
+    finally:
+        if logger is not None:
+            logger.close()
+    if out_dir is not None:
+        path = Path(out_dir) / "report.json"
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".report-", suffix=".json")
+        with os.fdopen(fd, "w") as handle:
+            json.dump(report, handle, indent=2)
+        os.replace(tmp, path)
+    return report
