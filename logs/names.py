@@ -20,6 +20,7 @@ class NameTables:
     robot_commands: list[str] = field(default_factory=list)
     user_act_names: list[str] = field(default_factory=list)
     feature_names: list[str] = field(default_factory=list)
+    user_utterances: list[str] = field(default_factory=list)
 
     @classmethod
     def from_env(cls, env: Any) -> "NameTables":
@@ -32,8 +33,18 @@ class NameTables:
                 value = getattr(base, name, None)
             return [str(item) for item in value] if value is not None else []
 
-        return cls(table("action_names"), table("templates"), table("robot_commands"),
-                   table("user_act_names"), table("feature_names"))
+        commands = table("robot_commands")
+        describe = getattr(env, "describe_action", None) or getattr(base, "describe_action", None)
+        if callable(describe):  # the full bracketed command, e.g. "who=rob, what=draw, where=b2"
+            lines = [str(describe(act)) for act in range(len(table("action_names")))]
+            commands = [line[line.rfind("[") + 1:-1] if line.endswith("]") else command
+                        for line, command in zip(lines, commands or [""] * len(lines))]
+        utterances: list[str] = []
+        model = getattr(env, "model", None) or getattr(base, "model", None)
+        if model is not None and getattr(model, "utterance_texts", None) is not None:
+            utterances = [str(text) for text in model.utterance_texts]
+        return cls(table("action_names"), table("templates"), commands, table("user_act_names"),
+                   table("feature_names"), utterances)
 
     def action_name(self, act: int) -> str:
         return self.action_names[act] if 0 <= act < len(self.action_names) else f"act{act}"
@@ -47,16 +58,14 @@ class NameTables:
     def user_act_name(self, act: int) -> str:
         return self.user_act_names[act] if 0 <= act < len(self.user_act_names) else f"user_act{act}"
 
-    def user_word_columns(self) -> list[tuple[int, str]]:
-        """Feature columns that hold user words (their value is the ASR confidence), as (index, word)."""
-        columns = []
-        for index, name in enumerate(self.feature_names):
-            lowered = name.lower()
-            for prefix in ("user_word:", "user_word=", "usr_word:", "user:", "uword:"):
-                if lowered.startswith(prefix):
-                    columns.append((index, name[len(prefix):]))
-                    break
-        return columns
+    def user_utterance(self, utterance: int) -> str:
+        return self.user_utterances[utterance] if 0 <= utterance < len(self.user_utterances) else ""
+
+    def word_columns(self) -> dict[str, int]:
+        """Feature column of each vocabulary word (env names them `word[yes]`); a word the user said holds
+        its ASR confidence there in the observation that follows."""
+        return {name[5:-1]: index for index, name in enumerate(self.feature_names)
+                if name.startswith("word[") and name.endswith("]")}
 
     def to_metadata(self) -> dict[str, str]:
         """MCAP metadata values must be strings: one JSON list per table."""

@@ -16,7 +16,7 @@ from logs.schemas import OUTCOMES
 REQUIRED_KEYS = ("action", "action_mask", ("next", "reward"), ("next", "done"), ("next", "board"))
 OPTIONAL_KEYS = ("observation", ("next", "observation"), "lookahead_reward", "winning_actions", "robot_first", "turn", "action_value",
                  ("next", "terminated"), ("next", "truncated"), ("next", "outcome"), ("next", "user_act"),
-                 ("next", "user_move"))
+                 ("next", "user_move"), ("next", "user_utterance"))
 
 
 @dataclass
@@ -28,6 +28,7 @@ class PendingEpisode:
     boards: list[dict] = field(default_factory=list)
     robot_first: bool = True
     total_reward: float = 0.0
+    length: int = 0
 
 
 @dataclass
@@ -38,6 +39,7 @@ class FinishedEpisode:
     dialogue: list[dict]
     boards: list[dict]
     batch_index: int
+    length: int
     seat: str
     outcome: str
     total_reward: float
@@ -76,15 +78,16 @@ class EpisodeAssembler:
         self.pending: dict[int, PendingEpisode] = {}
         self.abandoned = 0  # unfinished episodes dropped because a new one began at their batch index
 
-    def add(self, arrays: dict[str, np.ndarray], names: NameTables, want_words: bool = True) -> list[FinishedEpisode]:
-        """Add every (b, t) step of a batch; return the episodes whose last step was in it, in time order."""
+    def add(self, arrays: dict[str, np.ndarray], names: NameTables, detail: bool = True) -> list[FinishedEpisode]:
+        """Add every (b, t) step of a batch; return the episodes whose last step was in it, in time order.
+        With `detail` False only the summary (return, length, outcome, seat) is kept."""
         batch, steps = arrays["action"].shape[:2]
         finished: list[FinishedEpisode] = []
-        word_columns = names.user_word_columns() if want_words else []
+        word_columns = names.word_columns() if detail else {}
         for t in range(steps):
             for b in range(batch):
                 episode = self.pending.get(b)
-                if episode is not None and episode.steps and "turn" in arrays and int(arrays["turn"][b, t].reshape(-1)[0]) == 0:
+                if episode is not None and episode.length and "turn" in arrays and int(arrays["turn"][b, t].reshape(-1)[0]) == 0:
                     # a new episode starts where an unfinished one was waiting: its stream was abandoned
                     # (e.g. an evaluation env closed mid-game); drop it rather than glue two games together
                     del self.pending[b]
@@ -94,20 +97,22 @@ class EpisodeAssembler:
                     episode = self.pending[b] = PendingEpisode()
                     if "robot_first" in arrays:
                         episode.robot_first = bool(arrays["robot_first"][b, t].reshape(-1)[0])
-                self._add_step(episode, arrays, b, t, names, word_columns)
+                episode.length += 1
+                episode.total_reward += float(arrays["next.reward"][b, t].reshape(-1)[0])
+                if detail:
+                    self._add_step(episode, arrays, b, t, names, word_columns)
                 if bool(arrays["next.done"][b, t].reshape(-1)[0]):
                     finished.append(self._finish(b, arrays, t))
         return finished
 
     def _add_step(self, episode: PendingEpisode, arrays: dict[str, np.ndarray], b: int, t: int,
-                  names: NameTables, word_columns: list[tuple[int, str]]) -> None:
+                  names: NameTables, word_columns: dict[str, int]) -> None:
         act = int(arrays["action"][b, t].reshape(-1)[0]) if arrays["action"][b, t].size == 1 \
             else int(np.argmax(arrays["action"][b, t]))  # one-hot actions from some TorchRL specs
         index = int(arrays["turn"][b, t].reshape(-1)[0]) if "turn" in arrays else len(episode.steps)
         mask = arrays["action_mask"][b, t]
         available = np.flatnonzero(mask)
         reward = float(arrays["next.reward"][b, t].reshape(-1)[0])
-        episode.total_reward += reward
         step: dict[str, Any] = {"episode": -1, "step": index, "who": "robot", "act": act,
                                 "mask": available.tolist(), "reward": round(reward, 4)}
         if "winning_actions" in arrays:
@@ -138,14 +143,17 @@ class EpisodeAssembler:
         if user_act >= 0:
             user_turn: dict[str, Any] = {"episode": -1, "step": index, "speaker": "user", "act": user_act,
                                          "act_name": names.user_act_name(user_act)}
+            utterance = int(arrays["next.user_utterance"][b, t].reshape(-1)[0]) if "next.user_utterance" in arrays else -1
+            text = names.user_utterance(utterance)
+            if text:
+                user_turn["text"] = text
             if "next.user_move" in arrays:
                 user_turn["move"] = int(arrays["next.user_move"][b, t].reshape(-1)[0])
-            if word_columns:
-                # the user's words (value = ASR confidence) are part of the observation AFTER the user spoke
-                next_obs = arrays.get("next.observation")
-                if next_obs is not None:
-                    source = next_obs[b, t]
-                    user_turn["words"] = [[word, round(float(source[i]), 3)] for i, word in word_columns if source[i] > 0]
+            next_obs = arrays.get("next.observation")
+            if text and word_columns and next_obs is not None:
+                # the user's words hold their ASR confidence in the observation after the user spoke
+                said = [word for word in dict.fromkeys(_tokenize(text)) if word in word_columns]
+                user_turn["words"] = [[word, round(float(next_obs[b, t][word_columns[word]]), 3)] for word in said]
             episode.dialogue.append(user_turn)
 
         cells = arrays["next.board"][b, t].astype(np.uint8).ravel()
@@ -161,6 +169,13 @@ class EpisodeAssembler:
         truncated = bool(arrays["next.truncated"][b, t].reshape(-1)[0]) if "next.truncated" in arrays else False
         if "next.terminated" in arrays and bool(arrays["next.terminated"][b, t].reshape(-1)[0]):
             truncated = False
-        return FinishedEpisode(episode.steps, episode.dialogue, episode.boards, b,
+        return FinishedEpisode(episode.steps, episode.dialogue, episode.boards, b, episode.length,
                                "first" if episode.robot_first else "second",
                                OUTCOMES[outcome_code % len(OUTCOMES)], episode.total_reward, truncated)
+
+
+def _tokenize(text: str) -> list[str]:
+    """Words of an utterance exactly as the env turns them into word features."""
+    from envs.dialogue import tokenize
+
+    return tokenize(text)

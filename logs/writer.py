@@ -125,7 +125,7 @@ class EpisodeLogger:
             self._names_source = id(env)
         arrays = step_arrays(td)
         assembler = self._assemblers.setdefault((phase, agent, seed), EpisodeAssembler())
-        finished = assembler.add(arrays, self._names, want_words=phase in self.step_phases)
+        finished = assembler.add(arrays, self._names, detail=phase in self.step_phases)
         if game is None:
             game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
@@ -162,7 +162,7 @@ class EpisodeLogger:
                 previous = board["cells"]
         summary = {"episode": episode_id, "phase": phase, "game": game, "agent": agent, "seed": int(seed),
                    "seat": episode.seat, "outcome": episode.outcome, "return": round(episode.total_reward, 4),
-                   "length": len(episode.steps), "task_success": episode.outcome in ("win", "draw"),
+                   "length": episode.length, "task_success": episode.outcome in ("win", "draw"),
                    "truncated": episode.truncated,
                    "epsilon": None if epsilon is None else round(float(epsilon), 5),
                    "env_steps": None if env_steps is None else int(env_steps),

@@ -64,8 +64,14 @@ def test_round_trip_matches_what_was_logged(tmp_path: Path) -> None:
         assert [turn["act"] for turn in user_turns] == [s["user_act"] for s in want.steps if s["user_act"] >= 0]
         for turn in user_turns:
             assert turn["act_name"] == names.user_act_names[turn["act"]]
-            assert {word for word, _ in turn["words"]} <= {"yes", "no", "name"}
-            assert all(0 < confidence < 1 for _, confidence in turn["words"])
+        texts = [names.model.utterance_texts[s["utterance"]] for s in want.steps if s["user_act"] >= 0]
+        assert [turn["text"] for turn in user_turns] == texts
+        said = {"Yes, sure!": ["yes"], "No.": ["no"], "My name is Sam": ["name"], "bye": []}
+        for turn, want_step in zip(user_turns, [s for s in want.steps if s["user_act"] >= 0]):
+            assert [word for word, _ in turn["words"]] == said[turn["text"]]
+            for word, confidence in turn["words"]:
+                column = names.feature_names.index(f"word[{word}]")
+                assert confidence == pytest.approx(float(want_step["next_features"][column]), abs=1e-3)
 
 
 def test_log_times_increase_and_names_and_run_info_are_stored(tmp_path: Path) -> None:
@@ -246,3 +252,41 @@ def test_an_abandoned_episode_is_not_glued_to_the_next_one(tmp_path: Path) -> No
     records = read_episode_records(tmp_path)
     assert [len(records[i].steps) for i in (0, 1)] == [5, 5]
     assert [s["step"] for s in records[0].steps] == [0, 1, 2, 3, 4]
+
+
+@pytest.mark.parametrize("game", ["standard", "ultimate"])
+def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
+    from envs import make_env
+
+    env = make_env(game=game, batch_size=(4,), seed=5, starts="alternate")
+    generator = torch.Generator().manual_seed(5)
+    steps_by_slot: dict[int, list] = {b: [] for b in range(4)}
+    finished = []
+    td = env.reset()
+    with EpisodeLogger(tmp_path, board_image_phases=("eval",)) as log:
+        while len(finished) < 6:
+            td["action"] = torch.multinomial(td["action_mask"].float(), 1, generator=generator).squeeze(-1)
+            td["action_value"] = torch.randn(td["action_mask"].shape, generator=generator)
+            td, root = env.step_and_maybe_reset(td)
+            for b in range(4):
+                steps_by_slot[b].append(td[b].clone())
+                if td["next", "done"][b]:
+                    finished.append(steps_by_slot[b])
+                    steps_by_slot[b] = []
+            log.record_steps(td, phase="eval", agent="random", seed=5, env=env)
+            td = root
+    records = read_episode_records(tmp_path)
+    assert len(records) >= 6
+    for episode_id, steps in enumerate(finished[:6]):
+        record = records[episode_id]
+        assert record.summary["game"] == game and record.summary["length"] == len(steps)
+        assert record.summary["outcome"] == ("none", "win", "loss", "draw")[int(steps[-1]["next", "outcome"])]
+        assert [s["act"] for s in record.steps] == [int(step["action"]) for step in steps]
+        assert [b["cells"] for b in record.boards] == ["".join(map(str, step["next", "board"].tolist())) for step in steps]
+        robot = [turn for turn in record.dialogue if turn["speaker"] == "robot"]
+        assert [f"{t['text']} [{t['command']}]" for t in robot] == [env.describe_action(int(s["action"])) for s in steps]
+        user = [turn for turn in record.dialogue if turn["speaker"] == "user"]
+        spoken = [env.user_utterance(int(s["next", "user_utterance"])) for s in steps if int(s["next", "user_act"]) >= 0]
+        assert [turn.get("text", "") for turn in user] == spoken
+    counts = LogReader(tmp_path).scan()[0].counts
+    assert counts["/board/image"] == counts["/board"]

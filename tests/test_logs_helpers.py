@@ -18,7 +18,10 @@ class NamedEnv:
     templates = [f"utterance number {i}" for i in range(N_ACTIONS)]
     robot_commands = [f"who=rob, what=cmd{i}" for i in range(N_ACTIONS)]
     user_act_names = ["Provide(name)", "Reply(yes)", "GameMove", "Salutation(closing)"]
-    feature_names = [f"f{i}" for i in range(N_FEATURES - 3)] + ["user_word:yes", "user_word:no", "user_word:name"]
+    feature_names = [f"f{i}" for i in range(N_FEATURES - 3)] + ["word[yes]", "word[no]", "word[name]"]
+
+    class model:  # the env's dialogue model: texts of the simulated user's utterances
+        utterance_texts = ("Yes, sure!", "No.", "My name is Sam", "bye")
 
 
 def fake_batch(batch: int, steps: int, done_at: dict[int, list[int]], seed: int = 0,
@@ -60,6 +63,7 @@ def fake_batch(batch: int, steps: int, done_at: dict[int, list[int]], seed: int 
             "outcome": torch.randint(0, 4, (batch, steps, 1), generator=g).to(torch.int8),
             "user_act": torch.randint(-1, 4, (batch, steps, 1), generator=g),
             "user_move": torch.randint(-1, cells, (batch, steps, 1), generator=g),
+            "user_utterance": torch.randint(0, 4, (batch, steps, 1), generator=g),
         },
     }, batch_size=(batch, steps))
     if with_q:
@@ -96,6 +100,8 @@ def expected_episodes(td: TensorDict) -> list[ExpectedEpisode]:
                 "cells": "".join(str(int(v)) for v in arrays["next.board"][b, t]),
                 "user_act": int(arrays["next.user_act"][b, t, 0]),
                 "features": arrays["observation"][b, t].copy(),
+                "next_features": arrays["next.observation"][b, t].copy(),
+                "utterance": int(arrays["next.user_utterance"][b, t, 0]),
             }
             if "action_value" in arrays:
                 step["q"] = [float(arrays["action_value"][b, t, a]) for a in available]
