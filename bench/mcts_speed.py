@@ -1,0 +1,102 @@
+"""MCTS speed and strength: simulations/s, seconds per 100-simulation game vs random, win rates vs random.
+
+Run by hand (figures go to docs/opponents.md):
+
+    python bench/mcts_speed.py                 # both games, 100 games per strength row
+    python bench/mcts_speed.py --games 300 --budgets 10 100 300
+
+The issue's goal: enough simulations per second that a 100-simulation game against random plays in under
+0.2 s. "needed sims/s" below is that requirement for the measured number of MCTS decisions per game.
+Timings on a shared machine are noisy; run twice and keep the better figure when others are busy.
+"""
+from __future__ import annotations
+
+import argparse
+import random
+import time
+
+import torch
+
+from envs.opponents import make_opponent
+from envs.opponents.arena import play_match
+from envs.opponents.bitboards import DRAW, ONGOING, make_bits
+from envs.opponents.mcts import uct_search
+
+SETTINGS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]
+
+
+def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, seed: int) -> tuple[int, int, float]:
+    """One game MCTS vs uniform random on the bitboards; (result for MCTS: 1/0.5/0 as 2/1/0, decisions, seconds)."""
+    engine = make_bits(game, free_move)
+    rng = random.Random(seed)
+    pos = engine.from_board([0] * engine.n_cells, 1)
+    decisions = 0
+    began = time.perf_counter()
+    while engine.result(pos) == ONGOING:
+        moves = engine.moves(pos)
+        if engine.turn(pos) == mcts_side:
+            move, _ = uct_search(engine, pos, moves, simulations, rng)
+            decisions += 1
+        else:
+            move = moves[int(rng.random() * len(moves))]
+        pos = engine.play(pos, move)
+    seconds = time.perf_counter() - began
+    result = engine.result(pos)
+    points = 1 if result == DRAW else 2 if result == mcts_side else 0
+    return points, decisions, seconds
+
+
+def simulations_per_second(game: str, free_move: str, simulations: int = 2000, seed: int = 0) -> float:
+    """UCT iterations per second from the empty board (the longest playouts: a pessimistic figure)."""
+    engine = make_bits(game, free_move)
+    pos = engine.from_board([0] * engine.n_cells, 1)
+    began = time.perf_counter()
+    uct_search(engine, pos, engine.moves(pos), simulations, random.Random(seed))
+    return simulations / (time.perf_counter() - began)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--games", type=int, default=100, help="games per seat for the strength rows")
+    parser.add_argument("--timing-games", type=int, default=40, help="games per seat for the 100-sim timing")
+    parser.add_argument("--budgets", type=int, nargs="+", default=[10, 100, 300])
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    print("## speed (plain Python bitboards, one core; shared machine, noisy)")
+    print("| game | rule | sims/s from empty board | s per 100-sim game vs random (first / second) | decisions per game | needed sims/s for 0.2 s |")
+    print("|---|---|---|---|---|---|")
+    for game, free_move in SETTINGS:
+        rate = simulations_per_second(game, free_move, seed=args.seed)
+        per_seat = []
+        decisions = 0
+        for side in (0, 1):
+            runs = [engine_game(game, free_move, 100, side, args.seed + i) for i in range(args.timing_games)]
+            per_seat.append(sum(s for _, _, s in runs) / len(runs))
+            decisions += sum(d for _, d, _ in runs)
+        mean_decisions = decisions / (2 * args.timing_games)
+        rule = free_move if game == "ultimate" else "-"
+        print(f"| {game} | {rule} | {rate:,.0f} | {per_seat[0]:.3f} / {per_seat[1]:.3f} | {mean_decisions:.1f} | "
+              f"{mean_decisions * 100 / 0.2:,.0f} |")
+
+    print()
+    print(f"## strength vs random ({args.games} games per seat; score = win 1, draw 0.5)")
+    print("| game | rule | opponent | first: W/D/L | score | second: W/D/L | score | s per game |")
+    print("|---|---|---|---|---|---|---|---|")
+    for game, free_move in SETTINGS:
+        names = [f"mcts:{n}" for n in args.budgets]
+        for name in names:
+            player = make_opponent(name, game=game, free_move=free_move, seed=args.seed)
+            rnd = make_opponent("random", game=game, free_move=free_move, seed=args.seed + 1)
+            first = play_match(player, rnd, args.games, seed=args.seed)
+            second = play_match(rnd, player, args.games, seed=args.seed + 1)
+            per_game = (first.first_seconds + second.second_seconds) / (2 * args.games)
+            rule = free_move if game == "ultimate" else "-"
+            print(f"| {game} | {rule} | {name} | {first.first_wins}/{first.draws}/{first.second_wins} | {first.first_score:.3f} | "
+                  f"{second.second_wins}/{second.draws}/{second.first_wins} | {second.second_score:.3f} | {per_game:.3f} |",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main()
