@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 GYM_ID = "ncbot/NoughtsCrosses-v0"
+OPTION_NAMES = ("starts", "opponent", "asr_confidence", "max_actions")
 
 
 def make_env(
@@ -25,6 +26,9 @@ def make_env(
     object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
     uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100).
     """
+    for name in options:
+        if name not in OPTION_NAMES:
+            raise ValueError(f"unknown option {name!r}; options: {', '.join(OPTION_NAMES)}")
     from envs.dialogue_env import DialogueGameEnv
 
     return DialogueGameEnv(game=game, batch_size=batch_size, temporal=temporal, free_move=free_move, seed=seed, **options)

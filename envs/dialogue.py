@@ -158,11 +158,14 @@ def _parse_user(act: str | None, where: str) -> tuple[int, int]:
 
 
 @lru_cache(maxsize=4)
-def build_dialogue_model(game: str, free_move: str = "anywhere") -> DialogueModel:
-    """Replay ``game``'s example dialogues with the exact rules and fit the filter and the user model."""
+def build_dialogue_model(game: str) -> DialogueModel:
+    """Replay ``game``'s example dialogues with the exact rules and fit the filter and the user model.
+
+    Each dialogue is replayed under its own ``free_move`` rule (default "anywhere", the paper's); what is
+    learnt (acts per dialogue context, user replies) does not depend on the variant the env is run with.
+    """
     from envs.rules import make_game
 
-    rules = make_game(game, free_move)
     dialogues = load_dialogues(game)
     contexts: list[tuple[int, int, int]] = []
     labels: list[int] = []
@@ -170,6 +173,7 @@ def build_dialogue_model(game: str, free_move: str = "anywhere") -> DialogueMode
     utterances: dict[tuple[int, str], int] = {}
     for dialogue in dialogues:
         robot_mark = 1 if dialogue.get("robot_first", True) else 2
+        rules = make_game(game, dialogue.get("free_move", "anywhere"))
         state, agreed, closed, last_sys, last_user = rules.new(), False, False, 0, 0
 
         def phase() -> int:

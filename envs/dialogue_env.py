@@ -67,8 +67,8 @@ class DialogueGameEnv(EnvBase):
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
         self.engine = make_engine(game, free_move)
         self.cells = self.engine.cells
-        self.model = dlg.build_dialogue_model(game, free_move)
-        self.opponent, self._opponent_takes_owners = self._resolve_opponent(opponent, seed)
+        self.model = dlg.build_dialogue_model(game)
+        self.opponent, self._opponent_params = self._resolve_opponent(opponent, seed)
         self._describe()
         self._make_specs(batch)
         self._rng = torch.Generator().manual_seed(int(seed))
@@ -77,11 +77,16 @@ class DialogueGameEnv(EnvBase):
         self.set_seed(int(seed))
 
     # ------------------------------------------------------------------ construction helpers
-    def _resolve_opponent(self, opponent: Any, seed: int) -> tuple[Any, bool]:
-        """None for the inline uniform-random user; else an object with ``select`` (by name or given)."""
+    def _resolve_opponent(self, opponent: Any, seed: int) -> tuple[Any, set[str]]:
+        """None for the inline uniform-random user; else an object with ``select`` (by name or given).
+
+        Also returns which optional keywords its ``select`` takes: ``owners`` (Ultimate subgrid owners) and
+        ``rows`` (the batch indices of the games that move, for opponents that hold per-game input such as
+        ``envs.external_opponent.ExternalOpponent``).
+        """
         if isinstance(opponent, str):
             if opponent == "random":
-                return None, False
+                return None, set()
             from envs.opponents import make_opponent, opponent_choices
 
             try:
@@ -90,8 +95,8 @@ class DialogueGameEnv(EnvBase):
                 raise ValueError(f"opponent {opponent!r} unknown or invalid ({error}); choices: {', '.join(opponent_choices())}") from None
         if not callable(getattr(opponent, "select", None)):
             raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
-        takes_owners = "owners" in inspect.signature(opponent.select).parameters
-        return opponent, takes_owners
+        params = set(inspect.signature(opponent.select).parameters) & {"owners", "rows"}
+        return opponent, params
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model
@@ -335,7 +340,9 @@ class DialogueGameEnv(EnvBase):
             return (torch.rand(legal.shape, generator=self._rng) + legal).argmax(1)
         index = rows.nonzero().squeeze(1)
         boards = self.boards
-        kwargs = {"owners": boards.owners[index].to(torch.int8)} if self._opponent_takes_owners and self.game == "ultimate" else {}
+        kwargs: dict[str, Any] = {"rows": index} if "rows" in self._opponent_params else {}
+        if "owners" in self._opponent_params and self.game == "ultimate":
+            kwargs["owners"] = boards.owners[index].to(torch.int8)
         chosen = torch.as_tensor(
             self.opponent.select(boards.board[index], boards.last_move[index], legal[index], USER, self._rng, **kwargs)
         ).reshape(-1).long()
