@@ -171,13 +171,24 @@ class _Game:
         Empty squares show as ``.``; with ``mark_legal`` the squares the player to move may take show as
         ``·`` and the other empty ones as a blank, which makes the Ultimate redirect visible.
         """
-        legal = set(self.legal(s)) if mark_legal else set()
+        return self.render_board(s.board, legal_cells=self.legal(s) if mark_legal else None)
+
+    def render_board(self, board, symbols: dict[int, str] | None = None, legal_cells=None) -> str:
+        """Draw any board of codes (e.g. the env's 1 robot / 2 human) with ``symbols`` for the codes.
+
+        ``legal_cells`` (an iterable of cells) switches on the legal-square view of ``render``.
+        """
+        symbols = symbols or MARK_NAMES
+        board = [int(v) for v in board]
+        if len(board) != self.n_cells:
+            raise ValueError(f"board must hold {self.n_cells} cells for the {self.name} game, got {len(board)}")
+        legal = None if legal_cells is None else {int(c) for c in legal_cells}
 
         def symbol(cell: int) -> str:
-            mark = s.board[cell]
+            mark = board[cell]
             if mark != EMPTY:
-                return MARK_NAMES[mark]
-            if mark_legal:
+                return symbols[mark]
+            if legal is not None:
                 return "·" if cell in legal else " "
             return "."
 
