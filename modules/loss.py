@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
-from torchrl.envs.utils import step_mdp
 from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimators
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
@@ -70,6 +69,7 @@ class CompetitiveDQNLoss(LossModule):
             MaskedArgmax(ACTION_VALUE_KEY, AVAILABLE_KEY, "action", MAX_AVAILABLE_VALUE_KEY),
         )
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
+        self._qnet_tensor_module = qnet.module  # the bare nn.Module inside the TensorDict wrapper
 
     def make_value_estimator(self, value_type: ValueEstimators | None = None, **hyperparams) -> None:
         """Build the TD(0) estimator (the only one that matches the paper's one-step target), e.g. gamma=0.7."""
@@ -93,32 +93,33 @@ class CompetitiveDQNLoss(LossModule):
                 terminated=self.tensor_keys.terminated,
             )
 
-    def _double_dqn_next_value(self, td_copy: TensorDictBase) -> torch.Tensor:
-        """Q_target(s', argmax over available a' of Q_online(s', a'))."""
-        next_online = step_mdp(td_copy, keep_other=False)
-        next_target = next_online.clone(False)
-        with torch.no_grad(), self.value_network_params.data.to_module(self.value_network):
-            self.value_network(next_online)
-        with self.target_value_network_params.to_module(self.value_network):
-            self.value_network(next_target)
-        next_action = next_online.get("action").unsqueeze(-1)
-        return torch.gather(next_target.get(ACTION_VALUE_KEY), -1, next_action)
+    def _q_values(self, observation: torch.Tensor, params: TensorDictBase) -> torch.Tensor:
+        """Q(s, .) under `params` (online or target), on plain tensors: the TensorDict plumbing of a full module
+        call costs more than the tiny MLP itself, and updates/s is what the learner is judged on."""
+        with params.to_module(self.value_network):
+            return self._qnet_tensor_module(observation)
+
+    def _bootstrap_value(self, tensordict: TensorDictBase) -> torch.Tensor:
+        """max over available a' of Q_target(s', a'); with double DQN, Q_target(s', argmax_available Q_online)."""
+        next_observation = tensordict.get(("next", "observation"))
+        available = tensordict.get(("next", self.tensor_keys.action_mask))
+        target_q = self._q_values(next_observation, self.target_value_network_params)
+        fill = torch.finfo(target_q.dtype).min
+        if not self.double_dqn:
+            return target_q.masked_fill(~available, fill).max(-1, keepdim=True).values
+        online_q = self._q_values(next_observation, self.value_network_params.data)
+        best = online_q.masked_fill(~available, fill).argmax(-1, keepdim=True)
+        return torch.gather(target_q, -1, best)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         """Loss on Q(s, a) against the masked one-step target; writes `td_error` for prioritised replay."""
-        td_copy = tensordict.clone(False)
-        with self.value_network_params.to_module(self.value_network):
-            self.value_network(td_copy)
+        q_values = self._q_values(tensordict.get("observation"), self.value_network_params)
         action = tensordict.get(self.tensor_keys.action)
-        q_values = td_copy.get(self.tensor_keys.action_value)
         predicted = torch.gather(q_values, -1, action.unsqueeze(-1)).squeeze(-1)
-
-        next_value = self._double_dqn_next_value(td_copy) if self.double_dqn else None
-        target_params = None if self.double_dqn else self.target_value_network_params
         with torch.no_grad():
-            target = self.value_estimator.value_estimate(
-                td_copy, target_params=target_params, next_value=next_value
-            ).squeeze(-1)
+            next_value = self._bootstrap_value(tensordict)
+            # TorchRL's TD(0) estimator: y = r + gamma * (1 - terminated) * next_value
+            target = self.value_estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
             tensordict.set(self.tensor_keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
         loss = distance_loss(predicted, target, self.loss_function).mean()
         return TensorDict(

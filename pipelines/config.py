@@ -77,6 +77,7 @@ class LossConfig:
     """Competitive DQN target and error."""
 
     gamma: float = 0.7  # paper: 0.7
+    reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.rewards); metrics use paper
     loss_function: Literal["l2", "huber"] = "l2"  # paper: squared error
     double_dqn: bool = False
     target_update: Literal["hard", "soft"] = "hard"  # paper: hard copy every C updates

@@ -64,8 +64,12 @@ def summarise(outcomes: torch.Tensor, returns: torch.Tensor, lengths: torch.Tens
 
 
 @torch.no_grad()
-def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None) -> EvalResult:
-    """Play `games` greedy games with `policy` on envs from `make_env(batch_size)`; count each slot's first game."""
+def play_games(make_env, policy, games: int, *, logger=None,
+               log_kwargs: dict[str, Any] | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game.
+
+    Returns per-game (outcome codes, returns, lengths).
+    """
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     if games <= 0:
@@ -99,22 +103,34 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
         returns.append(slot_return)
         lengths.append(slot_length)
         remaining -= batch
-    return summarise(torch.cat(outcomes), torch.cat(returns), torch.cat(lengths))
+    return torch.cat(outcomes), torch.cat(returns), torch.cat(lengths)
 
 
 def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent: str | None = None,
                    logger=None, agent_name: str | None = None) -> EvalResult:
-    """Greedy games of a built policy from one seat (first | second | alternate) against `opponent`."""
+    """Greedy games of a built policy from one seat (first | second | alternate) against `opponent`.
+
+    `alternate` plays half of the games from each seat (the first half robot-first).
+    """
     from pipelines.run_env import make_run_env, seat_to_first
 
-    first = seat_to_first(seat)
+    seat_to_first(seat)
+    if games <= 0:
+        raise ValueError(f"games must be a positive number of test games, got {games}")
+    split = {"first": [("robot", games)], "second": [("human", games)],
+             "alternate": [("robot", (games + 1) // 2), ("human", games // 2)]}[seat]
+    per_game = []
+    for offset, (first, count) in enumerate(split):
+        if count == 0:
+            continue
 
-    def make_env(batch_size: int):
-        return make_run_env(config.env, batch_size=batch_size, seed=seed, first=first,
-                            opponent=opponent or config.eval.opponent)
+        def make_env(batch_size: int, first: str = first, offset: int = offset):
+            return make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=first,
+                                opponent=opponent or config.eval.opponent)
 
-    log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed}
-    return play_games(make_env, policy, games, logger=logger, log_kwargs=log_kwargs)
+        log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
+        per_game.append(play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs))
+    return summarise(*(torch.cat(parts) for parts in zip(*per_game)))
 
 
 def load_agent(checkpoint_path):

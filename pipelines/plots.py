@@ -10,7 +10,7 @@ CURVES = (
     ("avg_reward", "avg reward / action"),
     ("task_success", "task success"),
     ("avg_length", "dialogue length"),
-    ("loss", "training loss"),
+    ("train_loss", "training loss"),
 )
 
 
@@ -47,6 +47,8 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
             ax.grid(alpha=0.3)
             if col == 0:
                 ax.set_ylabel(label)
+            if key == "train_loss":
+                ax.set_yscale("log")
             if key == "task_success":
                 ax.axhline(0.995, color="grey", linestyle="--", linewidth=0.8)
     axes[-1, 0].set_xlabel("env frames (robot actions)")

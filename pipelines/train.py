@@ -28,7 +28,7 @@ from pipelines.config import RunConfig, config_from_dict, dump_config
 
 # Keys a transition needs for the loss; everything else the policy wrote (masks, Q-values) stays out of the buffer.
 TRANSITION_KEYS = (
-    "observation", "action_mask", "action",
+    "observation", "action_mask", "action", "outcome", ("next", "outcome"),
     ("next", "observation"), ("next", "action_mask"), ("next", "reward"),
     ("next", "done"), ("next", "terminated"), ("next", "truncated"),
 )
@@ -65,6 +65,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from modules.loss import CompetitiveDQNLoss, make_target_updater
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
+    from modules.rewards import learning_rewards
     from pipelines.evaluate import evaluate_agent
     from pipelines.plots import plot_learning_curve
     from pipelines.run_env import make_run_env
@@ -137,7 +138,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
                                 seed=seed + EVAL_SEED_OFFSET)
         record = {"frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
                   "wall_time": round(counters["wall_offset"] + time.monotonic() - started, 3),
-                  "loss": recent_loss, "epsilon": float(agent.egreedy.eps), **result.to_dict()}
+                  "train_loss": recent_loss, "epsilon": float(agent.egreedy.eps), **result.to_dict()}
         history.append(record)
         return record
 
@@ -167,7 +168,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
+            buffer.extend(learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward))
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)

@@ -1,0 +1,39 @@
+"""Learning rewards: the paper's shaped rewards as the env gives them, or game-outcome rewards.
+
+Why an alternative: the paper's reward pays +5 for "about to win" (making a threat) as much as for winning, so a
+return-maximising agent learns to keep making threats instead of closing the game, and against a random user
+some of those games end in draws. `outcome` rewards pay only for how the game ends (+5 win, +1 draw, -5 loss)
+and keep the -5 for an act outside the action mask; the env, the look-ahead masks and all reported metrics still
+use the paper's rewards.
+"""
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+
+OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW = 0, 1, 2, 3
+REWARD_MODES = ("paper", "outcome")
+
+
+def outcome_rewards(transitions: TensorDictBase) -> torch.Tensor:
+    """Reward of each transition from the game outcome it caused (shape like ("next", "reward"))."""
+    before = transitions.get("outcome").long()
+    after = transitions.get(("next", "outcome")).long()
+    ended = (before == OUTCOME_NONE) & (after != OUTCOME_NONE)
+    reward = torch.zeros(after.shape, dtype=torch.float32)
+    reward = torch.where(ended & (after == OUTCOME_ROBOT_WON), 5.0, reward)
+    reward = torch.where(ended & (after == OUTCOME_DRAW), 1.0, reward)
+    reward = torch.where(ended & (after == OUTCOME_HUMAN_WON), -5.0, reward)
+    action = transitions.get("action").unsqueeze(-1)
+    refused = ~torch.gather(transitions.get("action_mask"), -1, action)
+    return torch.where(refused, -5.0, reward).reshape(transitions.get(("next", "reward")).shape)
+
+
+def learning_rewards(transitions: TensorDictBase, mode: str) -> TensorDictBase:
+    """Set ("next", "reward") to the rewards the learner trains on (`paper` leaves the env's rewards)."""
+    if mode == "paper":
+        return transitions
+    if mode == "outcome":
+        transitions.set(("next", "reward"), outcome_rewards(transitions))
+        return transitions
+    raise ValueError(f"unknown reward mode {mode!r}; expected one of {', '.join(REWARD_MODES)}")
