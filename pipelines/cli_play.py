@@ -1,8 +1,62 @@
-"""`ncbot` commands of the play area (placeholder until its issue lands)."""
+"""`ncbot play` (a person plays the robot in the terminal) and `ncbot ladder` (a checkpoint against stronger opponents)."""
 from __future__ import annotations
+
+from typing import Optional
 
 import typer
 
 
+def play_command(
+    game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate (default: the checkpoint's, else standard)."),
+    checkpoint: Optional[str] = typer.Option(None, "--checkpoint", help="checkpoint.pt of a trained agent; without it "
+                                             "the robot uses the look-ahead masks alone, choosing at random inside them."),
+    seat: str = typer.Option("second", "--seat", help="Your seat: first (you draw the first mark) | second."),
+    free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the robot's random choices and the simulated ASR."),
+    log_dir: str = typer.Option("runs/play", "--log-dir", help="Folder for the MCAP log of the game."),
+    no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
+) -> None:
+    """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
+    if game is not None and game not in ("standard", "ultimate"):
+        raise ValueError(f"--game must be standard or ultimate, got {game!r}")
+    if seat not in ("first", "second"):
+        raise ValueError(f"--seat must be first or second, got {seat!r}")
+    if free_move is not None and free_move not in ("anywhere", "open_subgrids"):
+        raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
+    from pipelines.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
+
+    try:
+        summary = play_dialogue(game=game, checkpoint=checkpoint, seat=seat, free_move=free_move, seed=seed,
+                                log_dir=None if no_log else log_dir)
+    except QuitGame:
+        typer.echo("\nGame stopped. Goodbye!")
+        return
+    except KeyboardInterrupt:
+        typer.echo("\nGame interrupted (Ctrl-C). Goodbye!")
+        raise typer.Exit(130)
+    where = "" if no_log else f"; logged to {log_dir}"
+    typer.echo(f"Result: {summary['outcome']} after {summary['actions']} robot actions{where}.")
+
+
+def ladder_command(
+    checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
+    games: int = typer.Option(200, "--games", help="Games per opponent and seat."),
+    opponents: Optional[str] = typer.Option(None, "--opponents", help="Comma-separated opponent names; default: "
+                                            "random,rule,minimax (3x3) or random,rule,mcts:10,mcts:100,mcts:300."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
+    out: Optional[str] = typer.Option(None, "--out", help="Folder for ladder.md, ladder.json and ladder.png "
+                                      "(default: beside the checkpoint)."),
+) -> None:
+    """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
+    from pipelines.ladder import run_ladder
+
+    names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents else None
+    result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out)
+    typer.echo(result["markdown"])
+    typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
+
+
 def register(app: typer.Typer) -> None:
     """Add this area's commands to the root app."""
+    app.command("play")(play_command)
+    app.command("ladder")(ladder_command)
