@@ -48,7 +48,13 @@ def ladder_command(
                                       "(default: beside the checkpoint)."),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
-    from pipelines.ladder import run_ladder
+    from pathlib import Path
+
+    if games < 1:
+        raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
+    if not Path(checkpoint).exists():
+        raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
+    from pipelines.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents else None
     result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out)

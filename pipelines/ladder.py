@@ -1,0 +1,147 @@
+"""`ncbot ladder`: how good is a trained agent against more than a random player (issue 6)?
+
+The agent plays its full dialogues in the real env, greedy with its own look-ahead masks, while the simulated
+user's game moves come from each opponent of the ladder (``envs.opponents``), from both seats. Scores count a
+win 1 and a draw 0.5. The goals of the issue are checked and printed with the table: on 3x3 never lose to
+``minimax`` or ``random``; on Ultimate score at least 0.5 against ``mcts:100``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+DEFAULT_LADDERS = {
+    "standard": ["random", "rule", "minimax"],
+    "ultimate": ["random", "rule", "mcts:10", "mcts:100", "mcts:300"],
+}
+SEATS = ("first", "second")
+
+
+def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
+               out_dir: str | None = None, progress: bool = True) -> dict[str, Any]:
+    """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths."""
+    import torch
+
+    from envs.opponents import make_opponent
+    from pipelines.evaluate import evaluate_agent, load_agent
+
+    if games < 1:
+        raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
+    torch.set_num_threads(1)
+    config, policy = load_agent(checkpoint)
+    game = config.env.game
+    names = list(opponents) if opponents else DEFAULT_LADDERS[game]
+    for name in names:  # fail fast, with the registry's message, before any game is played
+        make_opponent(name, game=game, free_move=config.env.free_move)
+    rows = []
+    pairs = [(name, seat) for name in names for seat in SEATS]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(pairs, desc="ladder", unit="match")
+    for index, (name, seat) in enumerate(pairs):
+        if bar is not None:
+            bar.set_postfix_str(f"{name} ({seat})")
+        result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed + 1000 * index, opponent=name)
+        rows.append({
+            "opponent": name, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
+            "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
+            "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
+        })
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    goals = check_goals(game, rows)
+    out = Path(out_dir) if out_dir else _default_out(checkpoint)
+    markdown = ladder_markdown(checkpoint, game, config.agent.name, rows, goals)
+    files = {
+        "markdown": _write_text(out / "ladder.md", markdown),
+        "json": _write_text(out / "ladder.json", json.dumps({"checkpoint": str(checkpoint), "game": game,
+                                                              "agent": config.agent.name, "seed": seed,
+                                                              "rows": rows, "goals": goals}, indent=2)),
+        "png": draw_ladder(rows, out / "ladder.png", title=f"{config.agent.name} on {game}: score vs opponents"),
+    }
+    return {"rows": rows, "goals": goals, "markdown": markdown, "files": {k: str(v) for k, v in files.items()}}
+
+
+def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The issue's goals that this ladder covers, each with whether it was met."""
+    by_opponent: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        by_opponent.setdefault(row["opponent"], []).append(row)
+    goals = []
+    if game == "standard":
+        for name in ("random", "minimax"):
+            if name in by_opponent:
+                losses = sum(round(r["loss"] * r["games"]) for r in by_opponent[name])
+                goals.append({"goal": f"never loses to {name}", "met": losses == 0, "value": f"{losses} losses"})
+    elif "mcts:100" in by_opponent:
+        matches = by_opponent["mcts:100"]
+        score = sum(r["score"] * r["games"] for r in matches) / sum(r["games"] for r in matches)
+        goals.append({"goal": "score >= 0.5 against mcts:100", "met": score >= 0.5, "value": f"{score:.3f}"})
+    return goals
+
+
+def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str, Any]], goals: list[dict[str, Any]]) -> str:
+    lines = [f"# Ladder: {agent} ({game}) from `{checkpoint}`", "",
+             "| opponent | robot seat | games | win | draw | loss | score | task success (95% CI) | actions/game |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        low, high = r["task_success_ci95"]
+        lines.append(f"| {r['opponent']} | {r['seat']} | {r['games']} | {r['win']:.3f} | {r['draw']:.3f} | {r['loss']:.3f} | "
+                     f"{r['score']:.3f} | {r['task_success']:.3f} ({low:.3f}-{high:.3f}) | {r['avg_length']:.1f} |")
+    if goals:
+        lines += ["", "Goals (issue 6):"]
+        lines += [f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']})" for g in goals]
+    return "\n".join(lines) + "\n"
+
+
+def draw_ladder(rows: list[dict[str, Any]], path: Path, title: str) -> Path:
+    """Stacked win/draw/loss bars per opponent and seat (what a reader checks first: where does it lose?)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = [f"{r['opponent']}\n{'robot first' if r['seat'] == 'first' else 'robot second'}" for r in rows]
+    x = range(len(rows))
+    fig, ax = plt.subplots(figsize=(max(7.0, 1.3 * len(rows) + 2.0), 4.0))
+    wins = [r["win"] for r in rows]
+    draws = [r["draw"] for r in rows]
+    losses = [r["loss"] for r in rows]
+    ax.bar(x, wins, color="#2a9d8f", label="win")
+    ax.bar(x, draws, bottom=wins, color="#e9c46a", label="draw")
+    ax.bar(x, losses, bottom=[w + d for w, d in zip(wins, draws)], color="#e76f51", label="loss")
+    ax.plot(list(x), [r["score"] for r in rows], "ko", label="score (win 1, draw 0.5)")
+    ax.set_xticks(list(x), labels, fontsize=8)
+    ax.set_ylim(0, 1.05)
+    ax.set_ylabel("fraction of games")
+    ax.set_title(title)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(handle)
+    try:
+        fig.savefig(temp_name, dpi=120)
+        os.replace(temp_name, path)
+    finally:
+        plt.close(fig)
+        Path(temp_name).unlink(missing_ok=True)
+    return path
+
+
+def _default_out(checkpoint: str) -> Path:
+    path = Path(checkpoint)
+    return path if path.is_dir() else path.parent
+
+
+def _write_text(path: Path, text: str) -> Path:
+    from pipelines.checkpoint import atomic_write_text
+
+    return atomic_write_text(text, path)

@@ -1,0 +1,88 @@
+"""`ncbot ladder`: a real checkpoint plays real env games against the opponents; table, JSON and PNG read back."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from pipelines.ladder import check_goals, run_ladder
+
+
+def _checkpoint(tmp_path, game: str = "standard"):
+    """A checkpoint in the format ncbot train writes (an untrained Q-network: the look-ahead masks still apply)."""
+    from envs import make_env
+    from modules.qnet import make_qnet
+    from pipelines.checkpoint import FORMAT, atomic_save
+    from pipelines.config import RunConfig
+
+    config = RunConfig()
+    config.env.game = game
+    env = make_env(game, batch_size=(1,))
+    torch.manual_seed(0)
+    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
+    path = tmp_path / "run" / "checkpoint.pt"
+    atomic_save({"format": FORMAT, "config": config.to_dict(), "n_features": env.n_features,
+                 "n_actions": env.n_actions, "qnet": qnet.state_dict()}, path)
+    return path
+
+
+def test_ladder_writes_table_json_and_png(tmp_path) -> None:
+    checkpoint = _checkpoint(tmp_path)
+    result = run_ladder(str(checkpoint), games=12, opponents=["random", "minimax"], seed=1, progress=False)
+    rows = result["rows"]
+    assert [(r["opponent"], r["seat"]) for r in rows] == [("random", "first"), ("random", "second"),
+                                                          ("minimax", "first"), ("minimax", "second")]
+    for r in rows:
+        assert r["games"] == 12 and abs(r["win"] + r["draw"] + r["loss"] - 1.0) < 1e-9
+        assert r["score"] == pytest.approx(r["win"] + 0.5 * r["draw"])
+    # nobody beats perfect play (an untrained agent may still lose to it by a fork)
+    assert all(r["win"] == 0 for r in rows if r["opponent"] == "minimax")
+    files = result["files"]
+    markdown = open(files["markdown"]).read()
+    assert "| minimax | second | 12 |" in markdown and "Goals (issue 6)" in markdown
+    saved = json.loads(open(files["json"]).read())
+    assert saved["rows"] == json.loads(json.dumps(rows)) and saved["game"] == "standard"
+    import matplotlib.image
+
+    image = matplotlib.image.imread(files["png"])
+    assert image.shape[0] > 100 and image.shape[1] > 100
+    assert files["png"].startswith(str(checkpoint.parent))  # default: beside the checkpoint
+
+
+def test_same_seed_same_ladder(tmp_path) -> None:
+    checkpoint = _checkpoint(tmp_path)
+    first = run_ladder(str(checkpoint), games=8, opponents=["rule"], seed=4, out_dir=str(tmp_path / "a"), progress=False)
+    again = run_ladder(str(checkpoint), games=8, opponents=["rule"], seed=4, out_dir=str(tmp_path / "b"), progress=False)
+    assert first["rows"] == again["rows"]
+
+
+def test_ultimate_ladder_against_mcts(tmp_path) -> None:
+    checkpoint = _checkpoint(tmp_path, "ultimate")
+    result = run_ladder(str(checkpoint), games=2, opponents=["mcts:5"], seed=0, out_dir=str(tmp_path / "u"),
+                        progress=False)
+    assert [r["seat"] for r in result["rows"]] == ["first", "second"]
+    with pytest.raises(ValueError, match="minimax.*standard"):
+        run_ladder(str(checkpoint), games=2, opponents=["minimax"], progress=False, out_dir=str(tmp_path / "x"))
+
+
+def test_goals_follow_the_issue() -> None:
+    rows = [{"opponent": "minimax", "seat": s, "games": 10, "win": 0.0, "draw": d, "loss": 1 - d, "score": d / 2}
+            for s, d in (("first", 1.0), ("second", 0.9))]
+    (goal,) = [g for g in check_goals("standard", rows) if "minimax" in g["goal"]]
+    assert not goal["met"] and goal["value"] == "1 losses"
+    rows = [{"opponent": "mcts:100", "seat": s, "games": 10, "win": w, "draw": 0.0, "loss": 1 - w, "score": w}
+            for s, w in (("first", 0.7), ("second", 0.4))]
+    assert check_goals("ultimate", rows) == [{"goal": "score >= 0.5 against mcts:100", "met": True, "value": "0.550"}]
+
+
+def test_cli_errors_are_one_line(tmp_path) -> None:
+    checkpoint = _checkpoint(tmp_path)
+    for args, message in (([str(tmp_path / "missing.pt")], "not found"),
+                          ([str(checkpoint), "--opponents", "chess"], "unknown opponent 'chess'"),
+                          ([str(checkpoint), "--games", "0"], "--games must be a positive")):
+        done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", *args], capture_output=True, text=True)
+        assert done.returncode == 2, done.stderr
+        assert message in done.stderr and "Traceback" not in done.stderr
