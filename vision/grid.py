@@ -1,0 +1,190 @@
+"""Reading a whole board from a camera frame: page -> grid -> grid-line removal -> n x n cells -> CNN.
+
+The sheet layout is not assumed: after the page is warped square, the grid's long straight ink lines are
+found by morphological opening, their ends give the grid's extent (grids with or without an outer frame)
+and the inner lines give the cell boundaries (hand-drawn grids are rarely even). The grid square is then
+warped again straight from the frame at rho pixels per cell, so small 9x9 cells keep the camera's detail.
+All cells go through the CNN in one batch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vision.classifier.inference import CellClassifier, load_classifier
+from vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
+from vision.page import check_frame, locate_page
+from vision.sheet import check_grid
+
+PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
+DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)
+CELL_INSET = 0.07              # fraction of a cell trimmed on each side (grid-line remnants)
+FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
+OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
+
+
+@dataclass
+class PageReading:
+    """Everything one frame tells about the sheet; `cells` is the board as 'x' / 'o' / ''."""
+
+    cells: list[str]
+    probabilities: np.ndarray      # (n*n, 3) softmax of the SVM scores, order vision.labels.LABELS
+    occluded: np.ndarray           # (n*n,) bool: a hand/arm covers part of the cell
+    hand_fraction: float           # fraction of the page under large non-paper blobs (hand, arm, shadow)
+    page_corners: np.ndarray       # (4, 2) frame pixels, TL TR BR BL
+    grid_corners: np.ndarray       # (4, 2) frame pixels of the grid square
+    grid_image: np.ndarray         # (n*rho, n*rho) gray grid warp with the grid lines removed
+    cell_images: np.ndarray        # (n*n, 40, 40) uint8: exactly what the CNN saw
+
+
+def _line_mask(ink: np.ndarray, length: int, horizontal: bool) -> np.ndarray:
+    """Ink that forms straight lines at least `length` long (thickened across so slight tilts survive)."""
+    across = np.ones((3, 1) if horizontal else (1, 3), np.uint8)
+    along = np.ones((1, length) if horizontal else (length, 1), np.uint8)
+    return cv2.morphologyEx(cv2.dilate(ink, across), cv2.MORPH_OPEN, along)
+
+
+def _ink(gray: np.ndarray, block: int) -> np.ndarray:
+    block = max(3, block | 1)
+    return cv2.adaptiveThreshold(gray, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 12)
+
+
+def _bands(profile: np.ndarray, minimum: float) -> list[tuple[int, int]]:
+    """Runs of consecutive indices whose profile exceeds `minimum`."""
+    on = np.flatnonzero(profile > minimum)
+    if len(on) == 0:
+        return []
+    splits = np.flatnonzero(np.diff(on) > 1) + 1
+    return [(int(run[0]), int(run[-1]) + 1) for run in np.split(on, splits)]
+
+
+def _lines(mask: np.ndarray, min_length: float) -> tuple[list[float], float, float]:
+    """Centres of the horizontal lines in a line mask, and the medians of their left and right ends."""
+    profile = mask.sum(axis=1) / 255.0
+    centres, starts, ends = [], [], []
+    for a, b in _bands(profile, min_length):
+        hits = np.flatnonzero(mask[a:b].any(axis=0))
+        weights = profile[a:b]
+        centres.append(float((np.arange(a, b) * weights).sum() / weights.sum()))
+        starts.append(hits[0])
+        ends.append(hits[-1] + 1)
+    if not centres:
+        return [], 0.0, 0.0
+    return centres, float(np.median(starts)), float(np.median(ends))
+
+
+def _snap(start: float, stop: float, n: int, found: list[float]) -> np.ndarray:
+    """n+1 cell boundaries: evenly spaced, each inner one moved onto a detected line close to it."""
+    bounds = np.linspace(start, stop, n + 1)
+    step = (stop - start) / n
+    for k in range(1, n):
+        if found:
+            nearest = min(found, key=lambda c: abs(c - bounds[k]))
+            if abs(nearest - bounds[k]) < 0.3 * step:
+                bounds[k] = nearest
+    return bounds
+
+
+def locate_grid(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Grid boundaries in a square page warp: (xs, ys), each n+1 increasing pixel positions, or None."""
+    side = page_gray.shape[0]
+    ink = _ink(page_gray, side // 12)
+    min_length = side / 5
+    horizontal = _line_mask(ink, int(min_length), True)
+    vertical = _line_mask(ink, int(min_length), False)
+    rows, x0, x1 = _lines(horizontal, min_length)
+    cols, y0, y1 = _lines(vertical.T, min_length)
+    if not rows or not cols or x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
+        return None
+    return _snap(x0, x1, grid, cols), _snap(y0, y1, grid, rows)
+
+
+def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
+    """Paint long straight ink (the grid) with the nearby paper shade; marks are shorter than a cell."""
+    ink = _ink(gray, rho // 2)
+    length = int(1.6 * rho)
+    lines = cv2.bitwise_or(_line_mask(ink, length, True), _line_mask(ink, length, False))
+    lines = cv2.dilate(lines, np.ones((3, 3), np.uint8))
+    paper = cv2.dilate(gray, np.ones((9, 9), np.uint8))
+    out = gray.copy()
+    out[lines > 0] = paper[lines > 0]
+    return out
+
+
+def _foreign(paper_mask_page: np.ndarray, grid: int) -> np.ndarray:
+    """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin."""
+    side = paper_mask_page.shape[0]
+    # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
+    # robot sees it from closer, so the hand looks bigger on it)
+    k = max(5, side // (16 if grid == 3 else 9)) | 1
+    foreign = cv2.morphologyEx((paper_mask_page < 128).astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    foreign = cv2.morphologyEx(foreign, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))  # pale skin is speckled
+    border = max(2, side // 50)  # the warped page's own edge is not a hand
+    foreign[:border], foreign[-border:], foreign[:, :border], foreign[:, -border:] = 0, 0, 0, 0
+    return foreign
+
+
+def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    n = len(xs) - 1
+    out = np.zeros(n * n, bool)
+    for r in range(n):
+        for c in range(n):
+            block = foreign[int(ys[r]):int(np.ceil(ys[r + 1])), int(xs[c]):int(np.ceil(xs[c + 1]))]
+            out[r * n + c] = block.size > 0 and block.mean() > OCCLUSION_FRACTION
+    return out
+
+
+def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
+              rho: int | None = None) -> PageReading:
+    """Read the sheet in a BGR frame; raises ValueError if no sheet or no grid is visible."""
+    check_grid(grid)
+    frame = check_frame(frame)
+    rho = rho or DEFAULT_RHO[grid]
+    if rho < 16:
+        raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
+    corners, paper_mask = locate_page(frame)
+    if corners is None:
+        raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
+    page_side = PAGE_SIDE[grid]
+    square = np.array([[0, 0], [page_side, 0], [page_side, page_side], [0, page_side]], np.float32)
+    to_page = cv2.getPerspectiveTransform(corners, square)
+    page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
+                             cv2.COLOR_BGR2GRAY)
+    # hands are big: look for them on a small warp of the paper mask (cheap), boundaries scaled to it
+    to_small = np.diag([FOREIGN_SIDE / page_side, FOREIGN_SIDE / page_side, 1.0]) @ to_page
+    foreign = _foreign(cv2.warpPerspective(paper_mask, to_small, (FOREIGN_SIDE, FOREIGN_SIDE), flags=cv2.INTER_NEAREST), grid)
+    bounds = locate_grid(page_gray, grid)
+    if bounds is None:
+        raise ValueError(f"no {grid}x{grid} grid found on the sheet (expected dark grid lines across the page)")
+    xs, ys = bounds
+    grid_page = np.array([[xs[0], ys[0]], [xs[-1], ys[0]], [xs[-1], ys[-1]], [xs[0], ys[-1]]], np.float32)
+    grid_frame = cv2.perspectiveTransform(grid_page[None], np.linalg.inv(to_page))[0]
+    side = grid * rho
+    target = np.array([[0, 0], [side, 0], [side, side], [0, side]], np.float32)
+    grid_bgr = cv2.warpPerspective(frame, cv2.getPerspectiveTransform(grid_frame, target), (side, side),
+                                   flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    gray = _remove_lines(cv2.cvtColor(grid_bgr, cv2.COLOR_BGR2GRAY), rho)
+    # inner boundaries found on the page map linearly into the grid warp
+    gx = (xs - xs[0]) / (xs[-1] - xs[0]) * side
+    gy = (ys - ys[0]) / (ys[-1] - ys[0]) * side
+    cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
+    for r in range(grid):
+        for c in range(grid):
+            w, h = gx[c + 1] - gx[c], gy[r + 1] - gy[r]
+            x0, x1 = int(round(gx[c] + CELL_INSET * w)), int(round(gx[c + 1] - CELL_INSET * w))
+            y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
+            crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
+            cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+    classifier = classifier or load_classifier()
+    probabilities = classifier.probabilities(cells)
+    labels = [BOARD_SYMBOL[LABELS[i]] for i in probabilities.argmax(axis=1)]
+    return PageReading(labels, probabilities, _cell_occlusion(foreign, xs * FOREIGN_SIDE / page_side, ys * FOREIGN_SIDE / page_side), float(foreign.mean()),
+                       corners, grid_frame, gray, cells)
+
+
+def read_board(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
+               rho: int | None = None) -> list[str]:
+    """Frame (H, W, 3 uint8 BGR) -> row-major list of 'x' / 'o' / '' per cell; raises ValueError if unreadable."""
+    return read_page(frame, grid, classifier, rho).cells

@@ -1,0 +1,92 @@
+"""Finding the paper sheet in a camera frame and warping it flat (steps 2-3 of the paper's Algorithm 1).
+
+The page is the largest bright, unsaturated region (colour-based, threshold chosen per frame by Otsu so
+uneven light does not matter much); its convex hull is simplified to four corners, ordered as the camera
+sees them (top-left first), so a sheet rotated by less than 45 degrees keeps its cell numbering.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
+PAPER_RATIO = 0.66        # paper is at least this fraction of the median paper whiteness (uneven light)
+
+
+def check_frame(frame: np.ndarray) -> np.ndarray:
+    """Return the frame as HxWx3 uint8 BGR, or raise the one-line error every reader shares."""
+    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8:
+        raise ValueError(f"frame must be a uint8 numpy image; got {type(frame).__name__} {getattr(frame, 'dtype', '')}")
+    if frame.ndim == 2:
+        return cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+    if frame.ndim == 3 and frame.shape[2] == 4:
+        return cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+    if frame.ndim != 3 or frame.shape[2] != 3 or min(frame.shape[:2]) < 32:
+        raise ValueError(f"frame must be an HxWx3 BGR image at least 32 pixels a side; got shape {frame.shape}")
+    return frame
+
+
+def page_mask(frame: np.ndarray) -> np.ndarray:
+    """uint8 mask of bright, unsaturated ('paper white') pixels: Otsu on value - 1.5 x saturation, raised if needed."""
+    hsv = cv2.cvtColor(frame, cv2.COLOR_BGR2HSV)
+    # saturation counts 1.5x: light skin and pastel objects are bright but clearly coloured; paper (even
+    # tinted by warm light) much less so
+    whiteness = cv2.addWeighted(hsv[:, :, 2], 1.0, hsv[:, :, 1], -1.5, 0.0)
+    otsu, mask = cv2.threshold(whiteness, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    if mask.any():  # pale objects (pastel clutter) fall between the table and the paper: cut them off too
+        paper = float(np.median(whiteness[mask > 0]))
+        if PAPER_RATIO * paper > otsu:
+            _, mask = cv2.threshold(whiteness, PAPER_RATIO * paper, 255, cv2.THRESH_BINARY)
+    return mask
+
+
+def order_corners(points: np.ndarray) -> np.ndarray:
+    """Four points -> float32 (4, 2) ordered top-left, top-right, bottom-right, bottom-left."""
+    pts = np.asarray(points, np.float32).reshape(4, 2)
+    s, d = pts.sum(axis=1), pts[:, 1] - pts[:, 0]
+    return np.array([pts[s.argmin()], pts[d.argmin()], pts[s.argmax()], pts[d.argmax()]], np.float32)
+
+
+def find_page(frame: np.ndarray) -> np.ndarray | None:
+    """Corners (4, 2) float32 of the largest paper-coloured quadrilateral, or None if there is none."""
+    return locate_page(frame)[0]
+
+
+def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """(corners or None, paper mask of the frame): the mask also tells where a hand covers the page."""
+    frame = check_frame(frame)
+    mask = page_mask(frame)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    # bridge thin dark lines (a grid line drawn to the page edge) that would cut the page in two, and cut
+    # off thin bright things touching it (a white pen) that would pull the page's hull out of shape
+    body = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
+    body = cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
+    return _page_quad(body, frame.shape[0] * frame.shape[1]), mask
+
+
+def _page_quad(mask: np.ndarray, frame_area: int) -> np.ndarray | None:
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return None
+    page = max(contours, key=cv2.contourArea)
+    if cv2.contourArea(page) < MIN_PAGE_FRACTION * frame_area:
+        return None
+    hull = cv2.convexHull(page)
+    perimeter = cv2.arcLength(hull, True)
+    for eps in (0.01, 0.02, 0.03, 0.045, 0.06, 0.08):
+        quad = cv2.approxPolyDP(hull, eps * perimeter, True)
+        if len(quad) == 4:
+            break
+    else:
+        return None
+    corners = order_corners(quad)
+    if len({tuple(c) for c in corners.tolist()}) < 4 or not cv2.isContourConvex(corners.astype(np.int32)):
+        return None
+    return corners
+
+
+def warp(frame: np.ndarray, corners: np.ndarray, size: int) -> np.ndarray:
+    """Projective warp of the quadrilateral `corners` (TL, TR, BR, BL) to a size x size square."""
+    target = np.array([[0, 0], [size, 0], [size, size], [0, size]], np.float32)
+    H = cv2.getPerspectiveTransform(np.asarray(corners, np.float32), target)
+    return cv2.warpPerspective(frame, H, (size, size), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

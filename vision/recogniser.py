@@ -1,0 +1,150 @@
+"""The game-move recogniser: Algorithm 1 of the paper over a stream of camera frames.
+
+Per frame: find the page, warp it square; if the warped page changed by more than tau over the last two
+frames (dist(P_t, P_t-1) + dist(P_t-1, P_t-2)) a hand is drawing, so skip the frame; otherwise read every
+cell, keep a window of the last `window` frames' per-cell label probabilities, and among the cells empty
+in the known game history pick the one whose summed nought/cross probability is largest; if its summed
+label is not "nothing", that is the person's move.
+
+Two additions over the paper, both from its field-trial lesson that hand detection mattered: a frame in
+which a large skin/sleeve-coloured blob covers any cell is skipped too (a hand resting still on the sheet
+passes the motion test), and the window is emptied whenever a frame is skipped, so probabilities seen
+before or during the drawing never vote after it.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vision.classifier.inference import CellClassifier, load_classifier
+from vision.grid import read_page
+from vision.labels import BOARD_SYMBOL, LABELS, NOTHING
+from vision.page import check_frame, find_page, warp
+from vision.sheet import check_grid
+
+STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
+HAND_FRACTION = 0.003  # of the page area under large non-paper blobs: a hand (or its shadow) is there
+MOTION_SIDE = 48  # the warped page is compared at this size, blurred: pen strokes barely count, a hand does
+
+
+@dataclass
+class Recognition:
+    """What one frame said.
+
+    status: "move" (a new mark found: see move/label), "moving" (page changed > tau: a hand is drawing),
+    "occluded" (a hand/arm lies over the grid), "no_page" (no sheet or grid visible; see detail),
+    "waiting" (sheet readable, no new mark yet, or too few frames to judge motion).
+    """
+
+    status: str
+    move: int | None = None               # row-major cell of the new mark
+    label: str | None = None              # "x" or "o"
+    probabilities: np.ndarray | None = None  # (n*n, 3) mean over the window, order vision.labels.LABELS
+    cells: list[str] | None = None        # this frame's reading of the whole board
+    motion: float | None = None           # dist(P_t,P_t-1) + dist(P_t-1,P_t-2), gray levels (RMS)
+    detail: str = ""
+
+
+def _empty_cells(known_board: Sequence, n_cells: int) -> np.ndarray:
+    """Known board ('x'/'o'/'' or ints with 0 = empty, like the env's board) -> bool mask of empty cells."""
+    if len(known_board) != n_cells:
+        raise ValueError(f"known board must have {n_cells} cells; got {len(known_board)}")
+    empty = []
+    for value in known_board:
+        if isinstance(value, str):
+            if value not in ("", "x", "o"):
+                raise ValueError(f"known board cell {value!r} is unknown; expected 'x', 'o' or ''")
+            empty.append(value == "")
+        else:
+            empty.append(int(value) == 0)
+    return np.array(empty, bool)
+
+
+class MoveRecogniser:
+    """Stateful Algorithm 1: feed frames with `update`, or let `recognise` loop over a stream."""
+
+    def __init__(self, grid: int = 3, tau: float = 12.0, rho: int | None = None, window: int = 3,
+                 gamma_ms: float = 100.0, classifier: CellClassifier | None = None) -> None:
+        """tau: motion threshold in gray levels (RMS over the blurred 48x48 page, summed over two steps);
+        rho: pixels per cell of the grid warp (default 64 for 3x3, 40 for 9x9); window: frames whose
+        probabilities are summed; gamma_ms: pause between frames in `recognise`."""
+        self.grid = check_grid(grid)
+        if tau <= 0 or window < 1 or gamma_ms < 0:
+            raise ValueError(f"need tau > 0, window >= 1, gamma_ms >= 0; got tau={tau}, window={window}, gamma_ms={gamma_ms}")
+        self.tau, self.rho, self.window, self.gamma_ms = tau, rho, window, gamma_ms
+        self.classifier = classifier or load_classifier()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget past frames (call when the recogniser becomes active for a new turn)."""
+        self._pages: deque[np.ndarray] = deque(maxlen=3)
+        self._probs: deque[np.ndarray] = deque(maxlen=self.window)
+
+    def _forget(self) -> None:
+        self._probs.clear()
+
+    def _motion(self) -> float | None:
+        if len(self._pages) < 3:
+            return None
+        p = list(self._pages)
+        return float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2)))
+
+    def update(self, frame: np.ndarray, known_board: Sequence) -> Recognition:
+        """Process one BGR frame given the board as known from the game history."""
+        frame = check_frame(frame)
+        empty = _empty_cells(known_board, self.grid ** 2)
+        corners = find_page(frame)
+        if corners is None:
+            self._pages.clear()
+            self._forget()
+            return Recognition("no_page", detail="no paper sheet found in the frame")
+        page = cv2.cvtColor(warp(frame, corners, MOTION_SIDE * 2), cv2.COLOR_BGR2GRAY)
+        page = cv2.GaussianBlur(cv2.resize(page, (MOTION_SIDE, MOTION_SIDE), interpolation=cv2.INTER_AREA), (0, 0), 1.5)
+        self._pages.append(page.astype(np.float32))
+        motion = self._motion()
+        if motion is None:
+            self._forget()
+            return Recognition("waiting", detail="collecting frames to judge motion")
+        if motion > self.tau:
+            self._forget()
+            return Recognition("moving", motion=motion)
+        try:
+            reading = read_page(frame, self.grid, self.classifier, self.rho)
+        except ValueError as error:
+            self._forget()
+            return Recognition("no_page", motion=motion, detail=str(error))
+        if reading.occluded.any() or reading.hand_fraction > HAND_FRACTION:
+            self._forget()
+            return Recognition("occluded", cells=reading.cells, motion=motion,
+                               detail=f"hand over cells {np.flatnonzero(reading.occluded).tolist()}")
+        self._probs.append(reading.probabilities)
+        summed = np.sum(self._probs, axis=0)
+        mean = summed / len(self._probs)
+        if not empty.any():
+            return Recognition("waiting", probabilities=mean, cells=reading.cells, motion=motion, detail="board full")
+        marked = np.where(empty, summed[:, :NOTHING].max(axis=1), -np.inf)
+        best = int(marked.argmax())
+        label = int(summed[best].argmax())
+        if label == NOTHING:
+            return Recognition("waiting", probabilities=mean, cells=reading.cells, motion=motion)
+        return Recognition("move", move=best, label=BOARD_SYMBOL[LABELS[label]], probabilities=mean,
+                           cells=reading.cells, motion=motion)
+
+    def recognise(self, frames: Iterable[np.ndarray], known_board: Sequence, max_frames: int | None = None,
+                  sleep: bool = True) -> Recognition:
+        """Loop of Algorithm 1: update on each frame until a move is found (pausing gamma ms between
+        frames); returns the move, or the last result when the stream or max_frames ends."""
+        self.reset()
+        result = Recognition("waiting", detail="no frames")
+        for count, frame in enumerate(frames, start=1):
+            result = self.update(frame, known_board)
+            if result.status == "move" or (max_frames is not None and count >= max_frames):
+                break
+            if sleep and self.gamma_ms > 0:
+                time.sleep(self.gamma_ms / 1000.0)
+        return result
