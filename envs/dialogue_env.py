@@ -73,6 +73,9 @@ class DialogueGameEnv(EnvBase):
         self._make_specs(batch)
         self._rng = torch.Generator().manual_seed(int(seed))
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
+        self._make_tables()
+        allowed = self.model.filter_allowed.flatten(0, 2)  # (contexts, types)
+        self._filter_table = torch.cat([allowed[:, :1].expand(-1, self.cells), allowed[:, 1:]], dim=1).contiguous()
         self._init_state(batch)
         self.set_seed(int(seed))
 
@@ -97,6 +100,26 @@ class DialogueGameEnv(EnvBase):
             raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
         params = set(inspect.signature(opponent.select).parameters) & {"owners", "rows"}
         return opponent, params
+
+    def _make_tables(self) -> None:
+        """Flat look-up tables for the step (index_select on 1-D tables is the fastest gather on CPU).
+
+        Utterance id ``U`` (one past the last) stands for silence inside the step; it is reported as -1.
+        """
+        model, cells = self.model, self.cells
+        n_utt = len(model.utterance_texts)
+        self._silence = n_utt
+        self._act_type = torch.cat([torch.zeros(cells, dtype=torch.int64), torch.arange(1, len(dlg.SYSTEM_TYPES))])
+        self._asks_move = torch.zeros(len(dlg.SYSTEM_TYPES), dtype=torch.bool)
+        self._asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
+        self._utterance_acts = torch.cat([model.utterance_acts, torch.tensor([-1])])
+        self._utterance_words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))])
+        options = model.reply_options.clone()
+        counts = model.reply_counts.clone()
+        options[counts == 0, 0] = n_utt  # contexts without replies answer with silence
+        self._reply_counts = counts.clamp(min=1).flatten().float()
+        self._reply_width = options.shape[-1]
+        self._reply_options = options.flatten()
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model
@@ -147,18 +170,21 @@ class DialogueGameEnv(EnvBase):
 
     def _init_state(self, batch: int) -> None:
         self.boards = self.engine.new(batch)
-        self._agreed = torch.zeros(batch, dtype=torch.bool)
-        self._closed = torch.zeros(batch, dtype=torch.bool)
-        self._last_sys = torch.zeros(batch, dtype=torch.int64)
-        self._last_user = torch.zeros(batch, dtype=torch.int64)
-        self._robot_first = torch.ones(batch, dtype=torch.bool)
-        self._episodes = torch.zeros(batch, dtype=torch.int64)
-        self._turn = torch.zeros(batch, dtype=torch.int64)
-        self._user_act = torch.full((batch,), -1, dtype=torch.int64)
-        self._user_move = torch.full((batch,), -1, dtype=torch.int64)
-        self._user_utterance = torch.full((batch,), -1, dtype=torch.int64)
-        self._user_words = torch.zeros(batch, len(self.model.words))
+        self.d = _Dialogues()
+        self.d.agreed = torch.zeros(batch, dtype=torch.bool)
+        self.d.closed = torch.zeros(batch, dtype=torch.bool)
+        self.d.last_sys = torch.zeros(batch, dtype=torch.int64)
+        self.d.last_user = torch.zeros(batch, dtype=torch.int64)
+        self.d.robot_first = torch.ones(batch, dtype=torch.bool)
+        self.d.episodes = torch.zeros(batch, dtype=torch.int64)
+        self.d.turn = torch.zeros(batch, dtype=torch.int64)
+        self.d.user_act = torch.full((batch,), -1, dtype=torch.int64)
+        self.d.user_move = torch.full((batch,), -1, dtype=torch.int64)
+        self.d.user_utterance = torch.full((batch,), -1, dtype=torch.int64)
+        self.d.user_words = torch.zeros(batch, len(self.model.words))
         self._refresh()
+        # every new dialogue starts in the same context: keep its mask rows to paste on resets
+        self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone())
 
     # ------------------------------------------------------------------ metadata helpers
     def user_utterance(self, utterance_id: int) -> str:
@@ -188,58 +214,58 @@ class DialogueGameEnv(EnvBase):
     # ------------------------------------------------------------------ dynamics
     def _phase(self) -> torch.Tensor:
         boards = self.boards
-        robot_to_move = (boards.n_marks % 2 == 0) == self._robot_first
+        robot_to_move = (boards.n_marks % 2 == 0) == self.d.robot_first
         phase = torch.where(robot_to_move, dlg.ROBOT_TO_MOVE, dlg.USER_TO_MOVE)
-        phase = torch.where(self._agreed, phase, dlg.PRE_GAME)
+        phase = torch.where(self.d.agreed, phase, dlg.PRE_GAME)
         phase = torch.where(boards.outcome > 0, boards.outcome + (dlg.ROBOT_WON - 1), phase)
-        return torch.where(self._closed, dlg.CLOSED, phase)
+        return torch.where(self.d.closed, dlg.CLOSED, phase)
+
+    def _context(self) -> torch.Tensor:
+        """(B,) flat index of (last system act, last user act, phase) into the filter table."""
+        phase = self._phase()
+        return (self.d.last_sys * (1 + len(dlg.USER_ACTS)) + self.d.last_user) * len(dlg.PHASES) + phase
 
     def _refresh(self) -> None:
-        """Recompute the mask, look-ahead and observation of the current state (after a step or reset)."""
-        cells, model = self.cells, self.model
-        phase = self._phase()
-        types = model.filter_allowed[self._last_sys, self._last_user, phase]  # (B, T)
-        robot_turn = phase == dlg.ROBOT_TO_MOVE
-        move_ok = types[:, :1] & robot_turn.unsqueeze(1)
-        legal = self.engine.legal(self.boards) & move_ok
-        mask = torch.cat([legal, types[:, 1:]], dim=1)
-        self._mask = mask
-        self._dialogue_mask = torch.cat([types[:, :1].expand(-1, cells), types[:, 1:]], dim=1)
-        lookahead = torch.full(mask.shape, ILLEGAL_ACT_REWARD)
-        lookahead[:, cells:].masked_fill_(mask[:, cells:], 0.0)
+        """Recompute the mask and look-ahead of the current state (after a step)."""
+        cells = self.cells
+        dialogue_mask = self._filter_table.index_select(0, self._context())  # (B, A): moves = "GameMove allowed"
+        legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
+        mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
+        lookahead = torch.where(mask, 0.0, ILLEGAL_ACT_REWARD)
         if bool(legal.any()):
-            move_rewards = self.engine.move_rewards(self.boards, ROBOT)
-            lookahead[:, :cells] = torch.where(legal, move_rewards, ILLEGAL_ACT_REWARD)
-        self._lookahead = lookahead
+            lookahead[:, :cells] = torch.where(legal, self.engine.move_rewards(self.boards, ROBOT), ILLEGAL_ACT_REWARD)
+        self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
 
     def _observation(self) -> torch.Tensor:
         boards, model = self.boards, self.model
-        words = torch.maximum(model.template_words[self._last_sys], self._user_words)
-        parts = [(boards.board == ROBOT).float(), (boards.board == USER).float(), model.template_commands[self._last_sys], words]
+        last_sys = self.d.last_sys
+        words = torch.maximum(model.template_words.index_select(0, last_sys), self.d.user_words)
+        parts = [(boards.board == ROBOT).float(), (boards.board == USER).float(), model.template_commands.index_select(0, last_sys), words]
         if self.temporal:
             parts.append(boards.move_order.float() / boards.n_marks.clamp(min=1).unsqueeze(1).float())
         return torch.cat(parts, dim=1)
 
     def _output(self) -> TensorDict:
-        mask = self._mask
-        batch = self.batch_size
-        return TensorDict(
+        """The TensorDict of the current state (fresh tensors: safe to stack into rollouts)."""
+        mask = self.d.mask
+        # _new_unsafe skips per-key validation: every tensor here is built by the env with the right batch
+        return TensorDict._new_unsafe(
             {
                 "observation": self._observation(),
                 "action_mask": mask,
-                "dialogue_mask": self._dialogue_mask,
-                "lookahead_reward": self._lookahead,
-                "winning_actions": mask & (self._lookahead == 5.0),
-                "board": self.boards.board.clone(),
+                "dialogue_mask": self.d.dialogue_mask,
+                "lookahead_reward": self.d.lookahead,
+                "winning_actions": mask & (self.d.lookahead == 5.0),
+                "board": self.boards.board.clone(),  # the engine updates boards in place
                 "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
-                "robot_first": self._robot_first.unsqueeze(1).clone(),
-                "turn": self._turn.unsqueeze(1).clone(),
-                "user_act": self._user_act.unsqueeze(1).clone(),
-                "user_move": self._user_move.unsqueeze(1).clone(),
-                "user_utterance": self._user_utterance.unsqueeze(1).clone(),
-                "terminated": self._closed.unsqueeze(1).clone(),
+                "robot_first": self.d.robot_first.unsqueeze(1),
+                "turn": self.d.turn.unsqueeze(1),
+                "user_act": self.d.user_act.unsqueeze(1),
+                "user_move": self.d.user_move.unsqueeze(1),
+                "user_utterance": self.d.user_utterance.unsqueeze(1),
+                "terminated": self.d.closed.unsqueeze(1),
             },
-            batch_size=batch,
+            batch_size=self.batch_size,
         )
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDict:
@@ -251,31 +277,41 @@ class DialogueGameEnv(EnvBase):
         if bool(rows.any()):
             self._reset_rows(rows)
         out = self._output()
-        out.set("truncated", (self._turn >= self.max_actions).unsqueeze(1) & ~out.get("terminated"))
+        out.set("truncated", (self.d.turn >= self.max_actions).unsqueeze(1) & ~out.get("terminated"))
         out.set("done", out.get("terminated") | out.get("truncated"))
         return out
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
-        fresh = self.engine.new(rows.shape[0])
-        self.boards.copy_rows_from(fresh, rows)
-        for flag in (self._agreed, self._closed):
-            flag.masked_fill_(rows, False)
-        for counter in (self._last_sys, self._last_user, self._turn):
-            counter.masked_fill_(rows, 0)
-        for value in (self._user_act, self._user_move, self._user_utterance):
-            value.masked_fill_(rows, -1)
-        self._user_words.masked_fill_(rows.unsqueeze(1), 0.0)
+        """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
+        boards, column = self.boards, rows.unsqueeze(1)
+        for name, value in (("board", 0), ("codes", 0), ("owners", 0), ("move_order", 0)):
+            setattr(boards, name, getattr(boards, name).masked_fill(column, value))
+        boards.last_move = boards.last_move.masked_fill(rows, -1)
+        boards.n_marks = boards.n_marks.masked_fill(rows, 0)
+        boards.outcome = boards.outcome.masked_fill(rows, 0)
+        self.d.agreed = self.d.agreed & ~rows
+        self.d.closed = self.d.closed & ~rows
+        self.d.last_sys = self.d.last_sys.masked_fill(rows, 0)
+        self.d.last_user = self.d.last_user.masked_fill(rows, 0)
+        self.d.turn = self.d.turn.masked_fill(rows, 0)
+        self.d.user_act = self.d.user_act.masked_fill(rows, -1)
+        self.d.user_move = self.d.user_move.masked_fill(rows, -1)
+        self.d.user_utterance = self.d.user_utterance.masked_fill(rows, -1)
+        self.d.user_words = self.d.user_words.masked_fill(column, 0.0)
         if self.starts == "robot":
             first = torch.ones_like(rows)
         elif self.starts == "human":
             first = torch.zeros_like(rows)
         elif self.starts == "alternate":
-            first = self._episodes % 2 == 0
+            first = self.d.episodes % 2 == 0
         else:
             first = torch.rand(rows.shape, generator=self._rng) < 0.5
-        self._robot_first = torch.where(rows, first, self._robot_first)
-        self._episodes += rows.long()
-        self._refresh()
+        self.d.robot_first = torch.where(rows, first, self.d.robot_first)
+        self.d.episodes = self.d.episodes + rows.long()
+        mask, dialogue_mask, lookahead = self._fresh_rows
+        self.d.mask = torch.where(column, mask, self.d.mask)
+        self.d.dialogue_mask = torch.where(column, dialogue_mask, self.d.dialogue_mask)
+        self.d.lookahead = torch.where(column, lookahead, self.d.lookahead)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
@@ -284,27 +320,27 @@ class DialogueGameEnv(EnvBase):
         low, high = int(action.min()), int(action.max())
         if low < 0 or high >= self.n_actions:
             self._check_action_index(low if low < 0 else high)
-        cells, model = self.cells, self.model
         index = action.unsqueeze(1)
-        accepted = self._mask.gather(1, index).squeeze(1)
-        reward = self._lookahead.gather(1, index)
-        act_type = torch.where(action < cells, dlg.MOVE, action - cells + 1)
+        accepted = self.d.mask.gather(1, index).squeeze(1)
+        reward = self.d.lookahead.gather(1, index)
+        act_type = self._act_type.index_select(0, action)
 
         robot_moves = accepted & (act_type == dlg.MOVE)
         if bool(robot_moves.any()):
             self.engine.play(self.boards, action, ROBOT, robot_moves)
-        self._agreed |= accepted & (act_type == dlg.REPLY_YES)
-        self._closed |= accepted & (act_type == dlg.CLOSING)
+        self.d.agreed = self.d.agreed | (accepted & (act_type == dlg.REPLY_YES))
+        self.d.closed = self.d.closed | (accepted & (act_type == dlg.CLOSING))
 
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
+        silence = self._silence
         phase = self._phase()
-        counts = model.reply_counts[act_type, phase]
+        context = act_type * len(dlg.PHASES) + phase
+        counts = self._reply_counts.index_select(0, context)
         pick = (torch.rand(counts.shape, generator=self._rng) * counts).long()
-        utterance = model.reply_options[act_type, phase, pick.clamp(max=model.reply_options.shape[-1] - 1)]
-        utterance = torch.where(accepted & (counts > 0), utterance, -1)
-        user_act = torch.where(utterance >= 0, model.utterance_acts[utterance.clamp(min=0)], -1)
-        asks_move = (act_type == dlg.MOVE) | (act_type == dlg.REQUEST_USER_MOVE)
-        user_moves = accepted & asks_move & (phase == dlg.USER_TO_MOVE)
+        utterance = self._reply_options.index_select(0, context * self._reply_width + pick)
+        utterance = torch.where(accepted, utterance, silence)
+        user_act = self._utterance_acts.index_select(0, utterance)
+        user_moves = accepted & (phase == dlg.USER_TO_MOVE) & self._asks_move.index_select(0, act_type)
         user_move = torch.full_like(action, -1)
         if bool(user_moves.any()):
             cells_taken = self._user_cells(user_moves)
@@ -312,22 +348,23 @@ class DialogueGameEnv(EnvBase):
             user_move = torch.where(user_moves, cells_taken, -1)
         # a move utterance without a move (an act the data never shows) is silence
         silent = (user_act == dlg.USER_MOVE) & ~user_moves
-        utterance = torch.where(silent, -1, utterance)
+        utterance = torch.where(silent, silence, utterance)
         user_act = torch.where(silent, -1, user_act)
-        self._agreed |= accepted & (act_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES)
+        self.d.agreed = self.d.agreed | (accepted & (act_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES))
 
-        confidence = self.asr_low + (self.asr_high - self.asr_low) * torch.rand(self._user_words.shape, generator=self._rng)
-        heard = model.utterance_words[utterance.clamp(min=0)] * (utterance >= 0).unsqueeze(1) * confidence
-        self._user_words = torch.where(accepted.unsqueeze(1), heard, self._user_words)
-        self._last_sys = torch.where(accepted, act_type + 1, self._last_sys)
-        self._last_user = torch.where(accepted, user_act + 1, self._last_user)
-        self._user_act, self._user_move, self._user_utterance = user_act, user_move, utterance
-        self._turn += 1
+        confidence = torch.rand(self.d.user_words.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
+        heard = self._utterance_words.index_select(0, utterance) * confidence
+        self.d.user_words = torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
+        utterance = torch.where(utterance == silence, -1, utterance)
+        self.d.last_sys = torch.where(accepted, act_type + 1, self.d.last_sys)
+        self.d.last_user = torch.where(accepted, user_act + 1, self.d.last_user)
+        self.d.user_act, self.d.user_move, self.d.user_utterance = user_act, user_move, utterance
+        self.d.turn = self.d.turn + 1
         self._refresh()
 
         out = self._output()
         terminated = out.get("terminated")
-        truncated = (self._turn >= self.max_actions).unsqueeze(1) & ~terminated
+        truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
         out.set("reward", reward)
         out.set("truncated", truncated)
         out.set("done", terminated | truncated)
@@ -358,7 +395,7 @@ class DialogueGameEnv(EnvBase):
             tensordict = TensorDict(batch_size=self.batch_size)
         mask = tensordict.get("action_mask", None)
         if mask is None:
-            mask = self._mask
+            mask = self.d.mask
         tensordict.set("action", (torch.rand(mask.shape, generator=self._action_rng) + mask).argmax(-1))
         return tensordict
 
@@ -366,6 +403,29 @@ class DialogueGameEnv(EnvBase):
         seed = 0 if seed is None else int(seed)
         self._rng.manual_seed(seed)
         self._action_rng.manual_seed(seed + 1)
+
+
+class _Dialogues:
+    """Per-game dialogue state and the current mask / look-ahead, each a tensor with the batch first.
+
+    A plain object (not attributes of the env): EnvBase is an nn.Module, whose attribute setting costs
+    ~20 µs, and the step replaces these tensors every call.
+    """
+
+    agreed: torch.Tensor  # (B,) the user agreed to play
+    closed: torch.Tensor  # (B,) the robot said goodbye
+    last_sys: torch.Tensor  # (B,) last accepted system act type + 1 (0: none)
+    last_user: torch.Tensor  # (B,) last user act + 1 (0: none / silence)
+    robot_first: torch.Tensor  # (B,) bool
+    episodes: torch.Tensor  # (B,) dialogues started (for starts="alternate")
+    turn: torch.Tensor  # (B,) actions taken in this dialogue
+    user_act: torch.Tensor  # (B,) the user's act in the last step (-1 none)
+    user_move: torch.Tensor  # (B,) the user's square in the last step (-1 none)
+    user_utterance: torch.Tensor  # (B,) id of the user's utterance in the last step (-1 none)
+    user_words: torch.Tensor  # (B, V) ASR confidence of each word of that utterance
+    mask: torch.Tensor  # (B, A) action_mask
+    dialogue_mask: torch.Tensor  # (B, A) the act filter alone
+    lookahead: torch.Tensor  # (B, A) one-step reward of every action
 
 
 def _check_batch(batch_size: Any) -> int:

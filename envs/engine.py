@@ -14,7 +14,7 @@ Outcome codes: 0 game on, 1 / 2 that player won, 3 draw.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -69,6 +69,16 @@ def grid_tables(radix: int) -> GridTables:
     )
 
 
+def lookup(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``table[index]`` for a 1-D table: index_select on the flat index is several times faster on CPU."""
+    return table.index_select(0, index.reshape(-1)).view(index.shape)
+
+
+def lookup_rows(table: torch.Tensor, player: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``table[player, index]`` for a (3, N) table and per-row ``player``/``index`` of the same shape."""
+    return lookup(table.reshape(-1), player * table.shape[1] + index)
+
+
 @dataclass
 class Boards:
     """The batched game state; every field has the batch as its first dimension.
@@ -86,12 +96,6 @@ class Boards:
     n_marks: torch.Tensor  # (B,) int64
     move_order: torch.Tensor  # (B, cells) int64
     outcome: torch.Tensor  # (B,) int64
-
-    def copy_rows_from(self, other: "Boards", rows: torch.Tensor) -> None:
-        """Overwrite the rows selected by the bool mask ``rows`` with ``other``'s (used by resets)."""
-        for field in fields(self):
-            mine, theirs = getattr(self, field.name), getattr(other, field.name)
-            mine[rows] = theirs[rows]
 
 
 class _Engine:
@@ -186,7 +190,7 @@ class StandardEngine(_Engine):
         code = state.codes[:, 0]
         tables = self.tables
         state.outcome = torch.where(
-            tables.has_line[1, code], 1, torch.where(tables.has_line[2, code], 2, torch.where(tables.full[code], DRAWN, 0))
+            lookup(tables.has_line[1], code), 1, torch.where(lookup(tables.has_line[2], code), 2, torch.where(lookup(tables.full, code), DRAWN, 0))
         )
 
     def legal(self, state: Boards) -> torch.Tensor:
@@ -197,20 +201,39 @@ class StandardEngine(_Engine):
             active = torch.ones_like(cells, dtype=torch.bool)
         player = self._as_player(player, cells)
         cells = self._place(state, cells, player, active)
-        state.codes[:, 0] += torch.where(active, player * self.pow3[cells], 0)
+        state.codes[:, 0] += active.long() * player * self.pow3.index_select(0, cells)
         self._update_outcome(state)
 
     def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
-        tables, opponent = self.tables, 3 - player
         code = state.codes[:, :1]  # (B, 1)
-        empty = state.board == 0
-        after = torch.where(empty, code + player * self.pow3, code)  # (B, 9): code after taking each cell
-        win = tables.has_line[player][after]
-        draw = tables.full[after] & ~win
-        about_to_lose = tables.win_bits[opponent][after] != 0
-        about_to_draw = tables.dead[after] & ~tables.dead[code]
-        about_to_win = tables.win_bits[player][after] != 0
-        return _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
+        after = torch.where(state.board == 0, code + player * self.pow3, code)  # (B, 9): code after each move
+        dead_before = lookup(self.tables.dead, code).long() * 3**9
+        return lookup(self._reward_after[player], after + dead_before)
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _reward_table() -> torch.Tensor:
+        """(3, 2 * 3^9) reward of reaching a grid content by ``player``'s move, given whether it was dead before."""
+        tables, codes = grid_tables(3), torch.arange(3**9)
+        rows = torch.zeros(3, 2 * 3**9)
+        for player in (1, 2):
+            after = codes
+            common = dict(
+                win=tables.has_line[player][after],
+                draw=tables.full[after] & ~tables.has_line[player][after],
+                about_to_lose=tables.win_bits[3 - player][after] != 0,
+                about_to_win=tables.win_bits[player][after] != 0,
+            )
+            for dead_before in (0, 1):
+                about_to_draw = tables.dead[after] & (dead_before == 0)
+                rows[player, dead_before * 3**9:(dead_before + 1) * 3**9] = _prioritise(
+                    common["win"], common["draw"], common["about_to_lose"], about_to_draw, common["about_to_win"]
+                )
+        return rows
+
+    @property
+    def _reward_after(self) -> torch.Tensor:
+        return self._reward_table()
 
 
 def _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win) -> torch.Tensor:
@@ -242,6 +265,7 @@ class UltimateEngine(_Engine):
         self.subgrid_bit = 1 << self.subgrid_of  # (81,)
         self.bit9 = 1 << torch.arange(9)
         self.cell_pow3 = self.pow3[self.position_of]  # (81,)
+        self._sent_to_own_subgrid = self.position_of == self.subgrid_of  # (81,) the move sends to its own subgrid
 
     def legal(self, state: Boards) -> torch.Tensor:
         empty = state.board == 0
@@ -252,7 +276,7 @@ class UltimateEngine(_Engine):
         if self.free_move == "anywhere":
             free = empty
         else:
-            free = empty & (state.owners[:, self.subgrid_of] == 0)
+            free = empty & (state.owners.index_select(1, self.subgrid_of) == 0)
         legal = torch.where(forced.unsqueeze(1), empty & in_target, free)
         return legal & (state.outcome == 0).unsqueeze(1)
 
@@ -261,24 +285,24 @@ class UltimateEngine(_Engine):
             active = torch.ones_like(cells, dtype=torch.bool)
         player = self._as_player(player, cells)
         cells = self._place(state, cells, player, active)
-        sub = self.subgrid_of[cells].unsqueeze(1)
-        code = state.codes.gather(1, sub).squeeze(1) + torch.where(active, player * self.cell_pow3[cells], 0)
+        sub = self.subgrid_of.index_select(0, cells).unsqueeze(1)
+        code = state.codes.gather(1, sub).squeeze(1) + active.long() * player * self.cell_pow3.index_select(0, cells)
         state.codes.scatter_(1, sub, code.unsqueeze(1))
         owner = state.owners.gather(1, sub).squeeze(1)
         deciding = active & (owner == 0)
-        won = deciding & self.tables.has_line[player, code]
-        drawn = deciding & ~won & self.tables.full[code]
+        won = deciding & lookup_rows(self.tables.has_line, player, code)
+        drawn = deciding & ~won & lookup(self.tables.full, code)
         owner = torch.where(won, player, torch.where(drawn, DRAWN, owner))
         state.owners.scatter_(1, sub, owner.unsqueeze(1))
         meta = (state.owners * self.pow4).sum(1)
-        game_won = active & self.meta.has_line[player, meta]
+        game_won = active & lookup_rows(self.meta.has_line, player, meta)
         no_move_left = active & ~self._next_player_can_move(state)
         outcome = torch.where(game_won, player, torch.where(no_move_left, DRAWN, state.outcome))
         state.outcome = torch.where(active & (state.outcome == 0), outcome, state.outcome)
 
     def _next_player_can_move(self, state: Boards) -> torch.Tensor:
         """(B,) whether the player to move has any legal square (ignoring whether the game was won)."""
-        target = self.position_of[state.last_move.clamp(min=0)]
+        target = self.position_of.index_select(0, state.last_move.clamp(min=0))
         target_open = state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0
         if self.free_move == "anywhere":
             free = state.n_marks < 81
@@ -290,43 +314,64 @@ class UltimateEngine(_Engine):
         """(B,) bitmask over subgrids: open subgrids whose ``table_bits`` entry is non-zero."""
         return (((table_bits != 0) & (owners == 0)).long() * self.bit9).sum(1)
 
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _packed_tables() -> tuple[torch.Tensor, torch.Tensor]:
+        """Per player, the facts the look-ahead needs packed into one int per grid content (one gather each).
+
+        Subgrid (3^9 contents): bit 0 has a line of the player, bit 1 full, bit 2 the opponent can complete a
+        line, bit 3 the player can. Owner grid (4^9): bit 0 line of the player, bit 1 dead, bits 2-10 the
+        subgrids whose winning would complete a line for the opponent, bits 11-19 the same for the player.
+        """
+        marks, owners = grid_tables(3), grid_tables(4)
+        sub = torch.zeros(3, 3**9, dtype=torch.int64)
+        meta = torch.zeros(3, 4**9, dtype=torch.int64)
+        for p in (1, 2):
+            q = 3 - p
+            sub[p] = (
+                marks.has_line[p].long() | marks.full.long() << 1
+                | (marks.win_bits[q] != 0).long() << 2 | (marks.win_bits[p] != 0).long() << 3
+            )
+            meta[p] = owners.has_line[p].long() | owners.dead.long() << 1 | owners.win_bits[q] << 2 | owners.win_bits[p] << 11
+        return sub, meta
+
     def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
-        tables, meta, opponent = self.tables, self.meta, 3 - player
-        sub, pos = self.subgrid_of, self.position_of  # (81,)
-        empty = state.board == 0
-        owner_s = state.owners[:, sub]  # (B, 81) owner of each candidate's subgrid
-        code_s = state.codes[:, sub]
-        code_after = torch.where(empty, code_s + player * self.cell_pow3, code_s)
+        sub_table, meta_table = self._packed_tables()
+        sub, pos, bit = self.subgrid_of, self.position_of, self.subgrid_bit  # (81,)
+        opponent = 3 - player
+        owner_s = state.owners.index_select(1, sub)  # (B, 81): owner of each candidate's subgrid
+        code_after = state.codes.index_select(1, sub) + (state.board == 0).long() * (player * self.cell_pow3)
+        facts = lookup(sub_table[player], code_after)
         open_s = owner_s == 0
-        wins_sub = open_s & tables.has_line[player][code_after]
-        draws_sub = open_s & ~wins_sub & tables.full[code_after]
-        owner_after_s = owner_s + wins_sub.long() * player + draws_sub.long() * DRAWN
+        wins_sub = open_s & (facts & 1 != 0)
+        draws_sub = open_s & ~wins_sub & (facts & 2 != 0)
+        delta = wins_sub.long() * player + draws_sub.long() * DRAWN  # change of the subgrid's owner
+        owner_after_s = owner_s + delta
         meta_code = (state.owners * self.pow4).sum(1, keepdim=True)  # (B, 1)
-        meta_after = meta_code + (owner_after_s - owner_s) * self.pow4[sub]  # (B, 81)
-        win = meta.has_line[player][meta_after]
+        meta_facts = lookup(meta_table[player], meta_code + delta * self.pow4[sub])  # (B, 81)
+        win = meta_facts & 1 != 0
 
         # Where the opponent is sent, and whether it can move at all.
-        owner_target = torch.where(pos == sub, owner_after_s, state.owners[:, pos])
-        target_open = owner_target == 0
+        target_open = torch.where(self._sent_to_own_subgrid, owner_after_s, state.owners.index_select(1, pos)) == 0
         if self.free_move == "anywhere":
             free_has_moves = (state.n_marks < 80).unsqueeze(1)
         else:
             open_bits = ((state.owners == 0).long() * self.bit9).sum(1, keepdim=True)
-            open_after = torch.where(owner_after_s == 0, open_bits, open_bits & ~self.subgrid_bit)
-            free_has_moves = open_after != 0
+            free_has_moves = torch.where(owner_after_s == 0, open_bits, open_bits & ~bit) != 0
         draw = ~win & ~target_open & ~free_has_moves
 
-        def threats(who: int) -> torch.Tensor:
-            """(B, 81) bitmask of open subgrids where ``who`` could complete a line, after each candidate."""
-            now = self._open_bits(tables.win_bits[who][state.codes], state.owners).unsqueeze(1)
-            in_s = (tables.win_bits[who][code_after] != 0) & (owner_after_s == 0)
-            return (now & ~self.subgrid_bit) | (in_s.long() * self.subgrid_bit)
-
-        opponent_threats = threats(opponent) & meta.win_bits[opponent][meta_after]
-        opponent_wins = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
-        about_to_lose = opponent_wins
-        about_to_draw = meta.dead[meta_after] & ~meta.dead[meta_code]
-        about_to_win = (threats(player) & meta.win_bits[player][meta_after]) != 0
+        # Open subgrids where each side could complete a line, after each candidate move.
+        still_open = owner_after_s == 0
+        codes_now = state.codes
+        opponent_now = self._open_bits(lookup(self.tables.win_bits[opponent], codes_now), state.owners).unsqueeze(1)
+        player_now = self._open_bits(lookup(self.tables.win_bits[player], codes_now), state.owners).unsqueeze(1)
+        opponent_threats = (opponent_now & ~bit) | ((still_open & (facts & 4 != 0)).long() * bit)
+        player_threats = (player_now & ~bit) | ((still_open & (facts & 8 != 0)).long() * bit)
+        opponent_threats = opponent_threats & (meta_facts >> 2 & 511)
+        about_to_lose = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
+        dead_before = (lookup(meta_table[player], meta_code) & 2) != 0
+        about_to_draw = (meta_facts & 2 != 0) & ~dead_before
+        about_to_win = (player_threats & (meta_facts >> 11 & 511)) != 0
         return _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
 
 

@@ -1,0 +1,59 @@
+"""Env steps per second of the dialogue env vs torchrl's TicTacToeEnv (random masked actions, auto-reset).
+
+Run: python bench/env_throughput.py [--seconds 2] [--batches 1 64 1024]
+One "env step" is one action of one game (a batch-1024 call counts 1024). Our envs build the full state
+every step (features, act filter, look-ahead rewards of every action, winning actions). Figures depend on
+the machine and on other load: run it on an idle machine for numbers you quote.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+from tensordict import TensorDict
+from tqdm import tqdm
+
+
+def steps_per_second(env, reset_td, seconds: float, label: str) -> float:
+    """Step ``env`` with random masked actions (auto-resetting finished games) for about ``seconds``."""
+    td = env.reset(reset_td)
+    batch = td.batch_size[0]
+    for _ in range(5):  # warm-up
+        td = env.rand_action(td)
+        _, td = env.step_and_maybe_reset(td)
+    steps, start = 0, time.perf_counter()
+    with tqdm(desc=label, unit="step", unit_scale=True, leave=False, mininterval=1.0) as bar:
+        while time.perf_counter() - start < seconds:
+            td = env.rand_action(td)
+            _, td = env.step_and_maybe_reset(td)
+            steps += batch
+            bar.update(batch)
+    return steps / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=2.0, help="measuring time per configuration")
+    parser.add_argument("--batches", type=int, nargs="+", default=[1, 64, 1024])
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    from torchrl.envs.custom import TicTacToeEnv
+
+    from envs import make_env
+
+    rows = []
+    for batch in args.batches:
+        ttt = TicTacToeEnv()
+        ref = steps_per_second(ttt, TensorDict(batch_size=[batch]), args.seconds, f"TicTacToeEnv B={batch}")
+        std = steps_per_second(make_env("standard", batch_size=(batch,)), None, args.seconds, f"standard B={batch}")
+        ult = steps_per_second(make_env("ultimate", batch_size=(batch,)), None, args.seconds, f"ultimate B={batch}")
+        rows.append((batch, ref, std, ult))
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}; env steps/s (higher is better)")
+    print(f"{'batch':>6} {'TicTacToeEnv':>14} {'ncbot 3x3':>12} {'ncbot ultimate':>15} {'3x3/TTT':>8} {'ult/TTT':>8}")
+    for batch, ref, std, ult in rows:
+        print(f"{batch:>6} {ref:>14,.0f} {std:>12,.0f} {ult:>15,.0f} {std / ref:>8.2f} {ult / ref:>8.2f}")
+
+
+if __name__ == "__main__":
+    main()
