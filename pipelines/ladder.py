@@ -31,6 +31,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     if games < 1:
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
     torch.set_num_threads(1)
+    register_agent_opponent()
     config, policy = load_agent(checkpoint)
     game = config.env.game
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
@@ -145,3 +146,117 @@ def _write_text(path: Path, text: str) -> Path:
     from pipelines.checkpoint import atomic_write_text
 
     return atomic_write_text(text, path)
+
+
+# ---------------------------------------------------------------------------------------------- agent:CHECKPOINT
+class AgentOpponent:
+    """A trained agent as the user's move policy (``agent:CHECKPOINT``), for agent-vs-agent ladders and curricula.
+
+    The agent learnt its Q-network as the robot in the middle of a dialogue, so its game moves are read from
+    the feature vector of a typical game turn: its own marks as robot moves, the other side's as human moves,
+    the words of "I take this one" / "done", no command, and (temporal features) the last mark at 1.0 and the
+    others at 0.5 because the order of earlier marks is not in the board. On top, the paper's one-step
+    look-ahead (Algorithm 2), computed with the exact rules: take a winning cell if there is one, never a cell
+    after which the other side wins at once (unless every cell is such), else the best Q-value.
+    """
+
+    name = "agent"
+
+    def __init__(self, checkpoint: str, game: str, free_move: str, seed: int) -> None:
+        import torch
+
+        from envs import make_env
+        from envs.dialogue import MOVE, USER_ACTS
+        from envs.rules import make_game
+        from modules.qnet import make_qnet
+        from pipelines.checkpoint import load_checkpoint
+        from pipelines.config import config_from_dict
+
+        data = load_checkpoint(checkpoint)
+        config = config_from_dict(data["config"])
+        if config.env.game != game:
+            raise ValueError(f"agent checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
+        self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
+        self.qnet.load_state_dict(data["qnet"])
+        self.qnet.eval()
+        env = make_env(game, batch_size=(1,), temporal=config.env.temporal, free_move=free_move, seed=seed)
+        names = env.feature_names
+        self.cells = env.cells
+        self.robot_plane = names.index("robot_move[" + "0" * len(str(self.cells - 1)) + "]")
+        self.human_plane = self.robot_plane + self.cells
+        self.time_plane = self.robot_plane + len(names) - self.cells if config.env.temporal else None
+        base = torch.zeros(len(names))
+        model = env.model
+        word_start = names.index(f"word[{model.words[0]}]")
+        move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
+                             key=lambda u: len(model.utterance_texts[u]))
+        base[word_start:word_start + len(model.words)] = torch.maximum(model.template_words[1 + MOVE],
+                                                                       model.utterance_words[move_utterance])
+        self.base = base
+        env.close()
+        self.rules = make_game(game, free_move)
+        self.game, self.free_move = game, free_move
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def select(self, boards, last_move, legal, player, generator=None, owners=None):
+        import torch
+
+        from envs.opponents.lines import subgrid_owners
+
+        rows = boards.shape[0]
+        features = self.base.repeat(rows, 1)
+        features[:, self.robot_plane:self.robot_plane + self.cells] = (boards == player).float()
+        features[:, self.human_plane:self.human_plane + self.cells] = ((boards != 0) & (boards != player)).float()
+        if self.time_plane is not None:
+            times = (boards != 0).float() * 0.5
+            has_last = last_move >= 0
+            times[has_last.nonzero().flatten(), last_move[has_last]] = 1.0
+            features[:, self.time_plane:self.time_plane + self.cells] = times
+        with torch.no_grad():
+            q = self.qnet.module(features)[:, :self.cells]
+        if self.game == "ultimate" and owners is None:
+            owners = subgrid_owners(boards)
+        cells = torch.zeros(rows, dtype=torch.long)
+        for row in torch.nonzero(legal.any(dim=1)).flatten().tolist():
+            choices = torch.nonzero(legal[row]).flatten().tolist()
+            preferred = self._lookahead(boards[row].tolist(), int(last_move[row]), player, choices,
+                                        None if owners is None else owners[row].tolist())
+            values = q[row, preferred]
+            cells[row] = preferred[int(values.argmax())]
+        return cells
+
+    def _lookahead(self, board: list[int], last_move: int, player: int, choices: list[int], owners) -> list[int]:
+        """Algorithm 2 on game moves: the winning cells if any, else the cells that do not lose at once."""
+        from envs.rules import DRAWN, State
+
+        other = 3 - player
+        mover_is_x = board.count(player) == board.count(other)
+        to_xo = {0: 0, player: 1 if mover_is_x else 2, other: 2 if mover_is_x else 1}
+        subgrids = () if owners is None else tuple(DRAWN if o == 3 else to_xo[o] for o in owners)
+        state = State(board=tuple(to_xo[v] for v in board), last_move=last_move, subgrids=subgrids)
+        me = "x" if mover_is_x else "o"
+        winning, safe = [], []
+        for cell in choices:
+            try:
+                after = self.rules.play(state, cell)
+            except ValueError:  # the caller's legal mask rules; the board alone may disagree (see docs)
+                safe.append(cell)
+                continue
+            if self.rules.outcome(after) == me:
+                winning.append(cell)
+            elif not any(self.rules.outcome(self.rules.play(after, reply)) not in (None, me, "draw")
+                         for reply in self.rules.legal(after)):
+                safe.append(cell)
+        return winning or safe or choices
+
+
+def register_agent_opponent() -> None:
+    """Make ``agent:CHECKPOINT`` a valid opponent name (envs cannot import pipelines, so pipelines registers it)."""
+    from envs.opponents import register_opponent
+
+    def factory(arg, *, game, free_move, seed):
+        if not arg:
+            raise ValueError("opponent 'agent' needs a checkpoint path, e.g. 'agent:runs/default/checkpoint.pt'")
+        return AgentOpponent(arg, game, free_move, seed)
+
+    register_opponent("agent", factory, usage="agent:CHECKPOINT")

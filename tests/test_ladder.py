@@ -86,3 +86,31 @@ def test_cli_errors_are_one_line(tmp_path) -> None:
         done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", *args], capture_output=True, text=True)
         assert done.returncode == 2, done.stderr
         assert message in done.stderr and "Traceback" not in done.stderr
+
+
+def test_agent_checkpoint_as_an_opponent(tmp_path) -> None:
+    """``agent:CHECKPOINT``: legal cells, the look-ahead takes wins and blocks, and the env accepts it by name."""
+    from envs import make_env
+    from envs.opponents import make_opponent
+    from pipelines.ladder import register_agent_opponent
+
+    checkpoint = _checkpoint(tmp_path)
+    register_agent_opponent()
+    agent = make_opponent(f"agent:{checkpoint}", game="standard", seed=0)
+    boards = torch.tensor([[1, 1, 0, 2, 2, 0, 0, 0, 0],    # player 2 to move... wins at c2 (cell 5)
+                           [1, 1, 0, 2, 0, 0, 2, 0, 0]],   # player 2 must block a1 b1 at c1 (cell 2)
+                          dtype=torch.int8)
+    legal = boards == 0
+    cells = agent.select(boards, torch.tensor([1, 1]), legal, 2, torch.Generator().manual_seed(0))
+    assert cells.tolist() == [5, 2]
+    env = make_env("standard", batch_size=(4,), opponent=f"agent:{checkpoint}", starts="human", seed=0)
+    td = env.reset()
+    for _ in range(12):
+        td = env.step(env.rand_action(td))["next"]
+    with pytest.raises(ValueError, match="needs a checkpoint path"):
+        make_opponent("agent", game="standard")
+    with pytest.raises(ValueError, match="plays standard, not ultimate"):
+        make_opponent(f"agent:{checkpoint}", game="ultimate")
+    result = run_ladder(str(checkpoint), games=4, opponents=[f"agent:{checkpoint}"], out_dir=str(tmp_path / "self"),
+                        progress=False)
+    assert len(result["rows"]) == 2
