@@ -10,6 +10,8 @@ import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
 
 @dataclass
 class NameTables:
@@ -61,11 +63,30 @@ class NameTables:
     def user_utterance(self, utterance: int) -> str:
         return self.user_utterances[utterance] if 0 <= utterance < len(self.user_utterances) else ""
 
-    def word_columns(self) -> dict[str, int]:
-        """Feature column of each vocabulary word (env names them `word[yes]`); a word the user said holds
-        its ASR confidence there in the observation that follows."""
-        return {name[5:-1]: index for index, name in enumerate(self.feature_names)
-                if name.startswith("word[") and name.endswith("]")}
+    def word_columns(self) -> list[tuple[str, int]]:
+        """(word, feature column) of each vocabulary word, in column order (the env names them `word[yes]`);
+        a word the user said holds its ASR confidence there in the observation that follows."""
+        cached = self.__dict__.get("_word_columns")
+        if cached is None:
+            cached = self.__dict__["_word_columns"] = [(name[5:-1], index) for index, name in enumerate(self.feature_names)
+                                                       if name.startswith("word[") and name.endswith("]")]
+        return cached
+
+    def utterance_words(self) -> np.ndarray:
+        """(utterances + 1, words) bool: which vocabulary words each user utterance contains; the last row
+        (index -1) is silence. Lets the logger pick all ASR confidences of a batch with one numpy call."""
+        cached = self.__dict__.get("_utterance_words")
+        if cached is None:
+            from envs.dialogue import tokenize  # the env's own rule for turning text into word features
+
+            position = {word: k for k, (word, _) in enumerate(self.word_columns())}
+            cached = np.zeros((len(self.user_utterances) + 1, len(position)), bool)
+            for row, text in enumerate(self.user_utterances):
+                for word in tokenize(text):
+                    if word in position:
+                        cached[row, position[word]] = True
+            self.__dict__["_utterance_words"] = cached
+        return cached
 
     def to_metadata(self) -> dict[str, str]:
         """MCAP metadata values must be strings: one JSON list per table."""

@@ -13,6 +13,9 @@ from pathlib import Path
 from typing import Any, Iterable, Iterator
 
 from logs import schemas
+from logs.names import NameTables
+from logs import packed
+from logs.steps import expand_episode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -183,6 +186,8 @@ def _decoder(channel: tuple[str, str, str], schema_of: dict) -> Any:
     _, encoding, schema_name = channel
     if encoding == "json":
         return lambda data: json.loads(data)
+    if encoding == "protobuf" and schema_name == packed.SCHEMA_NAME:
+        return packed.message_class().FromString
     if encoding == "protobuf" and schema_name in _PROTOBUF_TYPES:
         import importlib
 
@@ -221,12 +226,20 @@ def read_episode_records(path: str | Path, episode_ids: Iterable[int] | None = N
     wanted = None if episode_ids is None else set(int(e) for e in episode_ids)
     records: dict[int, EpisodeRecord] = {}
     for message in reader.messages(list(schemas.NCBOT_TOPICS)):
-        episode_id = message.data.get("episode") if isinstance(message.data, dict) else None
+        episode_id = message.data.get("episode") if isinstance(message.data, dict) else \
+            int(message.data.episode) if message.topic == schemas.EPISODE_STEPS_TOPIC else None
         if episode_id is None or (wanted is not None and episode_id not in wanted):
             continue
         record = records.setdefault(episode_id, EpisodeRecord(episode_id, None))
         if message.topic == schemas.EPISODE_TOPIC:
             record.summary = message.data
+        elif message.topic == schemas.EPISODE_STEPS_TOPIC:
+            _, rows, present = packed.decode(message.data)
+            steps, dialogue, boards = expand_episode(episode_id, rows, present, NameTables.from_metadata(reader.names()))
+            record.steps.extend(steps)
+            record.dialogue.extend(dialogue)
+            record.boards.extend(boards)
+            record.step_times.extend(message.log_time + index for index in range(len(steps)))
         elif message.topic == schemas.STEP_TOPIC:
             record.steps.append(message.data)
             record.step_times.append(message.log_time)

@@ -12,6 +12,7 @@ import json
 SCHEMA_VERSION = 1
 
 EPISODE_TOPIC = "/episode"
+EPISODE_STEPS_TOPIC = "/episode/steps"
 STEP_TOPIC = "/step"
 DIALOGUE_TOPIC = "/dialogue"
 BOARD_TOPIC = "/board"
@@ -21,7 +22,10 @@ JOINT_STATES_TOPIC = "/joint_states"
 TRANSFORM_TOPIC = "/tf"
 
 #: The channels that identify a file as an ncbot episode log (a foreign MCAP has none of them).
-NCBOT_TOPICS = (EPISODE_TOPIC, STEP_TOPIC, DIALOGUE_TOPIC, BOARD_TOPIC)
+NCBOT_TOPICS = (EPISODE_TOPIC, EPISODE_STEPS_TOPIC, STEP_TOPIC, DIALOGUE_TOPIC, BOARD_TOPIC)
+#: How the steps of a phase are written: one message per action on /step, /dialogue, /board ("per_action"),
+#: one columnar message per episode on /episode/steps ("packed"), or not at all ("none").
+STEP_DETAIL_CHOICES = ("per_action", "packed", "none")
 
 PHASES = ("train", "eval", "robot")
 #: Outcome names from the robot's point of view, indexed by the env's `outcome` code.
@@ -107,7 +111,6 @@ BOARD_SCHEMA: dict = {
         "step": {"type": "integer"},
         "cells": {"type": "string", "pattern": "^[012]+$"},
         "size": {"type": "integer", "description": "side length: 3 or 9"},
-        "outcome": {"enum": list(OUTCOMES)},
     },
     "required": ["episode", "step", "cells", "size"],
 }

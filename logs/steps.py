@@ -1,7 +1,12 @@
-"""Turn env TensorDicts (one step (B,) or a collector batch (B, T)) into per-episode message dicts.
+"""Turn env TensorDicts (one step (B,) or a collector batch (B, T)) into finished episodes, fast.
 
-Steps are buffered per batch index until their episode ends, so each episode is written in one piece
-(contiguous in the file, one id, never split across files) and an unfinished episode costs nothing on disk.
+Speed matters: a training step costs well under 100 us and logging may add 10 %. So the assembler never
+loops over steps in Python: each batch becomes fixed-width rows with one numpy call per field
+(`logs.packed.batch_rows`), the assembler notes where each episode lies in them ((rows, b, t0, t1)
+slices), and a finished episode is its rows concatenated. Written as is, that is the packed
+`/episode/steps` message; expanded (`expand_episode`, also used by the reader) it becomes the per-action
+`/step`, `/dialogue` and `/board` messages. Steps wait per batch index until their episode ends, so an
+episode is written in one piece and never split across files.
 """
 from __future__ import annotations
 
@@ -11,39 +16,41 @@ from typing import Any
 import numpy as np
 
 from logs.names import NameTables
+from logs.packed import batch_rows, unpack_steps
 from logs.schemas import OUTCOMES
 
 REQUIRED_KEYS = ("action", "action_mask", ("next", "reward"), ("next", "done"), ("next", "board"))
-OPTIONAL_KEYS = ("observation", ("next", "observation"), "lookahead_reward", "winning_actions", "robot_first", "turn", "action_value",
-                 ("next", "terminated"), ("next", "truncated"), ("next", "outcome"), ("next", "user_act"),
-                 ("next", "user_move"), ("next", "user_utterance"))
+OPTIONAL_KEYS = ("observation", ("next", "observation"), "lookahead_reward", "winning_actions", "robot_first", "turn",
+                 "action_value", ("next", "terminated"), ("next", "truncated"), ("next", "outcome"),
+                 ("next", "user_act"), ("next", "user_move"), ("next", "user_utterance"))
 
 
 @dataclass
 class PendingEpisode:
-    """What has been seen of one batch index's current episode."""
+    """Where one batch index's current episode lies in the batches seen so far, and its running totals."""
 
-    steps: list[dict] = field(default_factory=list)
-    dialogue: list[dict] = field(default_factory=list)
-    boards: list[dict] = field(default_factory=list)
+    parts: list[bytes] = field(default_factory=list)  # the bytes of its step rows, batch by batch
     robot_first: bool = True
-    total_reward: float = 0.0
     length: int = 0
+    total_reward: float = 0.0
 
 
 @dataclass
 class FinishedEpisode:
-    """An episode ready to write: its messages (episode id still unset) and its summary fields."""
+    """An episode ready to write: its step rows (None when not kept) and its summary fields."""
 
-    steps: list[dict]
-    dialogue: list[dict]
-    boards: list[dict]
+    rows: bytes | None
+    row_dtype: np.dtype | None
+    present: list[str]
     batch_index: int
     length: int
     seat: str
     outcome: str
     total_reward: float
     truncated: bool
+
+    def step_rows(self) -> np.ndarray:
+        return np.frombuffer(self.rows, self.row_dtype)
 
 
 def _key_name(key: str | tuple[str, ...]) -> str:
@@ -72,7 +79,10 @@ def step_arrays(td: Any) -> dict[str, np.ndarray]:
 
 
 class EpisodeAssembler:
-    """Builds step/dialogue/board dicts per batch index and hands back the episodes that finished."""
+    """Collects the steps of each batch index and hands back the episodes that finished.
+
+    Work per batch is a few numpy calls plus a Python loop over batch rows and episode ends, never over
+    steps. Rows are copies, so callers may reuse their buffers."""
 
     def __init__(self) -> None:
         self.pending: dict[int, PendingEpisode] = {}
@@ -82,100 +92,98 @@ class EpisodeAssembler:
         """Add every (b, t) step of a batch; return the episodes whose last step was in it, in time order.
         With `detail` False only the summary (return, length, outcome, seat) is kept."""
         batch, steps = arrays["action"].shape[:2]
-        finished: list[FinishedEpisode] = []
-        word_columns = names.word_columns() if detail else {}
-        for t in range(steps):
-            for b in range(batch):
-                episode = self.pending.get(b)
-                if episode is not None and episode.length and "turn" in arrays and int(arrays["turn"][b, t].reshape(-1)[0]) == 0:
-                    # a new episode starts where an unfinished one was waiting: its stream was abandoned
-                    # (e.g. an evaluation env closed mid-game); drop it rather than glue two games together
-                    del self.pending[b]
-                    self.abandoned += 1
-                    episode = None
+        if detail:
+            rows, present = batch_rows(arrays, names)
+            dtype, raw = rows.dtype, rows.view(np.uint8).reshape(batch, steps * rows.dtype.itemsize)
+        else:
+            dtype, raw, present = None, None, []
+        width = dtype.itemsize if dtype is not None else 0
+        rewards = np.zeros((batch, steps + 1))
+        np.cumsum(arrays["next.reward"].reshape(batch, steps), axis=1, out=rewards[:, 1:])
+        cumulative = rewards.tolist()  # a segment's return is a difference of two of these
+        done = arrays["next.done"].reshape(batch, steps)
+        starts = (arrays["turn"].reshape(batch, steps)[:, 0] == 0).tolist() if "turn" in arrays else [False] * batch
+        first = arrays["robot_first"].reshape(batch, steps).tolist() if "robot_first" in arrays else None
+        ends_by_row: dict[int, list[int]] = {}
+        for b, t in zip(*(index.tolist() for index in np.nonzero(done))):
+            ends_by_row.setdefault(b, []).append(t)
+        ending = _ending_flags(arrays, batch, steps) if ends_by_row else None
+        finished: list[tuple[int, int, FinishedEpisode]] = []
+        for b in range(batch):
+            episode = self.pending.get(b)
+            if episode is not None and starts[b]:
+                # a new episode starts where an unfinished one was waiting: its stream was abandoned
+                # (e.g. an evaluation env closed mid-game); drop it rather than glue two games together
+                self.abandoned += 1
+                episode = None
+            ends = ends_by_row.get(b, [])
+            t0 = 0
+            for t_end in ends + [steps - 1]:
+                if t0 > t_end:
+                    break
                 if episode is None:
-                    episode = self.pending[b] = PendingEpisode()
-                    if "robot_first" in arrays:
-                        episode.robot_first = bool(arrays["robot_first"][b, t].reshape(-1)[0])
-                episode.length += 1
-                episode.total_reward += float(arrays["next.reward"][b, t].reshape(-1)[0])
-                if detail:
-                    self._add_step(episode, arrays, b, t, names, word_columns)
-                if bool(arrays["next.done"][b, t].reshape(-1)[0]):
-                    finished.append(self._finish(b, arrays, t))
-        return finished
+                    episode = PendingEpisode(robot_first=True if first is None else bool(first[b][t0]))
+                if raw is not None:
+                    episode.parts.append(raw[b, t0 * width:(t_end + 1) * width].tobytes())
+                episode.length += t_end + 1 - t0
+                episode.total_reward += cumulative[b][t_end + 1] - cumulative[b][t0]
+                if t_end in ends:
+                    outcome, truncated = ending[b][t_end]
+                    finished.append((t_end, b, FinishedEpisode(
+                        b"".join(episode.parts) if raw is not None else None, dtype, present, b, episode.length,
+                        "first" if episode.robot_first else "second", outcome, episode.total_reward, truncated)))
+                    episode = None
+                t0 = t_end + 1
+            if episode is None:
+                self.pending.pop(b, None)
+            else:
+                self.pending[b] = episode
+        return [item[2] for item in sorted(finished, key=lambda item: (item[0], item[1]))]
 
-    def _add_step(self, episode: PendingEpisode, arrays: dict[str, np.ndarray], b: int, t: int,
-                  names: NameTables, word_columns: dict[str, int]) -> None:
-        act = int(arrays["action"][b, t].reshape(-1)[0]) if arrays["action"][b, t].size == 1 \
-            else int(np.argmax(arrays["action"][b, t]))  # one-hot actions from some TorchRL specs
-        index = int(arrays["turn"][b, t].reshape(-1)[0]) if "turn" in arrays else len(episode.steps)
-        mask = arrays["action_mask"][b, t]
-        available = np.flatnonzero(mask)
-        reward = float(arrays["next.reward"][b, t].reshape(-1)[0])
-        step: dict[str, Any] = {"episode": -1, "step": index, "who": "robot", "act": act,
-                                "mask": available.tolist(), "reward": round(reward, 4)}
-        if "winning_actions" in arrays:
-            winning = np.flatnonzero(arrays["winning_actions"][b, t] & mask)
-            step["A"] = winning.tolist() if winning.size else step["mask"]
-        if "lookahead_reward" in arrays:
-            step["A_hat"] = np.flatnonzero(mask & (arrays["lookahead_reward"][b, t] < 0)).tolist()
-        if "action_value" in arrays:
-            step["q"] = np.round(arrays["action_value"][b, t][available].astype(np.float64), 3).tolist()
-        if "observation" in arrays:
-            features = arrays["observation"][b, t]
-            nonzero = np.flatnonzero(features)
-            values = features[nonzero]
-            ones = values == 1.0
-            step["on"] = nonzero[ones].tolist()
-            others = ~ones
-            if others.any():
-                step["val"] = [[int(i), round(float(v), 3)] for i, v in zip(nonzero[others], values[others])]
-        episode.steps.append(step)
 
-        robot_turn: dict[str, Any] = {"episode": -1, "step": index, "speaker": "robot", "act": act,
-                                      "act_name": names.action_name(act), "text": names.template(act)}
+def _ending_flags(arrays: dict[str, np.ndarray], batch: int, steps: int) -> list[list[tuple[str, bool]]]:
+    """(outcome name, truncated) of every (b, t), in case an episode ends there."""
+    def grid(key: str) -> np.ndarray:
+        return arrays[key].reshape(batch, steps) if key in arrays else np.zeros((batch, steps), np.int64)
+
+    outcome = (grid("next.outcome").astype(np.int64) % len(OUTCOMES)).tolist()
+    truncated = (grid("next.truncated").astype(bool) & ~grid("next.terminated").astype(bool)).tolist()
+    return [[(OUTCOMES[o], c) for o, c in zip(row_outcome, row_cut)] for row_outcome, row_cut in zip(outcome, truncated)]
+
+
+def expand_episode(episode_id: int, rows: np.ndarray, present: set[str] | list[str],
+                   names: NameTables) -> tuple[list, list, list]:
+    """An episode's rows as per-action `/step`, `/dialogue` and `/board` message dicts.
+
+    The writer uses this for phases logged per action, the reader for packed `/episode/steps` messages, so
+    both give the same dicts (dialogue text comes from the name tables stored in the file)."""
+    steps, dialogue, boards = [], [], []
+    for row in unpack_steps(rows, set(present), names):
+        index, act = row["step"], row["act"]
+        step = {"episode": episode_id, "step": index, "who": "robot", "act": act, "mask": row["mask"],
+                "reward": row["reward"]}
+        for optional in ("A", "A_hat", "q", "on"):
+            if optional in row:
+                step[optional] = row[optional]
+        if row.get("val"):
+            step["val"] = row["val"]
+        steps.append(step)
+        robot_turn = {"episode": episode_id, "step": index, "speaker": "robot", "act": act,
+                      "act_name": names.action_name(act), "text": names.template(act)}
         command = names.robot_command(act)
         if command:
             robot_turn["command"] = command
-        episode.dialogue.append(robot_turn)
-        user_act = int(arrays["next.user_act"][b, t].reshape(-1)[0]) if "next.user_act" in arrays else -1
-        if user_act >= 0:
-            user_turn: dict[str, Any] = {"episode": -1, "step": index, "speaker": "user", "act": user_act,
-                                         "act_name": names.user_act_name(user_act)}
-            utterance = int(arrays["next.user_utterance"][b, t].reshape(-1)[0]) if "next.user_utterance" in arrays else -1
-            text = names.user_utterance(utterance)
+        dialogue.append(robot_turn)
+        if row["user_act"] >= 0:
+            user_turn = {"episode": episode_id, "step": index, "speaker": "user", "act": row["user_act"],
+                         "act_name": names.user_act_name(row["user_act"])}
+            text = names.user_utterance(row["user_utterance"])
             if text:
                 user_turn["text"] = text
-            if "next.user_move" in arrays:
-                user_turn["move"] = int(arrays["next.user_move"][b, t].reshape(-1)[0])
-            next_obs = arrays.get("next.observation")
-            if text and word_columns and next_obs is not None:
-                # the user's words hold their ASR confidence in the observation after the user spoke
-                said = [word for word in dict.fromkeys(_tokenize(text)) if word in word_columns]
-                user_turn["words"] = [[word, round(float(next_obs[b, t][word_columns[word]]), 3)] for word in said]
-            episode.dialogue.append(user_turn)
-
-        cells = arrays["next.board"][b, t].astype(np.uint8).ravel()
-        board: dict[str, Any] = {"episode": -1, "step": index, "cells": (cells + 48).tobytes().decode(),
-                                 "size": 3 if cells.size == 9 else 9}
-        if "next.outcome" in arrays:
-            board["outcome"] = OUTCOMES[int(arrays["next.outcome"][b, t].reshape(-1)[0]) % len(OUTCOMES)]
-        episode.boards.append(board)
-
-    def _finish(self, b: int, arrays: dict[str, np.ndarray], t: int) -> FinishedEpisode:
-        episode = self.pending.pop(b)
-        outcome_code = int(arrays["next.outcome"][b, t].reshape(-1)[0]) if "next.outcome" in arrays else 0
-        truncated = bool(arrays["next.truncated"][b, t].reshape(-1)[0]) if "next.truncated" in arrays else False
-        if "next.terminated" in arrays and bool(arrays["next.terminated"][b, t].reshape(-1)[0]):
-            truncated = False
-        return FinishedEpisode(episode.steps, episode.dialogue, episode.boards, b, episode.length,
-                               "first" if episode.robot_first else "second",
-                               OUTCOMES[outcome_code % len(OUTCOMES)], episode.total_reward, truncated)
-
-
-def _tokenize(text: str) -> list[str]:
-    """Words of an utterance exactly as the env turns them into word features."""
-    from envs.dialogue import tokenize
-
-    return tokenize(text)
+            user_turn["move"] = row["user_move"]
+            if row["words"]:
+                user_turn["words"] = row["words"]
+            dialogue.append(user_turn)
+        boards.append({"episode": episode_id, "step": index, "cells": row["cells"],
+                       "size": 3 if len(row["cells"]) == 9 else 9})
+    return steps, dialogue, boards

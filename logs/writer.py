@@ -13,15 +13,17 @@ import os
 import re
 import time
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 from logs import schemas
 from logs.board_image import board_png, changed_cell
 from logs.names import NameTables
-from logs.steps import EpisodeAssembler, FinishedEpisode, step_arrays
+from logs import packed
+from logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_arrays
 
 FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
 DEFAULT_MAX_FILE_BYTES = 256 * 2**20
+DEFAULT_STEP_DETAIL = {"train": "packed", "eval": "packed", "robot": "per_action"}
 MESSAGE_RECORD_OVERHEAD = 31  # MCAP Message record header: opcode, length, channel, sequence, two times
 
 
@@ -52,21 +54,24 @@ class EpisodeLogger:
             `ncbot.run` in every file.
         max_file_bytes: start a new file once the current one is this large (checked at episode ends, so a
             file overshoots by at most one episode).
+        step_detail: per phase, how its steps are written: "per_action" (one `/step`, `/dialogue` and
+            `/board` message per action, what Foxglove plots over time), "packed" (one columnar
+            `/episode/steps` message per episode: ~15x cheaper in time, the reader expands it to the same
+            step dicts) or "none" (only the `/episode` summary). Default: packed for train and eval (thousands
+            of games), per action for robot games.
         board_image_phases: phases whose boards are also drawn as PNG on `/board/image`
             (`foxglove.CompressedImage`) so Foxglove shows the game. Default: robot games only. An image per
             move costs ~0.4 KB and ~0.1 ms, which would break the 2 KB-per-training-episode budget and slow
             the thousands of periodic evaluation games; every phase still has the board as text on `/board`,
             and `ncbot logs to-rerun` draws images from it. Pass ("eval", "robot") for a standalone eval log.
-        step_phases: phases whose per-action `/step`, `/dialogue` and `/board` messages are written; the
-            `/episode` summary is always written. Default: all phases.
         flush_interval_s: close the open chunk when it is older than this; bounds what a kill -9 loses.
         chunk_bytes: also close a chunk when its uncompressed size passes this.
     """
 
     def __init__(self, run_dir: str | os.PathLike, run_info: dict[str, Any] | None = None, *,
                  max_file_bytes: int = DEFAULT_MAX_FILE_BYTES,
+                 step_detail: Mapping[str, str] | None = None,
                  board_image_phases: Iterable[str] = ("robot",),
-                 step_phases: Iterable[str] = schemas.PHASES,
                  flush_interval_s: float = 1.0, chunk_bytes: int = 2**20) -> None:
         if max_file_bytes <= 0:
             raise ValueError(f"max_file_bytes must be positive, got {max_file_bytes}")
@@ -83,8 +88,13 @@ class EpisodeLogger:
             raise ValueError(f"run_info must be JSON-serialisable: {error}") from None
         self.max_file_bytes = int(max_file_bytes)
         self.board_image_phases = frozenset(board_image_phases)
-        self.step_phases = frozenset(step_phases)
-        for phase in self.board_image_phases | self.step_phases:
+        self.step_detail = {**DEFAULT_STEP_DETAIL, **(step_detail or {})}
+        for phase, detail in self.step_detail.items():
+            _check_phase(phase)
+            if detail not in schemas.STEP_DETAIL_CHOICES:
+                raise ValueError(f"step_detail for {phase} must be one of {', '.join(schemas.STEP_DETAIL_CHOICES)}, "
+                                 f"got {detail!r}")
+        for phase in self.board_image_phases:
             _check_phase(phase)
         self.flush_interval_s = float(flush_interval_s)
         self.chunk_bytes = int(chunk_bytes)
@@ -125,7 +135,7 @@ class EpisodeLogger:
             self._names_source = id(env)
         arrays = step_arrays(td)
         assembler = self._assemblers.setdefault((phase, agent, seed), EpisodeAssembler())
-        finished = assembler.add(arrays, self._names, detail=phase in self.step_phases)
+        finished = assembler.add(arrays, self._names, detail=self.step_detail[phase] != "none")
         if game is None:
             game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
@@ -142,24 +152,11 @@ class EpisodeLogger:
                        epsilon: float | None, env_steps: int | None, game: str,
                        extra: dict[str, Any] | None) -> int:
         episode_id = self.new_episode_id()
-        if phase in self.step_phases:
-            draw = phase in self.board_image_phases
-            previous = None
-            turns = iter(episode.dialogue)
-            turn = next(turns, None)
-            for step, board in zip(episode.steps, episode.boards):
-                step["episode"] = episode_id
-                board["episode"] = episode_id
-                self._write_json(schemas.STEP_TOPIC, step)
-                while turn is not None and turn["step"] == step["step"]:  # dialogue is in step order
-                    turn["episode"] = episode_id
-                    self._write_json(schemas.DIALOGUE_TOPIC, turn)
-                    turn = next(turns, None)
-                self._write_json(schemas.BOARD_TOPIC, board)
-                if draw:
-                    self.log_board_image(board["cells"], last_move=changed_cell(previous, board["cells"]),
-                                         frame_id=f"episode{episode_id}")
-                previous = board["cells"]
+        detail = self.step_detail[phase]
+        if detail == "packed":
+            self._write_packed(episode_id, episode)
+        elif detail == "per_action":
+            self._write_per_action(episode_id, episode, draw=phase in self.board_image_phases)
         summary = {"episode": episode_id, "phase": phase, "game": game, "agent": agent, "seed": int(seed),
                    "seat": episode.seat, "outcome": episode.outcome, "return": round(episode.total_reward, 4),
                    "length": episode.length, "task_success": episode.outcome in ("win", "draw"),
@@ -172,6 +169,22 @@ class EpisodeLogger:
         self._write_json(schemas.EPISODE_TOPIC, summary)
         self._maybe_roll()
         return episode_id
+
+    def _write_per_action(self, episode_id: int, episode: FinishedEpisode, draw: bool) -> None:
+        steps, dialogue, boards = expand_episode(episode_id, episode.step_rows(), episode.present, self._names)
+        turns = iter(dialogue)
+        turn = next(turns, None)
+        previous = None
+        for step, board in zip(steps, boards):
+            self._write_json(schemas.STEP_TOPIC, step)
+            while turn is not None and turn["step"] == step["step"]:  # dialogue comes in step order
+                self._write_json(schemas.DIALOGUE_TOPIC, turn)
+                turn = next(turns, None)
+            self._write_json(schemas.BOARD_TOPIC, board)
+            if draw:
+                self.log_board_image(board["cells"], last_move=changed_cell(previous, board["cells"]),
+                                     frame_id=f"episode{episode_id}")
+            previous = board["cells"]
 
     # ----------------------------------------------------------------- low level: dicts per schema
     def new_episode_id(self) -> int:
@@ -338,6 +351,18 @@ class EpisodeLogger:
         data = json.dumps(message, separators=(",", ":")).encode()
         self._pending_bytes += len(data) + MESSAGE_RECORD_OVERHEAD
         self._writer.add_message(self._channels[topic], log_time=log_time, data=data, publish_time=log_time)
+
+    def _write_packed(self, episode_id: int, episode: FinishedEpisode) -> None:
+        self._require_open()
+        if schemas.EPISODE_STEPS_TOPIC not in self._channels:
+            schema_id = self._writer.register_schema(packed.SCHEMA_NAME, "protobuf", packed.descriptor_set())
+            self._channels[schemas.EPISODE_STEPS_TOPIC] = self._writer.register_channel(
+                schemas.EPISODE_STEPS_TOPIC, "protobuf", schema_id)
+        data = packed.encode(episode_id, episode.length, episode.row_dtype, episode.rows, episode.present)
+        self._pending_bytes += len(data) + MESSAGE_RECORD_OVERHEAD
+        log_time = self._now_ns()
+        self._writer.add_message(self._channels[schemas.EPISODE_STEPS_TOPIC], log_time=log_time, data=data,
+                                 publish_time=log_time)
 
     def _write_protobuf(self, topic: str, message: Any, t: float | None) -> None:
         from mcap_protobuf.schema import register_schema
