@@ -1,8 +1,210 @@
-"""`ncbot` commands of the vision area (placeholder until its issue lands)."""
+"""`ncbot vision ...`: read boards and cells from images, train and evaluate the cell classifier, generate data.
+
+JSON contract (used by the robot simulator): `read --json` prints one object per image,
+{"image": PATH, "cells": [...]} or {"image": PATH, "error": "..."}; exit 0 if any image was read, else 2.
+`classify --json` prints {"image": PATH, "label": ..., "scores": [3 floats]} (or "error").
+"""
 from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
 
 import typer
 
+vision_app = typer.Typer(help="Visual perception: read game sheets, classify cells, train/evaluate the CNN, generate data.",
+                         no_args_is_help=True)
+
+_SYMBOL = {"x": "X", "o": "O", "": "."}
+
+
+def _setup_threads() -> None:
+    import cv2
+    import torch
+
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+
+
+def _load_image(path: Path):
+    import cv2
+
+    if not path.is_file():
+        raise FileNotFoundError(f"image {path} does not exist")
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise ValueError(f"image {path} could not be decoded (expected a PNG/JPEG/BMP file)")
+    return image
+
+
+def _classifier(weights: Optional[Path]):
+    from vision.classifier import load_classifier
+
+    return load_classifier(weights)
+
+
+def _board_text(cells: list[str], grid: int) -> str:
+    rows = [" ".join(_SYMBOL[c] for c in cells[r * grid:(r + 1) * grid]) for r in range(grid)]
+    return " / ".join(rows)
+
+
+@vision_app.command()
+def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."),
+         grid: int = typer.Option(3, help="3 (noughts & crosses) or 9 (ultimate)."),
+         json_out: bool = typer.Option(False, "--json", help="One JSON object per line per image."),
+         weights: Optional[Path] = typer.Option(None, help="Classifier weights (default: the shipped ones)."),
+         rho: Optional[int] = typer.Option(None, help="Pixels per cell of the grid warp (default 64 / 40).")) -> None:
+    """Read the board on each photo: row-major cells "x" / "o" / "" over the full grid."""
+    from vision.grid import read_board
+    from vision.sheet import check_grid
+
+    check_grid(grid)
+    _setup_threads()
+    classifier = _classifier(weights)
+    any_read = False
+    for path in images:
+        try:
+            cells = read_board(_load_image(path), grid, classifier, rho)
+        except (ValueError, FileNotFoundError) as error:
+            typer.echo(json.dumps({"image": str(path), "error": str(error)}) if json_out else f"{path}: error: {error}")
+            continue
+        any_read = True
+        typer.echo(json.dumps({"image": str(path), "cells": cells}) if json_out else f"{path}: {_board_text(cells, grid)}")
+    if not any_read:
+        raise typer.Exit(2)
+
+
+@vision_app.command()
+def classify(images: list[Path] = typer.Argument(..., help="Crops of one cell each (any size; resized to 40x40)."),
+             json_out: bool = typer.Option(False, "--json", help="One JSON object per line per image."),
+             weights: Optional[Path] = typer.Option(None, help="Classifier weights (default: the shipped ones).")) -> None:
+    """Classify each cell image as nought / cross / nothing with the CNN + SVM."""
+    _setup_threads()
+    classifier = _classifier(weights)
+    any_read = False
+    for path in images:
+        try:
+            label, scores = classifier.classify_image(_load_image(path))
+        except (ValueError, FileNotFoundError) as error:
+            typer.echo(json.dumps({"image": str(path), "error": str(error)}) if json_out else f"{path}: error: {error}")
+            continue
+        any_read = True
+        if json_out:
+            typer.echo(json.dumps({"image": str(path), "label": label, "scores": [round(s, 4) for s in scores]}))
+        else:
+            typer.echo(f"{path}: {label} (scores {' '.join(f'{s:.2f}' for s in scores)})")
+    if not any_read:
+        raise typer.Exit(2)
+
+
+@vision_app.command()
+def train(out: Optional[Path] = typer.Option(None, help="Where to write the weights (default: the shipped file)."),
+          cells: int = typer.Option(24_000, min=30, help="Generated cells (60% noisy)."),
+          frames3: int = typer.Option(700, min=0, help="Generated 3x3 photos whose cells the reader cuts."),
+          frames9: int = typer.Option(120, min=0, help="Generated 9x9 photos whose cells the reader cuts."),
+          epochs: int = typer.Option(14, min=1, help="Passes over the training cells."),
+          seed: int = typer.Option(0, help="Initial weights, batch order and augmentations."),
+          data_seed: Optional[int] = typer.Option(None, help="Data seed (default vision.data.TRAIN_SEED).")) -> None:
+    """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data."""
+    from vision.classifier import DEFAULT_WEIGHTS, TrainConfig, save_weights
+    from vision.data import TRAIN_SEED
+    from vision.training import DefaultTraining, train_default
+
+    _setup_threads()
+    config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9,
+                             seed=TRAIN_SEED if data_seed is None else data_seed,
+                             train=TrainConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
+    model, meta = train_default(config, progress=True)
+    path = save_weights(model, out or DEFAULT_WEIGHTS, meta)
+    typer.echo(f"wrote {path} ({meta['n_training_cells']} training cells)")
+
+
+@vision_app.command("eval")
+def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
+             what: str = typer.Option("paper,cells,reading", help="Comma list of: paper, cells, reading."),
+             frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading'."),
+             weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
+             loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
+    """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading."""
+    from vision import experiments as ex
+
+    parts = [p.strip() for p in what.split(",") if p.strip()]
+    unknown = set(parts) - {"paper", "cells", "reading"}
+    if unknown or not parts:
+        raise ValueError(f"--what takes a comma list of paper, cells, reading; got {what!r}")
+    _setup_threads()
+    written = []
+    if "paper" in parts:
+        results = ex.paper_experiments(progress=True, loo_folds=loo_folds)
+        written += ex.write_report(results, out, "paper_experiments")
+        typer.echo(ex.markdown(results))
+    classifier = _classifier(weights) if {"cells", "reading"} & set(parts) else None
+    if "cells" in parts:
+        results = ex.heldout_cells(classifier)
+        written += ex.write_report(results, out, "heldout_cells")
+        typer.echo(ex.markdown(results))
+    if "reading" in parts:
+        results = [ex.reading(grid, frames, styles, classifier, progress=True)
+                   for grid in (3, 9) for styles in (("pen",), ("sketch", "hershey"))]
+        written += ex.write_report(results, out, "reading")
+        typer.echo(ex.markdown(results))
+    typer.echo("wrote " + ", ".join(str(p) for p in written))
+
+
+@vision_app.command()
+def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
+             out: Path = typer.Option(..., help="Output directory (PNG files + labels.jsonl)."),
+             n: int = typer.Option(20, min=1, help="Number of cells / frames (sequence: one sequence)."),
+             seed: int = typer.Option(0, help="Data seed."),
+             noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
+             grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
+             hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
+             style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey.")) -> None:
+    """Write generated data to disk to look at or to feed other tools."""
+    import cv2
+
+    from vision.sheet import check_grid
+    from vision.strokes import STYLES
+
+    styles = tuple(s.strip() for s in style.split(",") if s.strip())
+    if not styles or set(styles) - set(STYLES):
+        raise ValueError(f"--style takes a comma list of {', '.join(STYLES)}; got {style!r}")
+    if kind not in ("cells", "frames", "sequence"):
+        raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
+    check_grid(grid)
+    out.mkdir(parents=True, exist_ok=True)
+    records = []
+    if kind == "cells":
+        from vision.data.cells import make_cells
+        from vision.labels import LABELS
+
+        images, labels = make_cells(n, seed, noisy=noisy, styles=styles)
+        for i, (image, label) in enumerate(zip(images, labels)):
+            name = f"cell_{i:05d}.png"
+            cv2.imwrite(str(out / name), image)
+            records.append({"image": name, "label": LABELS[int(label)]})
+    elif kind == "frames":
+        from vision.data.frames import make_frame
+
+        for i in range(n):
+            frame = make_frame(grid, seed + i, hand=hand, styles=styles)
+            name = f"frame_{grid}x{grid}_{seed + i}.png"
+            cv2.imwrite(str(out / name), frame.image)
+            records.append({"image": name, "cells": frame.board, "hand": hand,
+                            "page_corners": frame.page_corners.astype(float).round(1).tolist()})
+    else:
+        from vision.data.sequences import make_move_sequence
+
+        seq = make_move_sequence(grid, seed, styles=styles)
+        for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):
+            name = f"seq_{seed}_{i:03d}.png"
+            cv2.imwrite(str(out / name), image)
+            records.append({"image": name, "hand": has_hand, "known_board": seq.known_board,
+                            "move": seq.move, "symbol": seq.symbol})
+    (out / "labels.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    typer.echo(f"wrote {len(records)} images and labels.jsonl to {out}")
+
 
 def register(app: typer.Typer) -> None:
-    """Add this area's commands to the root app."""
+    """Add `ncbot vision ...` to the root app."""
+    app.add_typer(vision_app, name="vision")

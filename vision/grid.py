@@ -8,7 +8,7 @@ All cells go through the CNN in one batch.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 import cv2
 import numpy as np
@@ -26,17 +26,23 @@ OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "oc
 
 
 @dataclass
-class PageReading:
-    """Everything one frame tells about the sheet; `cells` is the board as 'x' / 'o' / ''."""
+class PageCells:
+    """What the geometry stage found in one frame, before any classification."""
 
-    cells: list[str]
-    probabilities: np.ndarray      # (n*n, 3) softmax of the SVM scores, order vision.labels.LABELS
+    cell_images: np.ndarray        # (n*n, 40, 40) uint8: exactly what the CNN sees
     occluded: np.ndarray           # (n*n,) bool: a hand/arm covers part of the cell
     hand_fraction: float           # fraction of the page under large non-paper blobs (hand, arm, shadow)
     page_corners: np.ndarray       # (4, 2) frame pixels, TL TR BR BL
     grid_corners: np.ndarray       # (4, 2) frame pixels of the grid square
     grid_image: np.ndarray         # (n*rho, n*rho) gray grid warp with the grid lines removed
-    cell_images: np.ndarray        # (n*n, 40, 40) uint8: exactly what the CNN saw
+
+
+@dataclass
+class PageReading(PageCells):
+    """PageCells plus the classifier's verdict; `cells` is the board as 'x' / 'o' / ''."""
+
+    cells: list[str] = field(default_factory=list)
+    probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (n*n, 3), order LABELS
 
 
 def _line_mask(ink: np.ndarray, length: int, horizontal: bool) -> np.ndarray:
@@ -136,9 +142,8 @@ def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.n
     return out
 
 
-def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
-              rho: int | None = None) -> PageReading:
-    """Read the sheet in a BGR frame; raises ValueError if no sheet or no grid is visible."""
+def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> PageCells:
+    """Find the sheet and grid in a BGR frame and cut the cells; raises ValueError if either is missing."""
     check_grid(grid)
     frame = check_frame(frame)
     rho = rho or DEFAULT_RHO[grid]
@@ -177,11 +182,20 @@ def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | Non
             y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
             crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
             cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+    scale = FOREIGN_SIDE / page_side
+    return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
+                     corners, grid_frame, gray)
+
+
+def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
+              rho: int | None = None) -> PageReading:
+    """Read the sheet in a BGR frame (one batched CNN call); raises ValueError if no sheet or grid."""
+    view = extract_cells(frame, grid, rho)
     classifier = classifier or load_classifier()
-    probabilities = classifier.probabilities(cells)
+    probabilities = classifier.probabilities(view.cell_images)
     labels = [BOARD_SYMBOL[LABELS[i]] for i in probabilities.argmax(axis=1)]
-    return PageReading(labels, probabilities, _cell_occlusion(foreign, xs * FOREIGN_SIDE / page_side, ys * FOREIGN_SIDE / page_side), float(foreign.mean()),
-                       corners, grid_frame, gray, cells)
+    return PageReading(**{f.name: getattr(view, f.name) for f in fields(PageCells)},
+                       cells=labels, probabilities=probabilities)
 
 
 def read_board(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,

@@ -1,0 +1,68 @@
+"""The shipped weights: what they are trained on and the one function that reproduces them.
+
+Two sources, both from the "pen" stroke model only (the "sketch" and "hershey" styles stay unseen, as the
+held-out handwriting): generated cells (clean and noisy mixed), and cells cut from generated camera frames
+by the real reading pipeline (`vision.grid.extract_cells`) with their true labels, so the classifier sees
+exactly the crops, warps and grid-line remnants it will get when reading boards.
+
+Reproduce: `ncbot vision train --out vision/weights/cell_cnn.pt` (defaults below).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from tqdm import tqdm
+
+from vision.classifier.model import CellCNN
+from vision.classifier.train import TrainConfig, fit
+from vision.data import TRAIN_SEED
+from vision.data.cells import make_cells
+from vision.data.frames import make_frame
+from vision.grid import extract_cells
+from vision.labels import symbol_to_index
+
+
+@dataclass
+class DefaultTraining:
+    """Data and optimisation of the shipped weights."""
+
+    n_cells: int = 24_000          # generated cells (60% noisy)
+    n_frames_3: int = 700          # 3x3 photos whose cells are cut by the reader (9 cells each)
+    n_frames_9: int = 120          # 9x9 photos (81 cells each)
+    seed: int = TRAIN_SEED         # data seed; test data uses vision.data.TEST_SEED and up
+    train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
+
+
+def frame_cells(grid: int, n_frames: int, seed: int, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Cells cut by the reading pipeline from n generated photos, with their true labels."""
+    images, labels = [], []
+    for i in tqdm(range(n_frames), desc=f"{grid}x{grid} photos", unit="photo", disable=not progress, leave=False):
+        frame = make_frame(grid, seed + i)
+        try:
+            view = extract_cells(frame.image, grid)
+        except ValueError:
+            continue  # the reader could not find the grid: nothing to learn from this photo
+        images.append(view.cell_images)
+        labels.extend(symbol_to_index(s) for s in frame.board)
+    if not images:
+        return np.zeros((0, 40, 40), np.uint8), np.zeros(0, np.int64)
+    return np.concatenate(images), np.array(labels, np.int64)
+
+
+def training_set(config: DefaultTraining, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """All training cells of the shipped weights (deterministic in config.seed)."""
+    cells, labels = make_cells(config.n_cells, config.seed, noisy_fraction=0.6)
+    f3, l3 = frame_cells(3, config.n_frames_3, config.seed + 100_000, progress)
+    f9, l9 = frame_cells(9, config.n_frames_9, config.seed + 200_000, progress)
+    return np.concatenate([cells, f3, f9]), np.concatenate([labels, l3, l9])
+
+
+def train_default(config: DefaultTraining = DefaultTraining(), progress: bool = False) -> tuple[CellCNN, dict]:
+    """Train the shipped classifier; returns it and the metadata stored with the weights."""
+    images, labels = training_set(config, progress)
+    model = fit(images, labels, config.train, progress=progress, description="train default CNN")
+    meta = {k: v for k, v in asdict(config).items() if k != "train"}
+    meta.update({f"train_{k}": v for k, v in asdict(config.train).items()})
+    meta["n_training_cells"] = int(len(images))
+    return model, meta
