@@ -2,12 +2,12 @@
 
 Three measurements, each printed with the figures it produced:
 
-  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, with and
-          without `EpisodeLogger.record_steps` (phase train, random Q-values of the available actions so the
-          /step messages are as large as in training). This is the WORST case for the time ratio: real
-          training also spends time on gradient updates that logging does not touch.
+  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, without
+          logging, with the default packed training log and with one JSON message per action (random
+          Q-values so the messages are as large as in training). This is the WORST case for the time
+          ratio: real training also spends time on gradient updates that logging does not touch.
   train   the same `ncbot train` run twice, with and without `--no-mcap` (skip with --skip-train).
-  encode  the /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
+  encode  the per-action /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
           same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
           logs/README.md.
 
@@ -35,16 +35,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 torch.set_num_threads(1)
 
 
-def random_policy_run(game: str, batch: int, steps: int, seed: int, log_dir: Path | None) -> dict:
-    """Step the real env `steps` times with random legal actions; optionally log every step."""
+def random_policy_run(game: str, batch: int, steps: int, frames: int, seed: int, log_dir: Path | None,
+                      detail: str = "packed") -> dict:
+    """Step the real env with random legal actions; optionally log every step (phase train, `detail`).
+
+    Steps are handed to the logger `frames` at a time as a (B, T) batch, as a TorchRL collector does."""
     from envs import make_env
     from logs import EpisodeLogger
 
     env = make_env(game=game, batch_size=(batch,), seed=seed)
     generator = torch.Generator().manual_seed(seed)
-    logger = EpisodeLogger(log_dir, run_info={"bench": "mcap_overhead"}) if log_dir is not None else None
+    logger = EpisodeLogger(log_dir, run_info={"bench": "mcap_overhead"}, step_detail={"train": detail}) \
+        if log_dir is not None else None
     td = env.reset()
-    episodes = 0
+    episodes, window = 0, []
     started = time.perf_counter()
     for _ in range(steps):
         mask = td["action_mask"]
@@ -52,8 +56,13 @@ def random_policy_run(game: str, batch: int, steps: int, seed: int, log_dir: Pat
         td["action_value"] = torch.randn(mask.shape, generator=generator) * 2.0
         td, next_root = env.step_and_maybe_reset(td)
         episodes += int(td["next", "done"].sum())
-        if logger is not None:
-            logger.record_steps(td, phase="train", agent="random", seed=seed, epsilon=1.0, env_steps=0, env=env)
+        window.append(td)
+        if len(window) == frames:  # the (B, T) batch a collector hands over; built in every variant
+            batch_td = torch.stack(window, dim=1)
+            window = []
+            if logger is not None:
+                logger.record_steps(batch_td, phase="train", agent="random", seed=seed, epsilon=1.0, env_steps=0,
+                                    env=env)
         td = next_root
     if logger is not None:
         logger.close()
@@ -62,29 +71,34 @@ def random_policy_run(game: str, batch: int, steps: int, seed: int, log_dir: Pat
     return {"seconds": elapsed, "episodes": episodes, "env_steps": steps * batch}
 
 
-def bench_env(game: str, batch: int, steps: int, repeats: int) -> Path:
-    timings: dict[str, list[float]] = {"off": [], "on": []}
-    sizes = []
+def bench_env(game: str, batch: int, steps: int, frames: int, repeats: int) -> Path:
+    variants = ("off", "packed", "per_action")
+    timings: dict[str, list[float]] = {variant: [] for variant in variants}
+    sizes: dict[str, list[tuple[int, int]]] = {variant: [] for variant in variants}
     keep = Path(tempfile.mkdtemp(prefix="mcap_bench_"))
     for repeat in range(repeats):
-        for variant in ("off", "on"):
-            log_dir = keep / f"run{repeat}" if variant == "on" else None
-            result = random_policy_run(game, batch, steps, seed=repeat, log_dir=log_dir)
+        for variant in variants:
+            log_dir = keep / f"{variant}{repeat}" if variant != "off" else None
+            result = random_policy_run(game, batch, steps, frames, seed=repeat, log_dir=log_dir,
+                                       detail=variant if variant != "off" else "packed")
             timings[variant].append(result["seconds"])
             if log_dir is not None:
+                from logs.reader import read_episodes
+
                 total = sum(p.stat().st_size for p in log_dir.glob("*.mcap"))
-                sizes.append((total, result["episodes"], result["env_steps"]))
-    off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
-    total_bytes = sum(s[0] for s in sizes)
-    total_episodes = sum(s[1] for s in sizes)
-    total_steps = sum(s[2] for s in sizes)
-    print(f"[env] {game}, batch {batch}, {steps} batched steps x {repeats} repeats (random policy, real env)")
-    print(f"  without logging: median {off:.3f} s   with logging: median {on:.3f} s   "
-          f"-> +{100 * (on - off) / off:.1f} % of an env-only loop "
-          f"({1e6 * (on - off) / (total_steps / repeats):.1f} us per logged env step)")
-    print(f"  disk: {total_bytes / total_episodes:.0f} bytes per training episode "
-          f"({total_episodes} episodes, {total_steps / total_episodes:.2f} steps each, {total_bytes} bytes)")
-    return keep / "run0"
+                sizes[variant].append((total, len(read_episodes(log_dir))))
+    total_steps = steps * batch
+    off = statistics.median(timings["off"])
+    print(f"[env] {game}, {batch} envs x {steps} steps, logged {frames} steps at a time as (B, T) batches, "
+          f"{repeats} repeats, random policy on the real env (medians)")
+    print(f"  no logging            {off:7.3f} s  ({1e6 * off / total_steps:.1f} us per env step)")
+    for variant in variants[1:]:
+        median = statistics.median(timings[variant])
+        per_episode = sum(s[0] for s in sizes[variant]) / max(1, sum(s[1] for s in sizes[variant]))
+        print(f"  train steps {variant:<10} {median:7.3f} s  +{100 * (median - off) / off:5.1f} % of the env-only loop "
+              f"({1e6 * (median - off) / total_steps:.1f} us per logged step), "
+              f"{per_episode:.0f} bytes per training episode on disk")
+    return keep / "per_action0"
 
 
 def bench_train(config: str, episodes: int, repeats: int) -> None:
@@ -174,14 +188,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--game", default="standard", choices=["standard", "ultimate"])
     parser.add_argument("--batch", type=int, default=128, help="env batch size (the default training config uses 128)")
-    parser.add_argument("--steps", type=int, default=300, help="batched env steps per run")
+    parser.add_argument("--steps", type=int, default=240, help="batched env steps per run")
+    parser.add_argument("--frames", type=int, default=8, help="steps per logged batch (collector frames / envs)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--config", default="pipelines/configs/default.yaml", help="training config for [train]")
     parser.add_argument("--train-episodes", type=int, default=3000)
     parser.add_argument("--skip-train", action="store_true")
     args = parser.parse_args()
     os.chdir(Path(__file__).resolve().parent.parent)
-    log_dir = bench_env(args.game, args.batch, args.steps, args.repeats)
+    log_dir = bench_env(args.game, args.batch, args.steps, args.frames, args.repeats)
     bench_encoding(log_dir)
     if not args.skip_train:
         bench_train(args.config, args.train_episodes, args.repeats)

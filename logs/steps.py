@@ -88,9 +88,11 @@ class EpisodeAssembler:
         self.pending: dict[int, PendingEpisode] = {}
         self.abandoned = 0  # unfinished episodes dropped because a new one began at their batch index
 
-    def add(self, arrays: dict[str, np.ndarray], names: NameTables, detail: bool = True) -> list[FinishedEpisode]:
+    def add(self, arrays: dict[str, np.ndarray], names: NameTables, detail: bool = True,
+            active: np.ndarray | None = None) -> list[FinishedEpisode]:
         """Add every (b, t) step of a batch; return the episodes whose last step was in it, in time order.
-        With `detail` False only the summary (return, length, outcome, seat) is kept."""
+        With `detail` False only the summary (return, length, outcome, seat) is kept; rows b with
+        `active[b]` False are skipped (and any episode waiting there dropped)."""
         batch, steps = arrays["action"].shape[:2]
         if detail:
             rows, present = batch_rows(arrays, names)
@@ -110,6 +112,9 @@ class EpisodeAssembler:
         ending = _ending_flags(arrays, batch, steps) if ends_by_row else None
         finished: list[tuple[int, int, FinishedEpisode]] = []
         for b in range(batch):
+            if active is not None and not active[b]:
+                self.pending.pop(b, None)
+                continue
             episode = self.pending.get(b)
             if episode is not None and starts[b]:
                 # a new episode starts where an unfinished one was waiting: its stream was abandoned

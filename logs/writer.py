@@ -15,10 +15,11 @@ import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from logs import schemas
+import numpy as np
+
+from logs import packed, schemas
 from logs.board_image import board_png, changed_cell
 from logs.names import NameTables
-from logs import packed
 from logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_arrays
 
 FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
@@ -120,7 +121,7 @@ class EpisodeLogger:
     # ----------------------------------------------------------------- high level: TensorDicts
     def record_steps(self, td: Any, *, phase: str, agent: str, seed: int, epsilon: float | None = None,
                      env_steps: int | None = None, env: Any = None, game: str | None = None,
-                     extra: dict[str, Any] | None = None) -> list[int]:
+                     extra: dict[str, Any] | None = None, active: Any = None) -> list[int]:
         """Log one env step (batch (B,)) or a collector batch (B, T); return ids of the episodes that ended.
 
         `td` holds the env keys of docs/design.md (root = state the robot decided in, plus `action` and
@@ -128,6 +129,8 @@ class EpisodeLogger:
         until their episode's `done`; batches must therefore come from the same env stream for a given
         (phase, agent, seed) and batch index. `env` (once is enough) supplies the names of acts, utterances,
         robot commands and features; `epsilon`, `env_steps` and `extra` go into each `/episode` summary.
+        `active` (bool (B,)) logs only those batch rows, e.g. the slots still playing their first test game
+        in an evaluation that counts one game per slot (extra games would bias the logged results).
         """
         _check_phase(phase)
         if env is not None and id(env) != self._names_source:
@@ -135,7 +138,12 @@ class EpisodeLogger:
             self._names_source = id(env)
         arrays = step_arrays(td)
         assembler = self._assemblers.setdefault((phase, agent, seed), EpisodeAssembler())
-        finished = assembler.add(arrays, self._names, detail=self.step_detail[phase] != "none")
+        rows = None
+        if active is not None:
+            rows = np.asarray(active.cpu() if hasattr(active, "cpu") else active, dtype=bool).reshape(-1)
+            if rows.shape[0] != arrays["action"].shape[0]:
+                raise ValueError(f"active must have one flag per batch row ({arrays['action'].shape[0]}), got {rows.shape[0]}")
+        finished = assembler.add(arrays, self._names, detail=self.step_detail[phase] != "none", active=rows)
         if game is None:
             game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,

@@ -296,3 +296,14 @@ def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
         assert [turn.get("text", "") for turn in user] == spoken
     counts = LogReader(tmp_path).scan()[0].counts
     assert counts["/board/image"] == counts["/board"] >= sum(len(steps) for steps in finished[:6])
+
+
+def test_inactive_rows_are_not_logged(tmp_path: Path) -> None:
+    td = fake_batch(3, 12, DONE_AT)
+    with EpisodeLogger(tmp_path) as log:
+        ids = log.record_steps(td, phase="eval", agent="a", seed=0, active=torch.tensor([True, False, True]))
+        with pytest.raises(ValueError, match="one flag per batch row"):
+            log.record_steps(td, phase="eval", agent="a", seed=0, active=torch.tensor([True, False]))
+    assert len(ids) == 5  # row 1's single episode is left out
+    lengths = sorted(e["length"] for e in read_episodes(tmp_path))
+    assert lengths == sorted([4, 6, 3, 3, 6])
