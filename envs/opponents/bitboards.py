@@ -174,49 +174,56 @@ class UltimateBits:
         return (subs0, subs1, decided, macro0, macro1, target, turn ^ 1, n_empty, result)
 
     def rollout(self, pos: tuple, rand) -> int:
-        """Play uniformly random legal moves to the end; the result (0, 1 or DRAW). The hot loop of MCTS."""
+        """Play uniformly random legal moves to the end; the result (0, 1 or DRAW). The hot loop of MCTS.
+
+        Keeps one occupancy mask per subgrid (both sides) and updates a side's own mask only while its subgrid
+        is open: a decided subgrid's owner never changes, so only its free squares still matter.
+        """
         subs0, subs1, decided, macro0, macro1, target, turn, n_empty, result = pos
         if result != ONGOING:
             return result
-        subs = [list(subs0), list(subs1)]
+        subs = (list(subs0), list(subs1))
+        occ = [a | b for a, b in zip(subs0, subs1)]
         macro = [macro0, macro1]
         anywhere = self.anywhere
+        free_squares, n_free, is_line = FREE_SQUARES, N_FREE, IS_LINE
         while True:
-            mine_subs = subs[turn]
-            other_subs = subs[turn ^ 1]
             if target >= 0:
                 k = target
-                free = FREE_SQUARES[mine_subs[k] | other_subs[k]]
-                p = free[int(rand() * len(free))]
+                o = occ[k]
+                p = free_squares[o][int(rand() * n_free[o])]
             else:  # free move: uniform over the allowed empty squares, walking subgrids by their free counts
                 if anywhere:
                     r = int(rand() * n_empty)
                     for k in range(9):
-                        free = FREE_SQUARES[mine_subs[k] | other_subs[k]]
-                        if r < len(free):
+                        c = n_free[occ[k]]
+                        if r < c:
                             break
-                        r -= len(free)
+                        r -= c
                 else:
-                    open_free = [
-                        (k, FREE_SQUARES[mine_subs[k] | other_subs[k]]) for k in range(9) if not decided >> k & 1
-                    ]
-                    r = int(rand() * sum(len(free) for _, free in open_free))
-                    for k, free in open_free:
-                        if r < len(free):
+                    r = int(rand() * sum(n_free[occ[j]] for j in range(9) if not decided >> j & 1))
+                    for k in range(9):
+                        if decided >> k & 1:
+                            continue
+                        c = n_free[occ[k]]
+                        if r < c:
                             break
-                        r -= len(free)
-                p = free[r]
-            mine = mine_subs[k] | 1 << p
-            mine_subs[k] = mine
+                        r -= c
+                p = free_squares[occ[k]][r]
+            bit = 1 << p
+            o = occ[k] | bit
+            occ[k] = o
             n_empty -= 1
             if not decided >> k & 1:
-                if IS_LINE[mine]:
+                mine = subs[turn][k] | bit
+                subs[turn][k] = mine
+                if is_line[mine]:
                     decided |= 1 << k
                     owned = macro[turn] | 1 << k
                     macro[turn] = owned
-                    if IS_LINE[owned]:
+                    if is_line[owned]:
                         return turn
-                elif (mine | other_subs[k]) == FULL:
+                elif o == FULL:
                     decided |= 1 << k
             if anywhere:
                 if n_empty == 0:
