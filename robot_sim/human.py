@@ -35,6 +35,9 @@ class HumanConfig:
     nudge_probability: float = 0.0
     nudge_metres: float = 0.01
     nudge_degrees: float = 3.0
+    #: Mark size as a fraction of the cell, and pen width in millimetres (ranges sampled per mark).
+    mark_size: tuple[float, float] = (0.55, 0.75)
+    pen_mm: tuple[float, float] = (1.2, 2.0)
     #: Show the human's arm at all (False: marks appear without occlusion, for ablations).
     show_arm: bool = True
 
@@ -98,7 +101,9 @@ class SimulatedHuman:
         """Act out drawing `kind` in `cell`, sending every rendered frame to `sink`; returns the mark drawn."""
         cfg = self.config
         scene = self.scene
-        mark = MarkSpec(cell, kind, int(self.rng.integers(2**31)), ink, float(self.rng.uniform(0.5, 0.7)))
+        sheet_mm = 1000.0 * self.scene.sheet_side
+        mark = MarkSpec(cell, kind, int(self.rng.integers(2**31)), ink, float(self.rng.uniform(cfg.mark_size[0], cfg.mark_size[1])),
+                        float(self.rng.uniform(cfg.pen_mm[0], cfg.pen_mm[1])) / sheet_mm)
         yaw = float(self.rng.uniform(-0.35, 0.35))
         if cfg.wait_probability > 0 and self.rng.random() < cfg.wait_probability:
             for _ in range(cfg.wait_frames):

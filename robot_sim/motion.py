@@ -48,6 +48,20 @@ GESTURES: dict[str, list[tuple[float, dict[str, float]]]] = {
 GESTURE_NAMES = tuple(GESTURES)
 
 
+def _waypoints(points: np.ndarray, spacing: float = 6.0) -> np.ndarray:
+    """Keep pen waypoints about `spacing` canvas pixels apart (plus both ends): IK per point, not per pixel."""
+    keep = [0]
+    travelled = 0.0
+    for i in range(1, len(points)):
+        travelled += float(np.linalg.norm(points[i] - points[i - 1]))
+        if travelled >= spacing:
+            keep.append(i)
+            travelled = 0.0
+    if keep[-1] != len(points) - 1:
+        keep.append(len(points) - 1)
+    return points[keep]
+
+
 def min_jerk(s: float) -> float:
     """Minimum-jerk time scaling: smooth start and stop, as arm motions of people (and Pepper's) are."""
     s = min(max(s, 0.0), 1.0)
@@ -137,7 +151,7 @@ class RobotMotion:
         self.move_to(q, duration)
 
     # ------------------------------------------------------------ base
-    def _steer_base(self, goal: np.ndarray, feed_forward: np.ndarray | None = None, gain: float = 3.0,
+    def _steer_base(self, goal: np.ndarray, feed_forward: np.ndarray | None = None, gain: float = 6.0,
                     v_max: float = 0.35, w_max: float = 0.8) -> None:
         error = goal - self.scene.base_pose()
         error[2] = (error[2] + math.pi) % (2 * math.pi) - math.pi
@@ -147,7 +161,7 @@ class RobotMotion:
             v *= v_max / speed
         self.scene.set_base_velocity(v[0], v[1], float(np.clip(gain * error[2], -w_max, w_max)))
 
-    def drive_base_to(self, goal: np.ndarray, tolerance: float = 0.003, timeout: float = 8.0) -> float:
+    def drive_base_to(self, goal: np.ndarray, tolerance: float = 0.002, timeout: float = 8.0) -> float:
         """Drive the omni base to (x, y, yaw) with a velocity P-controller; returns the remaining error (m)."""
         goal = np.asarray(goal, dtype=np.float64)
         elapsed = 0.0
@@ -179,7 +193,7 @@ class RobotMotion:
         q[self.ik.columns] = self.targets[self.ik.columns]
         return q
 
-    def trace(self, points: np.ndarray, speed: float = 0.12, on_progress: Callable[[float], None] | None = None) -> float:
+    def trace(self, points: np.ndarray, speed: float = 0.15, on_progress: Callable[[float], None] | None = None) -> float:
         """Move the pen tip through world `points` at `speed` m/s; reports the traced fraction of the path."""
         seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
         total = float(seg.sum()) or 1.0
@@ -206,7 +220,7 @@ class RobotMotion:
         """
         scene = self.scene
         strokes = mark.strokes(scene.grid, scene.canvas.px)
-        paths = [np.array([canvas_to_world(u, v) for u, v in stroke.points]) for stroke in strokes]
+        paths = [np.array([canvas_to_world(u, v) for u, v in _waypoints(stroke.points)]) for stroke in strokes]
         lengths = [float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in paths]
         total = sum(lengths) or 1.0
         centre = np.mean(np.concatenate(paths), axis=0)
@@ -215,17 +229,17 @@ class RobotMotion:
         worst = 0.0
         drawn = 0.0
         for path, length in zip(paths, lengths):
-            self.reach(path[0] + up, 0.6)
-            self.reach(path[0], 0.25)
+            self.reach(path[0] + up, 0.5)
+            self.reach(path[0], 0.2)
 
             def progress(fraction: float, before: float = drawn, length: float = length) -> None:
                 scene.canvas.draw(mark, min((before + fraction * length) / total, 0.999))
 
             worst = max(worst, self.trace(path, on_progress=progress))
             drawn += length
-            self.reach(path[-1] + up, 0.25)
+            self.reach(path[-1] + up, 0.2)
         scene.canvas.draw(mark, 1.0)
-        self.go_home(0.8)
+        self.go_home(0.6)
         self.drive_base_to(self.home_base)
         return worst
 

@@ -33,6 +33,7 @@ from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from robot_sim.speech import Speaker
 
 STARTS_CHOICES = ("robot", "human", "alternate", "random")
+ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
 
 
 @dataclass
@@ -55,6 +56,12 @@ class RobotPlayConfig:
     ultimate_robot_draws: bool = False
     #: Frames the recogniser may take after the human withdrew before the move counts as unseen.
     max_perception_frames: int = 20
+    #: Motion threshold tau of Algorithm 1 (gray levels). Rendered frames carry no sensor noise (a still scene
+    #: gives 0), so a far lower tau than a real camera needs (vision's default 12) lets even a pen moving over
+    #: the sheet count as "a hand is drawing".
+    recogniser_tau: float = 1.5
+    #: The robot accepts a move once the recogniser reported the same cell and mark this many frames in a row.
+    confirm_frames: int = 2
     jpeg_quality: int = 80
     #: Speak through espeak-ng into WAV files (only if installed).
     audio: bool = False
@@ -138,7 +145,7 @@ class RobotGameRunner:
 
         self.rules = make_game(config.game, config.free_move)
         self.grid = check_game(config.game)
-        self.recogniser = MoveRecogniser(grid=self.grid)
+        self.recogniser = MoveRecogniser(grid=self.grid, tau=config.recogniser_tau)
         self.last_frame: np.ndarray | None = None
 
     # ------------------------------------------------------------------ logging of sensor streams
@@ -171,13 +178,21 @@ class RobotGameRunner:
         known = [0 if ok else 1 for ok in legal]  # only legal cells can hold the new move
         self.recogniser.reset()
         found: list = []
+        streak: list = []
 
         def watch(frame: np.ndarray, t: float) -> None:
             self._log_frame(frame, t)
-            if not found:
-                result = self.recogniser.update(_rgb_to_bgr(frame), known)
-                if result.status == "move":
-                    found.append(result)
+            if found:
+                return
+            result = self.recogniser.update(_rgb_to_bgr(frame), known)
+            if result.status != "move":
+                streak.clear()
+                return
+            if streak and (streak[-1].move, streak[-1].label) != (result.move, result.label):
+                streak.clear()
+            streak.append(result)
+            if len(streak) >= self.config.confirm_frames:
+                found.append(result)
 
         self.human.draw(true_cell, kind, watch)
         period = self.config.human.frame_period
@@ -222,7 +237,8 @@ class RobotGameRunner:
                 self.true_state = self.rules.play(self.true_state, action)
             else:
                 self._robot_off_board = True  # the robot believed a cell empty that is not: a perception error
-            mark = MarkSpec(action, kind, int(self._mark_rng.integers(2**31)), ROBOT_INK, 0.6)
+            mark = MarkSpec(action, kind, int(self._mark_rng.integers(2**31)), ROBOT_INK, 0.6,
+                            ROBOT_PEN_MM / (1000.0 * self.scene.sheet_side))
             if self.grid == 3 or self.config.ultimate_robot_draws:
                 self.motion.draw_mark(mark, self.scene.canvas_to_world)
             else:
@@ -317,8 +333,8 @@ class RobotGameRunner:
 
         image = _rgb_to_bgr(frame).copy()
         text = f"game {record.index}: {record.outcome}  misrecognised {record.misrecognised_moves}"
-        cv2.putText(image, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
-        cv2.putText(image, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
+        cv2.rectangle(image, (0, 0), (image.shape[1], 30), (32, 32, 32), -1)
+        cv2.putText(image, text, (8, 21), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
         return image
 
     # ------------------------------------------------------------------ many games

@@ -31,12 +31,20 @@ class MarkSpec:
     seed: int
     ink: tuple[int, int, int]
     size_fraction: float = 0.62
+    #: Pen width as a fraction of the sheet's side (1.5 mm on a 0.22 m sheet is about 0.007).
+    width_fraction: float = 0.007
+
+    def size_px(self, grid: int, px: int) -> float:
+        return self.size_fraction * cell_size(grid, px, px)
+
+    def width_px(self, px: int) -> float:
+        return max(1.5, self.width_fraction * px)
 
     def strokes(self, grid: int, px: int) -> list[Stroke]:
         """The pen path of this mark in canvas pixels (the same strokes `draw_mark` inks)."""
-        size = self.size_fraction * cell_size(grid, px, px)
         centre = np.array(cell_center(grid, self.cell, px, px))
-        return [Stroke(s.points + centre, s.widths) for s in mark_strokes(self.kind, size, np.random.default_rng(self.seed))]
+        strokes = mark_strokes(self.kind, self.size_px(grid, px), np.random.default_rng(self.seed), width=self.width_px(px))
+        return [Stroke(s.points + centre, s.widths) for s in strokes]
 
 
 class SheetCanvas:
@@ -48,35 +56,43 @@ class SheetCanvas:
         self.grid = grid
         self.px = px
         self._committed = draw_sheet(grid, px, px)
-        self._image = self._committed.copy()
-        self._pending: MarkSpec | None = None
+        self._image: np.ndarray | None = None
+        self._pending: tuple[MarkSpec, float] | None = None
         self.marks: list[MarkSpec] = []
         self.version = 0
 
     def _ink(self, img: np.ndarray, mark: MarkSpec, progress: float) -> None:
-        size = mark.size_fraction * cell_size(self.grid, self.px, self.px)
-        draw_mark(img, mark.kind, cell_center(self.grid, mark.cell, self.px, self.px), size,
-                  np.random.default_rng(mark.seed), progress=progress, ink=mark.ink)
+        draw_mark(img, mark.kind, cell_center(self.grid, mark.cell, self.px, self.px), mark.size_px(self.grid, self.px),
+                  np.random.default_rng(mark.seed), progress=progress, ink=mark.ink, width=mark.width_px(self.px))
 
     def draw(self, mark: MarkSpec, progress: float) -> None:
-        """Show `mark` drawn up to `progress` (0..1); at 1 it becomes part of the sheet for good."""
-        if self._pending is not None and self._pending is not mark:
-            raise ValueError(f"mark in cell {self._pending.cell} is still being drawn; finish it first")
+        """Show `mark` drawn up to `progress` (0..1); at 1 it becomes part of the sheet for good.
+
+        Partial progress is only remembered here and inked when the picture is next needed (`image`), so a
+        pen moving through many waypoints between two camera frames costs one redraw, not one per waypoint.
+        """
+        if self._pending is not None and self._pending[0] is not mark:
+            raise ValueError(f"mark in cell {self._pending[0].cell} is still being drawn; finish it first")
         progress = float(np.clip(progress, 0.0, 1.0))
         if progress >= 1.0:
             self._ink(self._committed, mark, 1.0)
-            self._image = self._committed.copy()
+            self._image = None
             self.marks.append(mark)
             self._pending = None
         else:
-            self._image = self._committed.copy()
-            self._ink(self._image, mark, progress)
-            self._pending = mark
+            self._pending = (mark, progress)
+            self._image = None
         self.version += 1
 
     @property
     def image(self) -> np.ndarray:
         """The sheet as it looks now (BGR, camera orientation)."""
+        if self._image is None:
+            if self._pending is None:
+                self._image = self._committed
+            else:
+                self._image = self._committed.copy()
+                self._ink(self._image, *self._pending)
         return self._image
 
     def cell_pixel(self, cell: int) -> tuple[float, float]:
@@ -84,7 +100,7 @@ class SheetCanvas:
 
     def texture_rgba(self) -> np.ndarray:
         """The canvas laid out as SAPIEN's plane texture wants it (columns along +x, rows along +y), RGBA."""
-        rgb = self._image[:, :, ::-1]
+        rgb = self.image[:, :, ::-1]
         turned = rgb[::-1, ::-1].transpose(1, 0, 2)
         rgba = np.empty(turned.shape[:2] + (4,), np.uint8)
         rgba[:, :, :3] = turned
