@@ -114,12 +114,6 @@ class DialogueGameEnv(EnvBase):
         self._asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
         self._utterance_acts = torch.cat([model.utterance_acts, torch.tensor([-1])])
         self._utterance_words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))])
-        options = model.reply_options.clone()
-        counts = model.reply_counts.clone()
-        options[counts == 0, 0] = n_utt  # contexts without replies answer with silence
-        self._reply_counts = counts.clamp(min=1).flatten().float()
-        self._reply_width = options.shape[-1]
-        self._reply_options = options.flatten()
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model
@@ -334,11 +328,13 @@ class DialogueGameEnv(EnvBase):
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
         silence = self._silence
         phase = self._phase()
+        # read through self.model each step: `ncbot play` swaps in tables that make the user say what a person typed
+        options, counts_table = self.model.reply_options, self.model.reply_counts
         context = act_type * len(dlg.PHASES) + phase
-        counts = self._reply_counts.index_select(0, context)
-        pick = (torch.rand(counts.shape, generator=self._rng) * counts).long()
-        utterance = self._reply_options.index_select(0, context * self._reply_width + pick)
-        utterance = torch.where(accepted, utterance, silence)
+        counts = counts_table.reshape(-1).index_select(0, context)
+        pick = (torch.rand(counts.shape, generator=self._rng) * counts).long().clamp(max=options.shape[-1] - 1)
+        utterance = options.reshape(-1).index_select(0, context * options.shape[-1] + pick)
+        utterance = torch.where(accepted & (counts > 0), utterance, silence)
         user_act = self._utterance_acts.index_select(0, utterance)
         user_moves = accepted & (phase == dlg.USER_TO_MOVE) & self._asks_move.index_select(0, act_type)
         user_move = torch.full_like(action, -1)
