@@ -278,3 +278,28 @@ def test_random_playouts_match_the_rules_statistics(game: str, free_move: str) -
         reference[{"x": 0, "o": 1, "draw": 2}[rules.outcome(s)]] += 1
     for a, b in zip(playout, reference):
         assert abs(a - b) / n < 0.08, (playout, reference)
+
+
+def test_rule_on_ultimate_prefers_winning_the_game() -> None:
+    """Owners passed explicitly: the robot owns subgrids 0 and 1; taking subgrid 2 wins the game at once."""
+    from envs.rules import SUBGRID_CELLS
+
+    board = [0] * 81
+    for k in (0, 1):
+        for square in (0, 1, 2):
+            board[SUBGRID_CELLS[k][square]] = 1
+    board[SUBGRID_CELLS[2][0]] = board[SUBGRID_CELLS[2][1]] = 1  # robot: square 2 of subgrid 2 wins the game
+    board[SUBGRID_CELLS[2][3]] = board[SUBGRID_CELLS[2][4]] = 2  # human threatens square 5 of subgrid 2
+    for k, square in ((4, 0), (4, 8), (6, 0), (6, 8), (7, 0), (8, 8)):
+        board[SUBGRID_CELLS[k][square]] = 2
+    last = SUBGRID_CELLS[7][2]  # the human's last move, at square 2 of subgrid 7: the robot must play in subgrid 2
+    board[last] = 2
+    boards = torch.tensor([board], dtype=torch.int8)
+    legal = torch.tensor([[v == 0 and c in SUBGRID_CELLS[2] for c, v in enumerate(board)]])
+    owners = torch.tensor([[1, 1, 0, 0, 0, 0, 0, 0, 0]], dtype=torch.int8)
+    for seed in range(5):
+        cell = make_opponent("rule", game="ultimate", seed=seed).select(
+            boards, torch.tensor([last]), legal, 1, torch.Generator().manual_seed(seed), owners=owners)
+        assert int(cell) == SUBGRID_CELLS[2][2]
+    with pytest.raises(ValueError, match="owners must have shape"):
+        make_opponent("rule").select(boards[:, :9], torch.tensor([0]), legal[:, :9], 1, owners=owners)
