@@ -1,8 +1,140 @@
-"""`ncbot` commands of the robot area (placeholder until its issue lands)."""
+"""`ncbot robot ...`: the simulated Pepper (SAPIEN) — play whole games, render the mouth camera, write the URDF.
+
+The logic lives in `robot_sim`; this module parses options, builds the policy (a trained checkpoint through
+`pipelines.evaluate.load_agent`, or the look-ahead filter alone), and prints results. SAPIEN, torch and cv2 are
+imported inside the commands so `ncbot --help` stays fast.
+"""
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Optional
+
 import typer
+
+robot_app = typer.Typer(help="The simulated Pepper robot (SAPIEN): play games, render the mouth camera.",
+                        no_args_is_help=True)
+
+
+def _simulator_unavailable(error: Exception) -> None:
+    typer.echo(f"ncbot: error: {error}", err=True)
+    raise typer.Exit(2)
+
+
+@robot_app.command("play")
+def play(
+    game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)."),
+    checkpoint: Optional[Path] = typer.Option(None, help="Trained agent (checkpoint.pt); default: look-ahead filter alone."),
+    games: int = typer.Option(1, min=1, help="Games to play."),
+    seed: int = typer.Option(0, help="Seed of the env, the simulated human and the robot's marks."),
+    out: Optional[Path] = typer.Option(None, help="Folder for the MCAP log, PNG snapshots and report.json."),
+    rrd: bool = typer.Option(False, help="Also export the run to OUT/run.rrd (rerun)."),
+    starts: str = typer.Option("robot", help="Who opens: robot, human, alternate, random."),
+    opponent: str = typer.Option("random", help="The simulated human's opponent model (random, rule, minimax, mcts:N)."),
+    width: int = typer.Option(640, help="Mouth camera width (pixels)."),
+    height: int = typer.Option(480, help="Mouth camera height (pixels)."),
+    occlusion: bool = typer.Option(True, help="Show the human's arm and hand while drawing."),
+    wait_probability: float = typer.Option(0.0, help="Chance that the human waits before drawing."),
+    nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
+    robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
+    audio: bool = typer.Option(False, help="Speak through espeak-ng into OUT/speech/*.wav when installed."),
+    progress: bool = typer.Option(True, help="Show a progress bar."),
+) -> None:
+    """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
+    if out is None and rrd:
+        raise ValueError("--rrd needs --out DIR (the recording is exported from the run's MCAP log)")
+    if checkpoint is not None and not checkpoint.is_file():
+        raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
+    if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
+        raise ValueError("--wait-probability and --nudge-probability must be in [0, 1]")
+    import torch
+
+    from robot_sim.human import HumanConfig
+    from robot_sim.play import RobotPlayConfig, play_robot_games
+    from robot_sim.render_system import SimulatorUnavailable
+
+    torch.set_num_threads(1)
+    policy, agent_name = None, "lookahead"
+    if checkpoint is not None:
+        from pipelines.evaluate import load_agent
+
+        agent_config, policy = load_agent(checkpoint)
+        if agent_config.env.game != game:
+            raise ValueError(f"checkpoint {checkpoint} was trained on {agent_config.env.game!r}, not {game!r}; pass --game {agent_config.env.game}")
+        agent_name = f"{agent_config.agent.name}:{checkpoint}"
+    config = RobotPlayConfig(
+        game=game, games=games, seed=seed, starts=starts, camera_width=width, camera_height=height,
+        human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
+                          nudge_probability=nudge_probability),
+        ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name)
+    try:
+        with torch.no_grad():
+            report = play_robot_games(config, policy, out_dir=out, progress=progress)
+    except SimulatorUnavailable as error:
+        _simulator_unavailable(error)
+    if rrd and out is not None:
+        from logs.rerun_export import export_to_rerun
+
+        export_to_rerun(out, out / "run.rrd")
+        report["rrd"] = str(out / "run.rrd")
+    typer.echo(json.dumps(report))
+
+
+@robot_app.command("render")
+def render(
+    output: Path = typer.Option(Path("mouth.png"), "-o", "--output", help="PNG to write."),
+    game: str = typer.Option("standard", help="standard or ultimate sheet."),
+    width: int = typer.Option(640, help="Camera width."),
+    height: int = typer.Option(480, help="Camera height."),
+    marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'x4,o0,x8' (mark and cell)."),
+    seed: int = typer.Option(0, help="Seed of the hand-drawn marks."),
+    frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
+) -> None:
+    """Render one mouth-camera frame of the home posture to a PNG and print the render cost."""
+    import time
+
+    import cv2
+    import numpy as np
+
+    from robot_sim.render_system import SimulatorUnavailable
+    from robot_sim.scene import PepperScene, SceneConfig
+    from robot_sim.sheet import HUMAN_INK, MARK_OF_PLAYER, MarkSpec
+
+    try:
+        scene = PepperScene(SceneConfig(game=game, camera_width=width, camera_height=height))
+    except SimulatorUnavailable as error:
+        _simulator_unavailable(error)
+    rng = np.random.default_rng(seed)
+    for token in filter(None, (t.strip() for t in marks.split(","))):
+        if token[0] not in MARK_OF_PLAYER or not token[1:].isdigit() or int(token[1:]) >= scene.grid ** 2:
+            raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell in [0, {scene.grid ** 2}), e.g. x4")
+        scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)), HUMAN_INK), 1.0)
+    frame = scene.render()
+    times = []
+    for _ in range(frames):
+        scene.step(0.02)
+        started = time.perf_counter()
+        frame = scene.render()
+        times.append(time.perf_counter() - started)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(output), frame[:, :, ::-1]):
+        raise ValueError(f"could not write {output}; expected a writable path ending in .png")
+    typer.echo(json.dumps({"output": str(output), "width": width, "height": height,
+                           "ms_per_frame_median": round(1000 * float(np.median(times)), 2)}))
+
+
+@robot_app.command("urdf")
+def urdf(
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Where to write (default: the packaged robot_sim/assets/pepper.urdf)."),
+    meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes named after the links (<Link>.dae)."),
+) -> None:
+    """Write the primitive Pepper URDF (optionally with licensed meshes swapped in for the primitives)."""
+    from robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
+
+    path = write_pepper_urdf(output or PACKAGED_URDF, meshes)
+    typer.echo(str(path))
 
 
 def register(app: typer.Typer) -> None:
     """Add this area's commands to the root app."""
+    app.add_typer(robot_app, name="robot")
