@@ -46,6 +46,8 @@ def ladder_command(
     seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
     out: Optional[str] = typer.Option(None, "--out", help="Folder for ladder.md, ladder.json and ladder.png "
                                       "(default: beside the checkpoint)."),
+    baseline: bool = typer.Option(False, "--baseline", help="Also play the agent's look-ahead masks alone (random "
+                                  "inside them) on the same games: what did learning add?"),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
@@ -57,7 +59,7 @@ def ladder_command(
     from pipelines.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents else None
-    result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out)
+    result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline)
     typer.echo(result["markdown"])
     typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
 

@@ -21,8 +21,12 @@ SEATS = ("first", "second")
 
 
 def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
-               out_dir: str | None = None, progress: bool = True) -> dict[str, Any]:
-    """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths."""
+               out_dir: str | None = None, progress: bool = True, baseline: bool = False) -> dict[str, Any]:
+    """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths.
+
+    ``baseline`` also plays the agent's look-ahead masks alone (random choice inside them) on the same games,
+    so the table shows what learning added beyond the masks.
+    """
     import torch
 
     from envs.opponents import make_opponent
@@ -37,19 +41,25 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
     for name in names:  # fail fast, with the registry's message, before any game is played
         make_opponent(name, game=game, free_move=config.env.free_move)
+    from pipelines.play import LookaheadOnlyPolicy
+
+    policies = [("agent", policy)]
+    if baseline:
+        policies.append(("look-ahead only", LookaheadOnlyPolicy(seed, config.lookahead)))
     rows = []
-    pairs = [(name, seat) for name in names for seat in SEATS]
+    pairs = [(name, seat, who, chooser) for name in names for seat in SEATS for who, chooser in policies]
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(pairs, desc="ladder", unit="match")
-    for index, (name, seat) in enumerate(pairs):
+    for index, (name, seat, who, chooser) in enumerate(pairs):
         if bar is not None:
-            bar.set_postfix_str(f"{name} ({seat})")
-        result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed + 1000 * index, opponent=name)
+            bar.set_postfix_str(f"{who} vs {name} ({seat})")
+        match_seed = seed + 1000 * (index // len(policies))  # the agent and the baseline meet the same games
+        result = evaluate_agent(config, chooser, games=games, seat=seat, seed=match_seed, opponent=name)
         rows.append({
-            "opponent": name, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
+            "policy": who, "opponent": name, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
             "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
             "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
         })
@@ -74,7 +84,8 @@ def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The issue's goals that this ladder covers, each with whether it was met."""
     by_opponent: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
-        by_opponent.setdefault(row["opponent"], []).append(row)
+        if row.get("policy", "agent") == "agent":
+            by_opponent.setdefault(row["opponent"], []).append(row)
     goals = []
     if game == "standard":
         for name in ("random", "minimax"):
@@ -90,11 +101,11 @@ def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str, Any]], goals: list[dict[str, Any]]) -> str:
     lines = [f"# Ladder: {agent} ({game}) from `{checkpoint}`", "",
-             "| opponent | robot seat | games | win | draw | loss | score | task success (95% CI) | actions/game |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| robot policy | opponent | robot seat | games | win | draw | loss | score | task success (95% CI) | actions/game |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         low, high = r["task_success_ci95"]
-        lines.append(f"| {r['opponent']} | {r['seat']} | {r['games']} | {r['win']:.3f} | {r['draw']:.3f} | {r['loss']:.3f} | "
+        lines.append(f"| {r.get('policy', 'agent')} | {r['opponent']} | {r['seat']} | {r['games']} | {r['win']:.3f} | {r['draw']:.3f} | {r['loss']:.3f} | "
                      f"{r['score']:.3f} | {r['task_success']:.3f} ({low:.3f}-{high:.3f}) | {r['avg_length']:.1f} |")
     if goals:
         lines += ["", "Goals (issue 6):"]
@@ -109,15 +120,18 @@ def draw_ladder(rows: list[dict[str, Any]], path: Path, title: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = [f"{r['opponent']}\n{'robot first' if r['seat'] == 'first' else 'robot second'}" for r in rows]
+    labels = [f"{'' if r.get('policy', 'agent') == 'agent' else 'masks only: '}{r['opponent']}\n"
+              f"{'robot first' if r['seat'] == 'first' else 'robot second'}" for r in rows]
     x = range(len(rows))
     fig, ax = plt.subplots(figsize=(max(7.0, 1.3 * len(rows) + 2.0), 4.0))
     wins = [r["win"] for r in rows]
     draws = [r["draw"] for r in rows]
     losses = [r["loss"] for r in rows]
-    ax.bar(x, wins, color="#2a9d8f", label="win")
-    ax.bar(x, draws, bottom=wins, color="#e9c46a", label="draw")
-    ax.bar(x, losses, bottom=[w + d for w, d in zip(wins, draws)], color="#e76f51", label="loss")
+    hatches = [None if r.get("policy", "agent") == "agent" else "//" for r in rows]  # baseline rows hatched
+    for heights, bottom, colour, label in ((wins, None, "#2a9d8f", "win"), (draws, wins, "#e9c46a", "draw"),
+                                           (losses, [w + d for w, d in zip(wins, draws)], "#e76f51", "loss")):
+        for patch, hatch in zip(ax.bar(x, heights, bottom=bottom, color=colour, label=label), hatches):
+            patch.set_hatch(hatch)
     ax.plot(list(x), [r["score"] for r in rows], "ko", label="score (win 1, draw 0.5)")
     ax.set_xticks(list(x), labels, fontsize=8)
     ax.set_ylim(0, 1.05)

@@ -137,14 +137,18 @@ class HeardReplies:
 
 
 class LookaheadOnlyPolicy:
-    """No checkpoint: the paper's look-ahead masks with a uniformly random choice inside them (paper-notes §6)."""
+    """No learning: an agent's look-ahead masks with a uniformly random choice inside them (paper-notes §6).
+
+    ``ncbot play`` uses it without a checkpoint; ``ncbot ladder --baseline`` plays it beside the agent, since a
+    learnt agent must clearly beat its own masks to have learnt anything.
+    """
 
     name = "lookahead"
 
-    def __init__(self, seed: int) -> None:
-        from modules.masks import one_step_lookahead
+    def __init__(self, seed: int, lookahead: str = "one_step") -> None:
+        from modules.masks import lookahead_rule
 
-        self.rule = one_step_lookahead
+        self.rule = lookahead_rule(lookahead)
         self.generator = torch.Generator().manual_seed(seed)
 
     def __call__(self, td):

@@ -114,3 +114,13 @@ def test_agent_checkpoint_as_an_opponent(tmp_path) -> None:
     result = run_ladder(str(checkpoint), games=4, opponents=[f"agent:{checkpoint}"], out_dir=str(tmp_path / "self"),
                         progress=False)
     assert len(result["rows"]) == 2
+
+
+def test_baseline_rows_play_the_masks_alone(tmp_path) -> None:
+    checkpoint = _checkpoint(tmp_path)
+    result = run_ladder(str(checkpoint), games=10, opponents=["minimax"], seed=2, out_dir=str(tmp_path / "base"),
+                        progress=False, baseline=True)
+    assert [(r["policy"], r["seat"]) for r in result["rows"]] == [
+        ("agent", "first"), ("look-ahead only", "first"), ("agent", "second"), ("look-ahead only", "second")]
+    assert "| look-ahead only | minimax | second | 10 |" in result["markdown"]
+    assert len(result["goals"]) == 1  # goals judge the agent's rows only
