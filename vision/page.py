@@ -10,6 +10,8 @@ import cv2
 import numpy as np
 
 MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
+MAX_PAGE_FRACTION = 0.92  # a "page" filling the whole frame is a uniform image (its corners are not seen)
+MIN_WHITENESS = 90        # value - 1.5 x saturation of paper: darker than this is not a white sheet
 PAPER_RATIO = 0.66        # paper is at least this fraction of the median paper whiteness (uneven light)
 
 
@@ -32,12 +34,12 @@ def page_mask(frame: np.ndarray) -> np.ndarray:
     # saturation counts 1.5x: light skin and pastel objects are bright but clearly coloured; paper (even
     # tinted by warm light) much less so
     whiteness = cv2.addWeighted(hsv[:, :, 2], 1.0, hsv[:, :, 1], -1.5, 0.0)
-    otsu, mask = cv2.threshold(whiteness, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    if mask.any():  # pale objects (pastel clutter) fall between the table and the paper: cut them off too
-        paper = float(np.median(whiteness[mask > 0]))
-        if PAPER_RATIO * paper > otsu:
-            _, mask = cv2.threshold(whiteness, PAPER_RATIO * paper, 255, cv2.THRESH_BINARY)
-    return mask
+    otsu, _ = cv2.threshold(whiteness, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    threshold = max(otsu, MIN_WHITENESS - 1)
+    bright = whiteness > threshold
+    if bright.any():  # pale objects (pastel clutter) fall between the table and the paper: cut them off too
+        threshold = max(threshold, PAPER_RATIO * float(np.median(whiteness[bright])))
+    return np.where(whiteness > threshold, 255, 0).astype(np.uint8)
 
 
 def order_corners(points: np.ndarray) -> np.ndarray:
@@ -69,7 +71,7 @@ def _page_quad(mask: np.ndarray, frame_area: int) -> np.ndarray | None:
     if not contours:
         return None
     page = max(contours, key=cv2.contourArea)
-    if cv2.contourArea(page) < MIN_PAGE_FRACTION * frame_area:
+    if not MIN_PAGE_FRACTION * frame_area <= cv2.contourArea(page) <= MAX_PAGE_FRACTION * frame_area:
         return None
     hull = cv2.convexHull(page)
     perimeter = cv2.arcLength(hull, True)

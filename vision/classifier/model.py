@@ -12,14 +12,29 @@ from torch import nn
 from vision.labels import CELL_SIZE, LABELS
 
 
+class BlockMaxPool(nn.MaxPool2d):
+    """MaxPool2d(k, stride k) computed as a reshape + amax: the same numbers, several times faster on
+    one CPU core for the 81-cell batches of a 9x9 board (that is where reading time went)."""
+
+    def __init__(self, k: int) -> None:
+        super().__init__(k, k)
+        self.k = k
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        n, c, h, w = x.shape
+        k = self.k
+        x = x[:, :, : h - h % k, : w - w % k]
+        return x.reshape(n, c, h // k, k, w // k, k).amax(dim=(3, 5))
+
+
 class CellCNN(nn.Module):
     """Scores (N, 3) for (nought, cross, nothing) from (N, 1, 40, 40) inputs."""
 
     def __init__(self) -> None:
         super().__init__()
         self.features = nn.Sequential(
-            nn.Conv2d(1, 8, 5, padding=2), nn.ReLU(), nn.MaxPool2d(2, 2),
-            nn.Conv2d(8, 16, 5, padding=2), nn.ReLU(), nn.MaxPool2d(3, 3),
+            nn.Conv2d(1, 8, 5, padding=2), nn.ReLU(), BlockMaxPool(2),
+            nn.Conv2d(8, 16, 5, padding=2), nn.ReLU(), BlockMaxPool(3),
         )
         side = CELL_SIZE // 2 // 3
         self.svm = nn.Linear(16 * side * side, len(LABELS))
