@@ -55,7 +55,7 @@ def completing_cells(marks: torch.Tensor, lines: torch.Tensor, incidence: torch.
 
 def subgrid_owners(boards: torch.Tensor) -> torch.Tensor:
     """(B, 9) int8 for ultimate boards: 0 open, 1 / 2 the owner's board code, 3 drawn (full, no line)."""
-    lines, line_subgrid, _ = _tables(81)
+    lines = _tables(81)[0]
     values = boards[:, lines]  # (B, 72, 3)
     owners = torch.zeros(boards.shape[0], 9, dtype=torch.int8)
     for code in (2, 1):  # code 1 written last: it wins the (ambiguous) case of lines for both
