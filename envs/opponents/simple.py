@@ -1,7 +1,6 @@
 """The two cheap batched opponents: ``random`` (the paper's simulated user) and ``rule`` (win, else block, else random)."""
 from __future__ import annotations
 
-
 from envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
 from envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
 
