@@ -97,6 +97,10 @@ class Boards:
     move_order: torch.Tensor  # (B, cells) int64
     outcome: torch.Tensor  # (B,) int64
 
+    def take_rows(self, rows: torch.Tensor) -> "Boards":
+        """A new Boards holding the games ``rows`` (int64 indices, repeats allowed) of this one."""
+        return Boards(**{name: getattr(self, name).index_select(0, rows) for name in self.__dataclass_fields__})
+
 
 class _Engine:
     """What both games share: state creation and the player-agnostic helpers."""
@@ -265,7 +269,7 @@ class UltimateEngine(_Engine):
         self.subgrid_bit = 1 << self.subgrid_of  # (81,)
         self.bit9 = 1 << torch.arange(9)
         self.cell_pow3 = self.pow3[self.position_of]  # (81,)
-        self._sent_to_own_subgrid = self.position_of == self.subgrid_of  # (81,) the move sends to its own subgrid
+        self.subgrid_cells = torch.tensor([[(k // 3 * 3 + r) * 9 + k % 3 * 3 + c for r in range(3) for c in range(3)] for k in range(9)])
 
     def legal(self, state: Boards) -> torch.Tensor:
         empty = state.board == 0
@@ -336,23 +340,39 @@ class UltimateEngine(_Engine):
         return sub, meta
 
     def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+        """See ``_Engine.move_rewards``. Only squares that can be legal are evaluated, nine at a time: a game
+        sent to an open subgrid is one row of its 9 squares, a free game becomes 9 rows (one per subgrid)."""
+        target = self.position_of.index_select(0, state.last_move.clamp(min=0))
+        forced = (state.last_move >= 0) & (state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0)
+        forced_rows = forced.nonzero().squeeze(1)
+        free_rows = (~forced).nonzero().squeeze(1)
+        rows = torch.cat([forced_rows, free_rows.repeat_interleave(9)])
+        cells = torch.cat([self.subgrid_cells.index_select(0, target.index_select(0, forced_rows)), self.subgrid_cells.repeat(free_rows.numel(), 1)])
+        rewards = torch.full((state.board.shape[0] * 81,), REWARD_LOSE)
+        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state.take_rows(rows), player, cells).reshape(-1))
+        return rewards.view(-1, 81)
+
+    def _rewards_at(self, state: Boards, player: int, cells: torch.Tensor) -> torch.Tensor:
+        """(N, K) rewards of ``player`` taking the candidate ``cells`` (N, K) of each game (legal ones matter)."""
         sub_table, meta_table = self._packed_tables()
-        sub, pos, bit = self.subgrid_of, self.position_of, self.subgrid_bit  # (81,)
         opponent = 3 - player
-        owner_s = state.owners.index_select(1, sub)  # (B, 81): owner of each candidate's subgrid
-        code_after = state.codes.index_select(1, sub) + (state.board == 0).long() * (player * self.cell_pow3)
+        sub, pos = lookup(self.subgrid_of, cells), lookup(self.position_of, cells)  # (N, K)
+        bit = 1 << sub
+        owner_s = state.owners.gather(1, sub)
+        empty = state.board.gather(1, cells) == 0
+        code_after = state.codes.gather(1, sub) + empty.long() * player * lookup(self.cell_pow3, cells)
         facts = lookup(sub_table[player], code_after)
         open_s = owner_s == 0
         wins_sub = open_s & (facts & 1 != 0)
         draws_sub = open_s & ~wins_sub & (facts & 2 != 0)
         delta = wins_sub.long() * player + draws_sub.long() * DRAWN  # change of the subgrid's owner
         owner_after_s = owner_s + delta
-        meta_code = (state.owners * self.pow4).sum(1, keepdim=True)  # (B, 1)
-        meta_facts = lookup(meta_table[player], meta_code + delta * self.pow4[sub])  # (B, 81)
+        meta_code = (state.owners * self.pow4).sum(1, keepdim=True)  # (N, 1)
+        meta_facts = lookup(meta_table[player], meta_code + delta * lookup(self.pow4, sub))
         win = meta_facts & 1 != 0
 
         # Where the opponent is sent, and whether it can move at all.
-        target_open = torch.where(self._sent_to_own_subgrid, owner_after_s, state.owners.index_select(1, pos)) == 0
+        target_open = torch.where(pos == sub, owner_after_s, state.owners.gather(1, pos)) == 0
         if self.free_move == "anywhere":
             free_has_moves = (state.n_marks < 80).unsqueeze(1)
         else:
