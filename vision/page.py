@@ -11,6 +11,7 @@ import numpy as np
 
 MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
 MAX_PAGE_FRACTION = 0.92  # a "page" filling the whole frame is a uniform image (its corners are not seen)
+FILLED_FRACTION = 0.6    # paper over this much of a frame without a page outline: the frame is the page
 MIN_WHITENESS = 90        # value - 1.5 x saturation of paper: darker than this is not a white sheet
 PAPER_RATIO = 0.66        # paper is at least this fraction of the median paper whiteness (uneven light)
 
@@ -63,7 +64,12 @@ def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     # off thin bright things touching it (a white pen) that would pull the page's hull out of shape
     body = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
     body = cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
-    return _page_quad(body, frame.shape[0] * frame.shape[1]), mask
+    corners = _page_quad(body, frame.shape[0] * frame.shape[1])
+    if corners is None and cv2.countNonZero(body) > FILLED_FRACTION * body.size:
+        # a scan or a close-up: the sheet fills the picture, so the picture is the page
+        h, w = mask.shape
+        corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], np.float32)
+    return corners, mask
 
 
 def _page_quad(mask: np.ndarray, frame_area: int) -> np.ndarray | None:

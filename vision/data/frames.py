@@ -119,6 +119,23 @@ def _clutter(img: np.ndarray, rng: np.random.Generator) -> None:
             cv2.fillPoly(img, [box.astype(np.int32)], note, cv2.LINE_AA)
 
 
+def _hand_drawn_grid(sheet: np.ndarray, rng: np.random.Generator, ink: tuple[int, int, int], width: float) -> None:
+    """A # drawn by a person: four slightly slanted, bowed lines that overshoot or stop short."""
+    left, top, side = grid_box(3, sheet.shape[1], sheet.shape[0])
+    step = side / 3
+    for k in (1, 2):
+        for vertical in (False, True):
+            a = np.array([left + rng.uniform(-0.06, 0.06) * side, top + k * step + rng.uniform(-0.04, 0.04) * side])
+            b = np.array([left + side + rng.uniform(-0.06, 0.06) * side, top + k * step + rng.uniform(-0.04, 0.04) * side])
+            bow = rng.uniform(-0.02, 0.02) * side
+            t = np.linspace(0, 1, 20)[:, None]
+            pts = a + (b - a) * t + np.array([0.0, 1.0]) * bow * np.sin(np.pi * t)
+            if vertical:
+                pts = pts[:, ::-1]
+            cv2.polylines(sheet, [np.round(pts * 16).astype(np.int32)], False, ink, max(1, int(round(width))),
+                          cv2.LINE_AA, 4)
+
+
 def _camera_homography(rng: np.random.Generator, page_w: int, page_h: int, width: int, height: int,
                        min_span: float = 0.5) -> np.ndarray:
     """Page pixels -> frame pixels for a pinhole camera tilted <= 30 deg and rolled <= 15 deg."""
@@ -162,9 +179,15 @@ def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: 
     page = np.empty((page_h, page_w, 3), np.uint8)
     page[:] = paper
     sub = int(min(page_w, page_h) * (rng.uniform(0.7, 0.95) if grid == 3 else rng.uniform(0.9, 1.0)))
-    sheet = draw_sheet(grid, sub, sub, border=bool(rng.random() < 0.4),
-                       line_width=max(1.0, sub / rng.uniform(110, 220)),
-                       ink=tuple(int(v) for v in rng.integers(10, 70, 3)), paper=paper)
+    grid_ink = tuple(int(v) for v in rng.integers(10, 70, 3))
+    line_width = max(1.0, sub / rng.uniform(110, 220))
+    if grid == 3 and rng.random() < 0.35:
+        sheet = np.empty((sub, sub, 3), np.uint8)
+        sheet[:] = paper
+        _hand_drawn_grid(sheet, rng, grid_ink, line_width)
+    else:
+        sheet = draw_sheet(grid, sub, sub, border=bool(rng.random() < 0.4), line_width=line_width,
+                           ink=grid_ink, paper=paper)
     x0 = int(rng.uniform(0.02, 0.98) * (page_w - sub))
     y0 = int(rng.uniform(0.02, 0.98) * (page_h - sub))
     page[y0:y0 + sub, x0:x0 + sub] = sheet
