@@ -1,0 +1,35 @@
+"""Shared tiny-run settings for the learning-pipeline tests (a few hundred frames, small network)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+TINY = {
+    "env": {"game": "standard", "temporal": True, "batch_size": 16, "first": "alternate"},
+    "agent": {"name": "proposed", "hidden": [32, 32]},
+    "collector": {"frames_per_batch": 64, "total_frames": 512, "init_random_frames": 64, "annealing_frames": 256},
+    "buffer": {"size": 2000, "batch_size": 32},
+    "optim": {"lr": 0.001, "updates_per_batch": 2},
+    "loss": {"gamma": 0.9, "target_period": 10, "reward": "outcome"},
+    "train": {"seed": 3, "eval_every_frames": 256},
+    "eval": {"games": 60, "periodic_games": 20},
+    "logger": {"mcap": False, "progress": False},
+    "checkpoint": {"every_frames": 256, "keep": 2},
+}
+
+
+def write_tiny_config(folder: Path, **sections: dict) -> Path:
+    data = {key: dict(value) for key, value in TINY.items()}
+    for section, values in sections.items():
+        data[section].update(values)
+    path = folder / "tiny.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def ncbot(*args: str, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipelines.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=timeout)
