@@ -303,3 +303,28 @@ def test_rule_on_ultimate_prefers_winning_the_game() -> None:
         assert int(cell) == SUBGRID_CELLS[2][2]
     with pytest.raises(ValueError, match="owners must have shape"):
         make_opponent("rule").select(boards[:, :9], torch.tensor([0]), legal[:, :9], 1, owners=owners)
+
+
+@pytest.mark.parametrize("game,free_move", SETTINGS)
+def test_batched_line_helpers_agree_with_the_rules(game: str, free_move: str) -> None:
+    """``winning_cells`` / ``subgrid_owners`` (the rule opponent's view) against playing each legal cell exactly."""
+    from envs.opponents.lines import subgrid_owners, winning_cells
+
+    rules, states = _random_positions(game, free_move, 150, seed=21)
+    boards, _, legal = _batch(rules, states)
+    owners = torch.tensor([s.subgrids for s in states], dtype=torch.int8) if game == "ultimate" else None
+    if owners is not None:  # without ambiguity (lines of both players in one subgrid) the board alone tells owners
+        read = subgrid_owners(boards)
+        both_lines = (read != owners) & (owners != 0)
+        assert torch.equal(read[~both_lines], owners[~both_lines])
+    found = 0
+    for player in (1, 2):
+        wins = winning_cells(boards, player, owners)
+        for row, s in enumerate(states):
+            if rules.mark_to_move(s) != player:
+                continue
+            for cell in rules.legal(s):
+                expected = rules.outcome(rules.play(s, cell)) == ("x" if player == 1 else "o")
+                assert bool(wins[row, cell]) == expected, (row, cell)
+                found += expected
+    assert found >= 5  # the positions do contain winning cells

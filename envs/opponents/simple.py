@@ -30,11 +30,13 @@ class RuleOpponent(Opponent):
             scores = 2 * winning_cells(boards, player).long() + winning_cells(boards, other).long()
         else:
             owners = subgrid_owners(boards) if owners is None else owners
+            takes_mine = subgrid_taking_cells(boards, player, owners)
+            takes_theirs = subgrid_taking_cells(boards, other, owners)
             scores = (
-                8 * winning_cells(boards, player, owners).long()
-                + 4 * winning_cells(boards, other, owners).long()
-                + 2 * subgrid_taking_cells(boards, player, owners).long()
-                + subgrid_taking_cells(boards, other, owners).long()
+                8 * winning_cells(boards, player, owners, takes_mine).long()
+                + 4 * winning_cells(boards, other, owners, takes_theirs).long()
+                + 2 * takes_mine.long()
+                + takes_theirs.long()
             )
         return masked_uniform_choice(legal, generator, scores)
 
