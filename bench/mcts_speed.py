@@ -55,6 +55,35 @@ def simulations_per_second(game: str, free_move: str, simulations: int = 2000, s
     return simulations / (time.perf_counter() - began)
 
 
+def batched_select_ms(game: str, free_move: str, name: str, batch: int = 1024, repeats: int = 20) -> float:
+    """Milliseconds per ``select`` call on ``batch`` random unfinished positions (the env's per-step cost)."""
+    from envs.rules import make_game
+
+    rules = make_game(game, free_move)
+    rng = random.Random(0)
+    states = []
+    while len(states) < batch:
+        s = rules.new()
+        stop = rng.randrange(rules.n_cells)
+        while rules.outcome(s) is None and s.n_marks < stop:
+            s = rules.play(s, rng.choice(rules.legal(s)))
+        if rules.outcome(s) is None and rules.mark_to_move(s) == 1:
+            states.append(s)
+    boards = torch.tensor([s.board for s in states], dtype=torch.int8)
+    last_move = torch.tensor([s.last_move for s in states])
+    legal = torch.zeros(batch, rules.n_cells, dtype=torch.bool)
+    for row, s in enumerate(states):
+        legal[row, rules.legal(s)] = True
+    owners = torch.tensor([s.subgrids for s in states], dtype=torch.int8) if game == "ultimate" else None
+    opponent = make_opponent(name, game=game, free_move=free_move)
+    generator = torch.Generator().manual_seed(0)
+    opponent.select(boards, last_move, legal, 1, generator, owners=owners)
+    began = time.perf_counter()
+    for _ in range(repeats):
+        opponent.select(boards, last_move, legal, 1, generator, owners=owners)
+    return (time.perf_counter() - began) / repeats * 1000
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--games", type=int, default=100, help="games per seat for the strength rows")
@@ -79,6 +108,16 @@ def main() -> None:
         rule = free_move if game == "ultimate" else "-"
         print(f"| {game} | {rule} | {rate:,.0f} | {per_seat[0]:.3f} / {per_seat[1]:.3f} | {mean_decisions:.1f} | "
               f"{mean_decisions * 100 / 0.2:,.0f} |")
+
+    print()
+    print("## batched opponents: ms per select on 1,024 random positions")
+    print("| game | rule | random | rule | minimax |")
+    print("|---|---|---|---|---|")
+    for game, free_move in SETTINGS:
+        names = ["random", "rule"] + (["minimax"] if game == "standard" else [])
+        cost = [f"{batched_select_ms(game, free_move, name):.2f}" for name in names] + ([] if game == "standard" else ["-"])
+        rule = free_move if game == "ultimate" else "-"
+        print(f"| {game} | {rule} | " + " | ".join(cost) + " |")
 
     print()
     print(f"## strength vs random ({args.games} games per seat; score = win 1, draw 0.5)")
