@@ -64,7 +64,35 @@ def ladder_command(
     typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
 
 
+def match_command(
+    first: str = typer.Argument(..., help="Opponent name moving first, e.g. random, rule, minimax, mcts:100, agent:CKPT."),
+    second: str = typer.Argument(..., help="Opponent name moving second."),
+    game: str = typer.Option("standard", "--game", help="standard | ultimate."),
+    free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
+    games: int = typer.Option(100, "--games", help="Number of games."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the match."),
+) -> None:
+    """Play two opponents against each other with the exact rules (no dialogue) and print W/D/L and timing."""
+    if games < 1:
+        raise ValueError(f"--games must be a positive number of games, got {games}")
+    import torch
+
+    from envs.opponents import make_opponent
+    from envs.opponents.arena import play_match
+    from pipelines.ladder import register_agent_opponent
+
+    torch.set_num_threads(1)
+    register_agent_opponent()
+    players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
+    result = play_match(players[0], players[1], games, seed=seed, progress=True)
+    typer.echo(f"| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
+    typer.echo("|---|---|---|---|---|---|---|---|")
+    typer.echo(f"| {first} | {second} | {games} | {result.first_wins} | {result.draws} | {result.second_wins} | "
+               f"{result.first_score:.3f} | {result.first_seconds / games:.4f} / {result.second_seconds / games:.4f} |")
+
+
 def register(app: typer.Typer) -> None:
     """Add this area's commands to the root app."""
     app.command("play")(play_command)
     app.command("ladder")(ladder_command)
+    app.command("match")(match_command)

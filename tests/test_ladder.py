@@ -124,3 +124,13 @@ def test_baseline_rows_play_the_masks_alone(tmp_path) -> None:
         ("agent", "first"), ("look-ahead only", "first"), ("agent", "second"), ("look-ahead only", "second")]
     assert "| look-ahead only | minimax | second | 10 |" in result["markdown"]
     assert len(result["goals"]) == 1  # goals judge the agent's rows only
+
+
+def test_match_command_plays_two_opponents() -> None:
+    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "match", "random", "minimax", "--games", "30",
+                           "--seed", "2"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    row = [line for line in done.stdout.splitlines() if line.startswith("| random | minimax |")][0]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    first_wins, draws, second_wins = int(cells[3]), int(cells[4]), int(cells[5])
+    assert first_wins == 0 and draws + second_wins == 30  # nobody beats minimax
