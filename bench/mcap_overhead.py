@@ -6,7 +6,7 @@ Three measurements, each printed with the figures it produced:
           logging, with the default packed training log and with one JSON message per action (random
           Q-values so the messages are as large as in training). This is the WORST case for the time
           ratio: real training also spends time on gradient updates that logging does not touch.
-  train   the same `ncbot train` run twice, with and without `--no-mcap` (skip with --skip-train).
+  train   the same `ncbot train` run with and without `--no-mcap` (skip with --skip-train).
   encode  the per-action /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
           same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
           logs/README.md.
@@ -101,30 +101,37 @@ def bench_env(game: str, batch: int, steps: int, frames: int, repeats: int) -> P
     return keep / "per_action0"
 
 
-def bench_train(config: str, episodes: int, repeats: int) -> None:
+def bench_train(config: str, frames: int, repeats: int) -> None:
+    """`ncbot train` with and without --no-mcap; compares the trainer's own "train wall time" (which
+    includes its periodic evaluations, also logged) and the whole command's time."""
+    import re
+
     timings: dict[str, list[float]] = {"off": [], "on": []}
-    bytes_per_episode = []
+    commands: dict[str, list[float]] = {"off": [], "on": []}
+    summaries = []
     for repeat in range(repeats):
         for variant in ("off", "on"):
             out = Path(tempfile.mkdtemp(prefix=f"mcap_train_{variant}_"))
-            command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out),
-                       "--episodes", str(episodes), "--no-progress", "--seed", "0"]
+            command = [sys.executable, "-m", "pipelines.cli", "train", config, f"collector.total_frames={frames}",
+                       "--out", str(out), "--no-progress", "--seed", str(repeat)]
             if variant == "off":
                 command.append("--no-mcap")
             started = time.perf_counter()
-            subprocess.run(command, check=True, capture_output=True, text=True)
-            timings[variant].append(time.perf_counter() - started)
+            result = subprocess.run(command, check=True, capture_output=True, text=True)
+            commands[variant].append(time.perf_counter() - started)
+            timings[variant].append(float(re.search(r"train wall time ([0-9.]+) s", result.stdout).group(1)))
             if variant == "on":
                 from logs.summary import summarize
 
-                summary = summarize(out)
-                bytes_per_episode.append(summary["bytes_per_episode"])
-                by_phase = {phase: stats["episodes"] for phase, stats in summary["by_phase"].items()}
+                summaries.append(summarize(out))
     off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
-    print(f"[train] ncbot train {config} --episodes {episodes}, {repeats} repeats (whole command wall time)")
-    print(f"  --no-mcap: median {off:.1f} s   with MCAP: median {on:.1f} s   -> +{100 * (on - off) / off:.1f} %")
-    print(f"  disk: {statistics.median(bytes_per_episode):.0f} bytes per logged episode "
-          f"(train and eval episodes together: {by_phase})")
+    print(f"[train] ncbot train {config} collector.total_frames={frames}, {repeats} repeats, seeds 0..{repeats - 1} (medians)")
+    print(f"  train wall time: --no-mcap {off:.1f} s, with MCAP {on:.1f} s -> +{100 * (on - off) / off:.1f} %   "
+          f"(whole command: {statistics.median(commands['off']):.1f} s vs {statistics.median(commands['on']):.1f} s)")
+    last = summaries[-1]
+    by_phase = {phase: stats["episodes"] for phase, stats in last["by_phase"].items()}
+    print(f"  disk: {sum(f['bytes'] for f in last['files'])} bytes for {last['episodes']} episodes "
+          f"= {last['bytes_per_episode']:.0f} bytes per episode (train and eval together: {by_phase})")
 
 
 def bench_encoding(log_dir: Path) -> None:
@@ -192,14 +199,16 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=8, help="steps per logged batch (collector frames / envs)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--config", default="pipelines/configs/default.yaml", help="training config for [train]")
-    parser.add_argument("--train-episodes", type=int, default=3000)
+    parser.add_argument("--train-frames", type=int, default=40960, help="collector.total_frames of each training run")
     parser.add_argument("--skip-train", action="store_true")
+    parser.add_argument("--skip-env", action="store_true", help="only the [train] measurement")
     args = parser.parse_args()
     os.chdir(Path(__file__).resolve().parent.parent)
-    log_dir = bench_env(args.game, args.batch, args.steps, args.frames, args.repeats)
-    bench_encoding(log_dir)
+    if not args.skip_env:
+        log_dir = bench_env(args.game, args.batch, args.steps, args.frames, args.repeats)
+        bench_encoding(log_dir)
     if not args.skip_train:
-        bench_train(args.config, args.train_episodes, args.repeats)
+        bench_train(args.config, args.train_frames, args.repeats)
 
 
 if __name__ == "__main__":

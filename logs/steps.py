@@ -43,6 +43,7 @@ class FinishedEpisode:
     row_dtype: np.dtype | None
     present: list[str]
     batch_index: int
+    end_t: int  # time index of its last step in the batch it ended in
     length: int
     seat: str
     outcome: str
@@ -135,7 +136,7 @@ class EpisodeAssembler:
                 if t_end in ends:
                     outcome, truncated = ending[b][t_end]
                     finished.append((t_end, b, FinishedEpisode(
-                        b"".join(episode.parts) if raw is not None else None, dtype, present, b, episode.length,
+                        b"".join(episode.parts) if raw is not None else None, dtype, present, b, t_end, episode.length,
                         "first" if episode.robot_first else "second", outcome, episode.total_reward, truncated)))
                     episode = None
                 t0 = t_end + 1

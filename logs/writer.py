@@ -103,6 +103,7 @@ class EpisodeLogger:
         self._names = NameTables()
         self._names_source: int | None = None
         self._assemblers: dict[tuple, EpisodeAssembler] = {}
+        self._open_episodes: dict[tuple, dict[int, list]] = {}  # per-action phases: ids of running episodes
         self._clock_anchor_ns = time.time_ns() - time.monotonic_ns()
         self._opened = time.monotonic()
         self._last_log_time = 0
@@ -137,17 +138,23 @@ class EpisodeLogger:
             self.set_names(NameTables.from_env(env))
             self._names_source = id(env)
         arrays = step_arrays(td)
-        assembler = self._assemblers.setdefault((phase, agent, seed), EpisodeAssembler())
+        key = (phase, agent, seed)
+        assembler = self._assemblers.setdefault(key, EpisodeAssembler())
         rows = None
         if active is not None:
             rows = np.asarray(active.cpu() if hasattr(active, "cpu") else active, dtype=bool).reshape(-1)
             if rows.shape[0] != arrays["action"].shape[0]:
                 raise ValueError(f"active must have one flag per batch row ({arrays['action'].shape[0]}), got {rows.shape[0]}")
-        finished = assembler.add(arrays, self._names, detail=self.step_detail[phase] != "none", active=rows)
+        detail = self.step_detail[phase]
+        ids_at_end = self._stream_steps(key, arrays, rows, phase in self.board_image_phases) \
+            if detail == "per_action" else {}
+        finished = assembler.add(arrays, self._names, detail=detail == "packed", active=rows)
         if game is None:
             game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
-                                   env_steps=env_steps, game=game, extra=extra) for episode in finished]
+                                   env_steps=env_steps, game=game, extra=extra,
+                                   episode_id=ids_at_end.get((episode.batch_index, episode.end_t)))
+               for episode in finished]
         self._maybe_flush()
         return ids
 
@@ -158,13 +165,11 @@ class EpisodeLogger:
 
     def _write_episode(self, episode: FinishedEpisode, *, phase: str, agent: str, seed: int,
                        epsilon: float | None, env_steps: int | None, game: str,
-                       extra: dict[str, Any] | None) -> int:
-        episode_id = self.new_episode_id()
-        detail = self.step_detail[phase]
-        if detail == "packed":
+                       extra: dict[str, Any] | None, episode_id: int | None = None) -> int:
+        if episode_id is None:
+            episode_id = self.new_episode_id()
+        if episode.rows is not None:
             self._write_packed(episode_id, episode)
-        elif detail == "per_action":
-            self._write_per_action(episode_id, episode, draw=phase in self.board_image_phases)
         summary = {"episode": episode_id, "phase": phase, "game": game, "agent": agent, "seed": int(seed),
                    "seat": episode.seat, "outcome": episode.outcome, "return": round(episode.total_reward, 4),
                    "length": episode.length, "task_success": episode.outcome in ("win", "draw"),
@@ -178,21 +183,39 @@ class EpisodeLogger:
         self._maybe_roll()
         return episode_id
 
-    def _write_per_action(self, episode_id: int, episode: FinishedEpisode, draw: bool) -> None:
-        steps, dialogue, boards = expand_episode(episode_id, episode.step_rows(), episode.present, self._names)
-        turns = iter(dialogue)
-        turn = next(turns, None)
-        previous = None
-        for step, board in zip(steps, boards):
-            self._write_json(schemas.STEP_TOPIC, step)
-            while turn is not None and turn["step"] == step["step"]:  # dialogue comes in step order
-                self._write_json(schemas.DIALOGUE_TOPIC, turn)
-                turn = next(turns, None)
-            self._write_json(schemas.BOARD_TOPIC, board)
-            if draw:
-                self.log_board_image(board["cells"], last_move=changed_cell(previous, board["cells"]),
-                                     frame_id=f"episode{episode_id}")
-            previous = board["cells"]
+    def _stream_steps(self, key: tuple, arrays: dict[str, np.ndarray], active: np.ndarray | None,
+                      draw: bool) -> dict[tuple[int, int], int]:
+        """Write `/step`, `/dialogue`, `/board` (and board images) for each step now, in time order, so a
+        robot game plays back in step with its camera frames. An episode gets its id at its first step;
+        returns {(b, t): id} of the episodes that ended in this batch."""
+        rows, present = packed.batch_rows(arrays, self._names)
+        batch, steps = rows.shape
+        done = arrays["next.done"].reshape(batch, steps)
+        turn = arrays["turn"].reshape(batch, steps) if "turn" in arrays else None
+        open_episodes = self._open_episodes.setdefault(key, {})  # b -> [episode id, last board]
+        ended: dict[tuple[int, int], int] = {}
+        for t in range(steps):
+            for b in range(batch):
+                if (active is not None and not active[b]) or (turn is not None and turn[b, t] == 0):
+                    open_episodes.pop(b, None)  # not logged, or a new episode begins here
+                if active is not None and not active[b]:
+                    continue
+                if b not in open_episodes:
+                    open_episodes[b] = [self.new_episode_id(), None]
+                episode_id, previous = open_episodes[b]
+                step_dicts, turns, boards = expand_episode(episode_id, rows[b, t:t + 1], present, self._names)
+                self._write_json(schemas.STEP_TOPIC, step_dicts[0])
+                for turn_dict in turns:
+                    self._write_json(schemas.DIALOGUE_TOPIC, turn_dict)
+                self._write_json(schemas.BOARD_TOPIC, boards[0])
+                if draw:
+                    self.log_board_image(boards[0]["cells"], last_move=changed_cell(previous, boards[0]["cells"]),
+                                         frame_id=f"episode{episode_id}")
+                open_episodes[b][1] = boards[0]["cells"]
+                if done[b, t]:
+                    ended[(b, t)] = episode_id
+                    del open_episodes[b]
+        return ended
 
     # ----------------------------------------------------------------- low level: dicts per schema
     def new_episode_id(self) -> int:

@@ -32,11 +32,12 @@ def test_round_trip_matches_what_was_logged(detail: str, tmp_path: Path) -> None
     td = fake_batch(3, 12, DONE_AT)
     ids = write_batch(tmp_path, td, step_detail={"train": detail})
     topics = LogReader(tmp_path).scan()[0].counts
-    assert (topics["/episode/steps"], topics["/step"]) == ((6, 0) if detail == "packed" else (0, 29))  # 7 steps unfinished
-    expected = expected_episodes(td)
-    assert ids == list(range(len(expected))) == list(range(6))
+    # per action, steps stream out as they come (also the 7 of unfinished episodes); packed waits for the end
+    assert (topics["/episode/steps"], topics["/step"]) == ((6, 0) if detail == "packed" else (0, 36))
+    expected = expected_episodes(td)  # in the order episodes end, like `ids`
+    assert sorted(ids) == list(range(len(expected))) == list(range(6))
     records = read_episode_records(tmp_path)
-    assert sorted(records) == ids
+    assert sorted(key for key, record in records.items() if record.summary) == sorted(ids)
     names = NamedEnv()
     for episode_id, want in zip(ids, expected):
         record = records[episode_id]
@@ -90,21 +91,26 @@ def test_log_times_increase_and_names_and_run_info_are_stored(tmp_path: Path) ->
 def test_unfinished_episodes_wait_across_calls_and_single_steps_equal_a_batch(tmp_path: Path) -> None:
     td = fake_batch(3, 12, DONE_AT, seed=3)
     with EpisodeLogger(tmp_path / "batch") as log:  # eval is packed by default
-        log.record_steps(td, phase="eval", agent="a", seed=0, env=NamedEnv())
+        batch_ids = log.record_steps(td, phase="eval", agent="a", seed=0, env=NamedEnv())
     with EpisodeLogger(tmp_path / "steps", step_detail={"eval": "per_action"}, board_image_phases=("eval",)) as log:
         ids = []
         for t in range(12):  # one env step at a time, batch size (B,)
             ids += log.record_steps(td[:, t], phase="eval", agent="a", seed=0, env=NamedEnv())
-    assert ids == [0, 1, 2, 3, 4, 5]
+    assert batch_ids == [0, 1, 2, 3, 4, 5] and sorted(ids) == batch_ids  # per action: ids given at the first step
     by_batch = read_episode_records(tmp_path / "batch")
     by_step = read_episode_records(tmp_path / "steps")
-    for episode_id in ids:
-        assert by_batch[episode_id].steps == by_step[episode_id].steps
-        assert by_batch[episode_id].boards == by_step[episode_id].boards
-        assert by_batch[episode_id].dialogue == by_step[episode_id].dialogue
+    for packed_id, streamed_id in zip(batch_ids, ids):  # both lists are in the order episodes ended
+
+        def renumbered(messages: list[dict]) -> list[dict]:
+            return [{**message, "episode": packed_id} for message in messages]
+
+        assert by_batch[packed_id].steps == renumbered(by_step[streamed_id].steps)
+        assert by_batch[packed_id].boards == renumbered(by_step[streamed_id].boards)
+        assert by_batch[packed_id].dialogue == renumbered(by_step[streamed_id].dialogue)
+        assert by_batch[packed_id].summary["length"] == by_step[streamed_id].summary["length"]
     # board images are drawn for eval episodes: one PNG per step
     counts = LogReader(tmp_path / "steps").scan()[0].counts
-    assert counts["/board/image"] == counts["/board"] == sum(len(r.steps) for r in by_step.values())
+    assert counts["/board/image"] == counts["/board"] == 36  # every step, also of the unfinished episodes
 
 
 def test_training_phase_has_no_board_images_and_step_detail_none_keeps_only_summaries(tmp_path: Path) -> None:
@@ -267,7 +273,7 @@ def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
     env = make_env(game=game, batch_size=(4,), seed=5, starts="alternate")
     generator = torch.Generator().manual_seed(5)
     steps_by_slot: dict[int, list] = {b: [] for b in range(4)}
-    finished = []
+    finished, ids = [], []
     td = env.reset()
     with EpisodeLogger(tmp_path, step_detail={"eval": "per_action"}, board_image_phases=("eval",)) as log:
         while len(finished) < 6:
@@ -279,11 +285,11 @@ def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
                 if td["next", "done"][b]:
                     finished.append(steps_by_slot[b])
                     steps_by_slot[b] = []
-            log.record_steps(td, phase="eval", agent="random", seed=5, env=env)
+            ids += log.record_steps(td, phase="eval", agent="random", seed=5, env=env)
             td = root
     records = read_episode_records(tmp_path)
-    assert len(records) >= 6
-    for episode_id, steps in enumerate(finished[:6]):
+    assert len(ids) == len(finished) >= 6
+    for episode_id, steps in zip(ids, finished):  # both in the order episodes ended
         record = records[episode_id]
         assert record.summary["game"] == game and record.summary["length"] == len(steps)
         assert record.summary["outcome"] == ("none", "win", "loss", "draw")[int(steps[-1]["next", "outcome"])]
@@ -307,3 +313,13 @@ def test_inactive_rows_are_not_logged(tmp_path: Path) -> None:
     assert len(ids) == 5  # row 1's single episode is left out
     lengths = sorted(e["length"] for e in read_episodes(tmp_path))
     assert lengths == sorted([4, 6, 3, 3, 6])
+
+
+def test_robot_steps_are_written_when_they_happen_between_camera_frames(tmp_path: Path) -> None:
+    td = fake_batch(1, 3, {0: [2]})
+    with EpisodeLogger(tmp_path) as log:
+        for t in range(3):  # a robot game: one step at a time, camera frames in between
+            log.log_camera(b"\xff\xd8" + bytes([t]) + b"\xff\xd9")
+            log.record_steps(td[:, t], phase="robot", agent="a", seed=0, env=NamedEnv())
+    order = [m.topic for m in LogReader(tmp_path).messages(["/camera/bottom/compressed", "/step", "/episode"])]
+    assert order == ["/camera/bottom/compressed", "/step"] * 3 + ["/episode"]
