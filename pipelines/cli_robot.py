@@ -38,6 +38,7 @@ def play(
     nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
     robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
     audio: bool = typer.Option(False, help="Speak through espeak-ng into OUT/speech/*.wav when installed."),
+    meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
@@ -45,6 +46,8 @@ def play(
         raise ValueError("--rrd needs --out DIR (the recording is exported from the run's MCAP log)")
     if checkpoint is not None and not checkpoint.is_file():
         raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
+    if meshes is not None and not meshes.is_dir():
+        raise FileNotFoundError(f"meshes folder {meshes} does not exist; expected a folder of <Link>.dae/.stl/.obj files")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
         raise ValueError("--wait-probability and --nudge-probability must be in [0, 1]")
     import torch
@@ -66,7 +69,8 @@ def play(
         game=game, games=games, seed=seed, starts=starts, camera_width=width, camera_height=height,
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
-        ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name)
+        ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name,
+        meshes_dir=None if meshes is None else str(meshes))
     try:
         with torch.no_grad():
             report = play_robot_games(config, policy, out_dir=out, progress=progress)

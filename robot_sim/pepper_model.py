@@ -201,10 +201,14 @@ def _geometry(visual: Visual) -> str:
     raise ValueError(f"unknown primitive {visual.kind!r}; expected box, cylinder or sphere")
 
 
+MESH_SUFFIXES = (".dae", ".stl", ".obj", ".glb")
+
+
 def _find_mesh(meshes_dir: Path, link: str) -> Path | None:
-    for suffix in (".dae", ".stl", ".STL", ".obj", ".glb"):
-        candidate = meshes_dir / f"{link}{suffix}"
-        if candidate.is_file():
+    """A mesh file named after the link (case-insensitive: pepper_meshes ships `Torso.dae` for link `torso`)."""
+    wanted = {f"{link}{suffix}".lower() for suffix in MESH_SUFFIXES}
+    for candidate in sorted(meshes_dir.rglob("*")):
+        if candidate.is_file() and candidate.name.lower() in wanted:
             return candidate
     return None
 

@@ -66,6 +66,8 @@ class RobotPlayConfig:
     #: Speak through espeak-ng into WAV files (only if installed).
     audio: bool = False
     agent_name: str = "lookahead"
+    #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
+    meshes_dir: str | None = None
 
     def validate(self) -> None:
         check_game(self.game)
@@ -257,7 +259,8 @@ class RobotGameRunner:
         cfg = self.config
         seed = cfg.seed * 1000 + index
         self.scene = PepperScene(SceneConfig(game=cfg.game, camera_width=cfg.camera_width,
-                                             camera_height=cfg.camera_height, shader=cfg.shader))
+                                             camera_height=cfg.camera_height, shader=cfg.shader,
+                                             meshes_dir=cfg.meshes_dir))
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
         self._mark_rng = np.random.default_rng(seed + 17)

@@ -135,7 +135,9 @@ class PepperScene:
     def _build_robot(self) -> None:
         urdf = PACKAGED_URDF
         if self.config.meshes_dir is not None:
-            urdf = write_pepper_urdf(Path.home() / ".cache" / "ncbot" / "pepper_meshes.urdf", self.config.meshes_dir)
+            import tempfile
+
+            urdf = write_pepper_urdf(Path(tempfile.gettempdir()) / "ncbot-pepper-meshes.urdf", self.config.meshes_dir)
         if not urdf.is_file():
             raise FileNotFoundError(f"Pepper URDF {urdf} is missing; regenerate it with `ncbot robot urdf`")
         loader = self.scene.create_urdf_loader()
@@ -262,11 +264,13 @@ class PepperScene:
         import sapien
 
         self.human_arm.set_pose(sapien.Pose([tip[0], tip[1], tip[2] + lift], [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]))
+        self.arm_visible = True
 
     def hide_human_arm(self) -> None:
         import sapien
 
         self.human_arm.set_pose(sapien.Pose([2.5, 0.0, -1.0]))
+        self.arm_visible = False
 
     # ---------------------------------------------------------------- camera
     def render(self) -> np.ndarray:
