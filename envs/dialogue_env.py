@@ -74,8 +74,6 @@ class DialogueGameEnv(EnvBase):
         self._rng = torch.Generator().manual_seed(int(seed))
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
         self._make_tables()
-        allowed = self.model.filter_allowed.flatten(0, 2)  # (contexts, types)
-        self._filter_table = torch.cat([allowed[:, :1].expand(-1, self.cells), allowed[:, 1:]], dim=1).contiguous()
         self._init_state(batch)
         self.set_seed(int(seed))
 
@@ -114,6 +112,8 @@ class DialogueGameEnv(EnvBase):
         self._asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
         self._utterance_acts = torch.cat([model.utterance_acts, torch.tensor([-1])])
         self._utterance_words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))])
+        allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
+        self._filter_table = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1).contiguous()
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model

@@ -4,14 +4,19 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from typer.testing import CliRunner
 
-def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", "env", *args], capture_output=True, text=True)
+from pipelines.cli import app
+
+
+def run(*args: str):
+    """In-process run (fast); the exit-code path through pipelines.cli.main is checked by a subprocess below."""
+    return CliRunner().invoke(app, ["env", *args])
 
 
 def test_describe_standard_lists_every_feature_and_action() -> None:
     result = run("describe", "--game", "standard")
-    assert result.returncode == 0, result.stderr
+    assert result.exit_code == 0, result.output
     out = result.stdout
     assert "73 features, 18 actions, vocabulary of 39 words" in out
     assert "   72  time[8]" in out and "word[hello]" in out and "command[read]" in out
@@ -20,11 +25,11 @@ def test_describe_standard_lists_every_feature_and_action() -> None:
 
 def test_describe_ultimate_without_temporal() -> None:
     result = run("describe", "--game", "ultimate", "--no-temporal")
-    assert result.returncode == 0, result.stderr
+    assert result.exit_code == 0, result.output
     assert "208 features, 90 actions" in result.stdout and "time[" not in result.stdout
 
 
 def test_bad_game_is_one_line_exit_2() -> None:
-    result = run("describe", "--game", "chess")
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "env", "describe", "--game", "chess"], capture_output=True, text=True)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == ["ncbot: error: game must be one of standard, ultimate; got 'chess'"]
