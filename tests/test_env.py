@@ -280,3 +280,21 @@ def test_external_opponent_rejects_illegal_queued_move() -> None:
     with pytest.raises(ValueError, match="not legal"):
         act(env, 4, 4)
 
+
+
+@pytest.mark.parametrize("game", ["standard", "ultimate"])
+def test_filter_is_as_sharp_as_the_example_dialogues(game: str) -> None:
+    """In masked play every dialogue context allows one act type, and feedback always matches the result."""
+    env = make_env(game, batch_size=(64,), starts="random", seed=9)
+    cells, td = env.cells, env.reset()
+    feedback = {1: "Provide(feedback=win)", 2: "Provide(feedback=loose)", 3: "Provide(feedback=draw)"}
+    for _ in range(120 if game == "ultimate" else 40):
+        mask = td["action_mask"]
+        kinds = mask[:, :cells].any(1).long() + mask[:, cells:].sum(1)
+        assert (kinds == 1).all(), "more than one kind of act allowed in a context of the example dialogues"
+        over = td["outcome"].squeeze(1) > 0
+        for row in over.nonzero().flatten().tolist():
+            allowed = {env.action_names[a] for a in mask[row].nonzero().flatten().tolist()}
+            assert allowed <= {feedback[int(td["outcome"][row])], "Salutation(closing)"}
+        td = env.rand_action(td)
+        _, td = env.step_and_maybe_reset(td)
