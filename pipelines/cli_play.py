@@ -12,7 +12,7 @@ def play_command(
                                              "the robot uses the look-ahead masks alone, choosing at random inside them."),
     seat: str = typer.Option("second", "--seat", help="Your seat: first (you draw the first mark) | second."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the robot's random choices and the simulated ASR."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the robot's random choices (look-ahead policy) and the env."),
     log_dir: str = typer.Option("runs/play", "--log-dir", help="Folder for the MCAP log of the game."),
     no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
 ) -> None:
