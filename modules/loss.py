@@ -70,6 +70,7 @@ class CompetitiveDQNLoss(LossModule):
         )
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
         self._qnet_tensor_module = qnet.module  # the bare nn.Module inside the TensorDict wrapper
+        self._qnet_param_names = [name for name, _ in qnet.module.named_parameters()]
 
     def make_value_estimator(self, value_type: ValueEstimators | None = None, **hyperparams) -> None:
         """Build the TD(0) estimator (the only one that matches the paper's one-step target), e.g. gamma=0.7."""
@@ -94,10 +95,17 @@ class CompetitiveDQNLoss(LossModule):
             )
 
     def _q_values(self, observation: torch.Tensor, params: TensorDictBase) -> torch.Tensor:
-        """Q(s, .) under `params` (online or target), on plain tensors: the TensorDict plumbing of a full module
-        call costs more than the tiny MLP itself, and updates/s is what the learner is judged on."""
-        with params.to_module(self.value_network):
+        """Q(s, .) under `params` (online or target), on plain tensors.
+
+        Why not a full TensorDict module call: its plumbing costs more than the tiny MLP itself, and updates/s is
+        what a learner is judged on. The online parameters ARE the Q-network's own (TorchRL's functional
+        conversion keeps the same tensors), so the online pass is a plain call; the target pass swaps in the
+        target tensors with `torch.func.functional_call`.
+        """
+        if params is self.value_network_params:
             return self._qnet_tensor_module(observation)
+        swapped = {name: params.get(("module", "0", "module", *name.split("."))) for name in self._qnet_param_names}
+        return torch.func.functional_call(self._qnet_tensor_module, swapped, (observation,))
 
     def _bootstrap_value(self, tensordict: TensorDictBase) -> torch.Tensor:
         """max over available a' of Q_target(s', a'); with double DQN, Q_target(s', argmax_available Q_online)."""
@@ -107,7 +115,7 @@ class CompetitiveDQNLoss(LossModule):
         fill = torch.finfo(target_q.dtype).min
         if not self.double_dqn:
             return target_q.masked_fill(~available, fill).max(-1, keepdim=True).values
-        online_q = self._q_values(next_observation, self.value_network_params.data)
+        online_q = self._q_values(next_observation, self.value_network_params)
         best = online_q.masked_fill(~available, fill).argmax(-1, keepdim=True)
         return torch.gather(target_q, -1, best)
 

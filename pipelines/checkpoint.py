@@ -104,6 +104,6 @@ def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
     if not found:
         raise FileNotFoundError(f"no periodic checkpoint in {str(run_dir / PERIODIC_DIR)!r} to resume from")
     state = load_checkpoint(found[-1])
-    if "optimizer" not in state:
+    if "learner" not in state:
         raise ValueError(f"checkpoint {str(found[-1])!r} holds no training state to resume from")
     return state

@@ -62,11 +62,11 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
     from tqdm import tqdm
 
-    from modules.loss import CompetitiveDQNLoss, make_target_updater
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
     from pipelines.evaluate import evaluate_agent
+    from pipelines.learner import Learner
     from pipelines.plots import plot_learning_curve
     from pipelines.run_env import make_run_env
 
@@ -92,16 +92,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     )
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
-    loss_module = CompetitiveDQNLoss(
-        qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn
-    )
-    loss_module.make_value_estimator(gamma=config.loss.gamma)
-    target_updater = make_target_updater(
-        loss_module, config.loss.target_update, config.loss.target_period, config.loss.tau
-    )
-    optimizer = torch.optim.Adam(
-        loss_module.parameters(), lr=config.optim.lr, weight_decay=config.optim.weight_decay
-    )
+    learner = Learner.from_config(qnet, config)
     buffer = TensorDictReplayBuffer(
         storage=LazyTensorStorage(config.buffer.size), batch_size=config.buffer.batch_size
     )
@@ -110,11 +101,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     history: list[dict[str, Any]] = []
     if state:
         qnet.load_state_dict(state["qnet"])
-        loss_module.load_state_dict(state["loss"])
-        optimizer.load_state_dict(state["optimizer"])
+        learner.load_state_dict(state["learner"])
         agent.egreedy.load_state_dict(state["egreedy"])
-        if hasattr(target_updater, "counter"):
-            target_updater.counter = state.get("target_counter", 0)
         if state.get("buffer") is not None:
             buffer.load_state_dict(state["buffer"])
         torch.set_rng_state(state["rng"])
@@ -145,9 +133,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     def training_state() -> dict[str, Any]:
         return {
             "config": config.to_dict(), "n_features": env.n_features, "n_actions": env.n_actions,
-            "qnet": qnet.state_dict(), "loss": loss_module.state_dict(), "optimizer": optimizer.state_dict(),
-            "egreedy": agent.egreedy.state_dict(),
-            "target_counter": getattr(target_updater, "counter", 0),
+            "qnet": qnet.state_dict(), "learner": learner.state_dict(), "egreedy": agent.egreedy.state_dict(),
             "buffer": buffer.state_dict() if config.checkpoint.save_buffer else None,
             "rng": torch.get_rng_state(), "history": history,
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
@@ -176,16 +162,9 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
             # --- learning: several updates per collected batch once the burn-in is in the buffer ----------------
             if len(buffer) >= config.collector.init_random_frames:
-                for _ in range(config.optim.updates_per_batch):
-                    sample = buffer.sample()
-                    loss = loss_module(sample)["loss"]
-                    optimizer.zero_grad(set_to_none=True)
-                    loss.backward()
-                    torch.nn.utils.clip_grad_norm_(loss_module.parameters(), config.optim.max_grad_norm)
-                    optimizer.step()
-                    target_updater.step()
-                    counters["updates"] += 1
-                    losses.append(loss.item())
+                step_losses = [learner.update(buffer.sample()) for _ in range(config.optim.updates_per_batch)]
+                counters["updates"] += len(step_losses)
+                losses.append(float(torch.stack(step_losses).mean()))
 
             # --- periodic greedy evaluation and checkpoint --------------------------------------------------------
             finished = (counters["episodes"] >= config.train.episodes) if stop_on_episodes else \
