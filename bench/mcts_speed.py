@@ -25,13 +25,13 @@ from envs.opponents.mcts import uct_search
 SETTINGS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]
 
 
-def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, seed: int) -> tuple[int, int, float]:
-    """One game MCTS vs uniform random on the bitboards; (result for MCTS: 1/0.5/0 as 2/1/0, decisions, seconds)."""
+def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, seed: int) -> tuple[int, int, float, float]:
+    """One game MCTS vs uniform random on the bitboards: (MCTS points 2/1/0, decisions, wall s, CPU s)."""
     engine = make_bits(game, free_move)
     rng = random.Random(seed)
     pos = engine.from_board([0] * engine.n_cells, 1)
     decisions = 0
-    began = time.perf_counter()
+    began, began_cpu = time.perf_counter(), time.process_time()
     while engine.result(pos) == ONGOING:
         moves = engine.moves(pos)
         if engine.turn(pos) == mcts_side:
@@ -40,19 +40,19 @@ def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, see
         else:
             move = moves[int(rng.random() * len(moves))]
         pos = engine.play(pos, move)
-    seconds = time.perf_counter() - began
+    seconds, cpu_seconds = time.perf_counter() - began, time.process_time() - began_cpu
     result = engine.result(pos)
     points = 1 if result == DRAW else 2 if result == mcts_side else 0
-    return points, decisions, seconds
+    return points, decisions, seconds, cpu_seconds
 
 
-def simulations_per_second(game: str, free_move: str, simulations: int = 2000, seed: int = 0) -> float:
-    """UCT iterations per second from the empty board (the longest playouts: a pessimistic figure)."""
+def simulations_per_second(game: str, free_move: str, simulations: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """UCT iterations per wall second and per CPU second from the empty board (the longest playouts)."""
     engine = make_bits(game, free_move)
     pos = engine.from_board([0] * engine.n_cells, 1)
-    began = time.perf_counter()
+    began, began_cpu = time.perf_counter(), time.process_time()
     uct_search(engine, pos, engine.moves(pos), simulations, random.Random(seed))
-    return simulations / (time.perf_counter() - began)
+    return simulations / (time.perf_counter() - began), simulations / (time.process_time() - began_cpu)
 
 
 def batched_select_ms(game: str, free_move: str, name: str, batch: int = 1024, repeats: int = 20) -> float:
@@ -93,21 +93,23 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    print("## speed (plain Python bitboards, one core; shared machine, noisy)")
-    print("| game | rule | sims/s from empty board | s per 100-sim game vs random (first / second) | decisions per game | needed sims/s for 0.2 s |")
-    print("|---|---|---|---|---|---|")
+    print("## speed (plain Python bitboards, one core; wall time is noisy on a shared machine, CPU time much less so)")
+    print("| game | rule | sims/s from empty board (wall / CPU) | s per 100-sim game vs random, MCTS first / second "
+          "(wall) | same in CPU s | MCTS decisions per game | sims/s needed for 0.2 s |")
+    print("|---|---|---|---|---|---|---|")
     for game, free_move in SETTINGS:
-        rate = simulations_per_second(game, free_move, seed=args.seed)
-        per_seat = []
+        rate, cpu_rate = simulations_per_second(game, free_move, seed=args.seed)
+        wall, cpu = [], []
         decisions = 0
         for side in (0, 1):
             runs = [engine_game(game, free_move, 100, side, args.seed + i) for i in range(args.timing_games)]
-            per_seat.append(sum(s for _, _, s in runs) / len(runs))
-            decisions += sum(d for _, d, _ in runs)
+            wall.append(sum(run[2] for run in runs) / len(runs))
+            cpu.append(sum(run[3] for run in runs) / len(runs))
+            decisions += sum(run[1] for run in runs)
         mean_decisions = decisions / (2 * args.timing_games)
         rule = free_move if game == "ultimate" else "-"
-        print(f"| {game} | {rule} | {rate:,.0f} | {per_seat[0]:.3f} / {per_seat[1]:.3f} | {mean_decisions:.1f} | "
-              f"{mean_decisions * 100 / 0.2:,.0f} |")
+        print(f"| {game} | {rule} | {rate:,.0f} / {cpu_rate:,.0f} | {wall[0]:.3f} / {wall[1]:.3f} | "
+              f"{cpu[0]:.3f} / {cpu[1]:.3f} | {mean_decisions:.1f} | {mean_decisions * 100 / 0.2:,.0f} |", flush=True)
 
     print()
     print("## batched opponents: ms per select on 1,024 random positions")
