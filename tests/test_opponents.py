@@ -328,3 +328,14 @@ def test_batched_line_helpers_agree_with_the_rules(game: str, free_move: str) ->
                 assert bool(wins[row, cell]) == expected, (row, cell)
                 found += expected
     assert found >= 5  # the positions do contain winning cells
+
+
+def test_uct_search_spends_every_simulation_below_the_root() -> None:
+    from envs.opponents.mcts import uct_search
+
+    engine = UltimateBits("open_subgrids")
+    pos = engine.from_board([0] * 81, 1)
+    move, stats = uct_search(engine, pos, engine.moves(pos), 300, random.Random(0))
+    assert sum(visits for visits, _ in stats.values()) == 300
+    assert move in engine.moves(pos) and stats[move][0] == max(v for v, _ in stats.values())
+    assert all(0.0 <= rate <= 1.0 for _, rate in stats.values())
