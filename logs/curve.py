@@ -17,19 +17,24 @@ from logs.reader import read_episodes
 
 
 def curve_series(episodes: list[dict[str, Any]], window: int = 200) -> dict[str, dict[str, Any]]:
-    """Per "agent seed=N": train moving averages and eval points of task success, reward/step and length."""
+    """Per agent: train moving averages and eval points of task success, reward/step and length.
+
+    Evaluation episodes logged without `env_steps` (e.g. the final test games) form one point at the end
+    of that agent's training curve."""
     if window < 1:
         raise ValueError(f"window must be at least 1 episode, got {window}")
     grouped: dict[str, dict[str, list]] = defaultdict(lambda: {"train": [], "eval": []})
     for episode in episodes:
         if episode.get("phase") in ("train", "eval"):
-            grouped[f"{episode.get('agent')} seed={episode.get('seed')}"][episode["phase"]].append(episode)
+            grouped[str(episode.get("agent"))][episode["phase"]].append(episode)
     series: dict[str, dict[str, Any]] = {}
     for label, phases in sorted(grouped.items()):
         entry: dict[str, Any] = {}
         train = phases["train"]
+        final_x = 0.0
         if train:
             x = _steps_axis(train)
+            final_x = float(x[-1])
             success = np.array([float(bool(e.get("task_success"))) for e in train])
             returns = np.array([float(e.get("return", 0.0)) for e in train])
             lengths = np.array([max(1, int(e.get("length", 1))) for e in train], dtype=float)
@@ -39,9 +44,9 @@ def curve_series(episodes: list[dict[str, Any]], window: int = 200) -> dict[str,
                               "length": _moving(lengths, size)}
         evaluation = phases["eval"]
         if evaluation:
-            points: dict[int, list] = defaultdict(list)
-            for order, e in enumerate(evaluation):
-                points[int(e["env_steps"]) if e.get("env_steps") is not None else order].append(e)
+            points: dict[float, list] = defaultdict(list)
+            for e in evaluation:
+                points[float(e["env_steps"]) if e.get("env_steps") is not None else final_x].append(e)
             xs = sorted(points)
             entry["eval"] = {
                 "x": np.array(xs, dtype=float),
@@ -91,7 +96,7 @@ def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200)
                           label=f"{label} train (moving avg {window})")
             if "eval" in entry:
                 axis.plot(entry["eval"]["x"], entry["eval"][metric], "o-", color=colour, lw=2, ms=4,
-                          label=f"{label} eval")
+                          label=f"{label} eval (mean per evaluation)")
             axis.set_title(title)
             axis.set_xlabel("env steps")
             axis.grid(alpha=0.3)

@@ -348,10 +348,7 @@ class EpisodeLogger:
                                                 "run_info": self._run_info_json})
         if self._names.action_names or self._names.feature_names:
             self._writer.add_metadata("ncbot.names", self._names.to_metadata())
-        self._channels = {}
-        for topic, schema in schemas.JSON_SCHEMAS.items():
-            schema_id = self._writer.register_schema(schema["title"], "jsonschema", schemas.schema_bytes(schema))
-            self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
+        self._channels = {}  # registered on first use, so a file lists only the channels it has
         self.files.append(path)
         self._file.flush()
 
@@ -381,7 +378,12 @@ class EpisodeLogger:
         log_time = self._now_ns()
         data = json.dumps(message, separators=(",", ":")).encode()
         self._pending_bytes += len(data) + MESSAGE_RECORD_OVERHEAD
-        self._writer.add_message(self._channels[topic], log_time=log_time, data=data, publish_time=log_time)
+        channel = self._channels.get(topic)
+        if channel is None:
+            schema = schemas.JSON_SCHEMAS[topic]
+            schema_id = self._writer.register_schema(schema["title"], "jsonschema", schemas.schema_bytes(schema))
+            channel = self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
+        self._writer.add_message(channel, log_time=log_time, data=data, publish_time=log_time)
 
     def _write_packed(self, episode_id: int, episode: FinishedEpisode) -> None:
         self._require_open()

@@ -85,7 +85,7 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
             last.append(f"train task success {entry['train']['task_success'][-1]:.3f}")
         if "eval" in entry:
             last.append(f"last eval task success {entry['eval']['task_success'][-1]:.3f} "
-                        f"at {int(entry['eval']['x'][-1])} steps")
+                        f"({entry['eval']['games'][-1]} games at {int(entry['eval']['x'][-1])} env steps)")
         typer.echo(f"{label}: " + ", ".join(last))
     typer.echo(f"wrote {output}")
 

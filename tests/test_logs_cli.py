@@ -89,7 +89,8 @@ def test_curve_writes_a_png(run_dir: Path, tmp_path: Path, capsys: pytest.Captur
     code, out, err = run_cli("logs", "curve", run_dir, "-o", output, "--window", "5", capsys=capsys)
     assert code == 0, err
     assert output.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and output.stat().st_size > 10_000
-    assert "proposed seed=0" in out and "last eval task success" in out
+    assert out.startswith("proposed: train task success") and "last eval task success" in out
+    assert "(2 games at 144 env steps)" in out  # the last periodic evaluation: 2 games at env_steps 36 * 4
 
 
 def test_to_rerun_writes_a_recording(run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
