@@ -61,10 +61,21 @@ def curve_series(episodes: list[dict[str, Any]], window: int = 200) -> dict[str,
 
 
 def _steps_axis(episodes: list[dict[str, Any]]) -> np.ndarray:
-    """env_steps when logged, else the running sum of episode lengths."""
-    if all(e.get("env_steps") is not None for e in episodes):
-        return np.array([float(e["env_steps"]) for e in episodes])
-    return np.cumsum([float(e.get("length", 0)) for e in episodes])
+    """env_steps when logged, else the running sum of episode lengths. All episodes of one collector batch
+    carry the same env_steps; they are spread evenly over that batch's frames so the curve has no steps."""
+    if not all(e.get("env_steps") is not None for e in episodes):
+        return np.cumsum([float(e.get("length", 0)) for e in episodes])
+    logged = np.array([float(e["env_steps"]) for e in episodes])
+    x = logged.copy()
+    start, previous = 0, 0.0
+    while start < len(logged):
+        end = start
+        while end + 1 < len(logged) and logged[end + 1] == logged[start]:
+            end += 1
+        count = end - start + 1
+        x[start:end + 1] = previous + (logged[start] - previous) * np.arange(1, count + 1) / count
+        previous, start = logged[start], end + 1
+    return x
 
 
 def _moving(values: np.ndarray, size: int) -> np.ndarray:

@@ -323,3 +323,17 @@ def test_robot_steps_are_written_when_they_happen_between_camera_frames(tmp_path
             log.record_steps(td[:, t], phase="robot", agent="a", seed=0, env=NamedEnv())
     order = [m.topic for m in LogReader(tmp_path).messages(["/camera/bottom/compressed", "/step", "/episode"])]
     assert order == ["/camera/bottom/compressed", "/step"] * 3 + ["/episode"]
+
+
+def test_curve_series_spreads_batches_and_places_final_eval() -> None:
+    from logs.curve import curve_series
+
+    train = [{"phase": "train", "agent": "p", "seed": 0, "env_steps": steps, "task_success": ok, "return": 1.0,
+              "length": 10} for steps, ok in [(100, True), (100, False), (200, True), (200, True)]]
+    final = [{"phase": "eval", "agent": "p", "seed": 9, "env_steps": None, "task_success": True, "return": 2.0,
+              "length": 10}] * 3
+    series = curve_series(train + final, window=2)["p"]
+    assert series["train"]["x"].tolist() == [100.0, 150.0, 200.0]  # 2 episodes per batch spread over its frames
+    assert series["train"]["task_success"].tolist() == [0.5, 0.5, 1.0]
+    assert series["eval"]["x"].tolist() == [200.0] and series["eval"]["games"] == [3]
+    assert series["eval"]["reward_per_step"].tolist() == [0.2]
