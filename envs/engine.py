@@ -191,11 +191,14 @@ class StandardEngine(_Engine):
         return state
 
     def _update_outcome(self, state: Boards) -> None:
-        code = state.codes[:, 0]
-        tables = self.tables
-        state.outcome = torch.where(
-            lookup(tables.has_line[1], code), 1, torch.where(lookup(tables.has_line[2], code), 2, torch.where(lookup(tables.full, code), DRAWN, 0))
-        )
+        state.outcome = lookup(self._outcome_table(), state.codes[:, 0])
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _outcome_table() -> torch.Tensor:
+        """(3^9,) outcome code of every 3x3 board content (positions reached by play never hold two lines)."""
+        tables = grid_tables(3)
+        return torch.where(tables.has_line[1], 1, torch.where(tables.has_line[2], 2, torch.where(tables.full, DRAWN, 0)))
 
     def legal(self, state: Boards) -> torch.Tensor:
         return (state.board == 0) & (state.outcome == 0).unsqueeze(1)
