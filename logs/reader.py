@@ -120,6 +120,9 @@ class LogReader:
         topics = {topic for scan in self.scans.values() for topic in scan.channels}
         ours = any("ncbot.run" in scan.metadata for scan in self.scans.values())  # also a file killed early
         if not (topics & set(schemas.NCBOT_TOPICS) or ours):
+            if not topics and all(scan.truncated for scan in self.scans.values()):
+                raise ValueError(f"{self.path} was cut off before any record could be read "
+                                 f"({sum(scan.size for scan in self.scans.values())} bytes); nothing to recover")
             found = ", ".join(sorted(topics)) or "no channels"
             raise ValueError(f"{self.path} is an MCAP file without ncbot channels ({found}); expected "
                              f"{', '.join(schemas.NCBOT_TOPICS)} as written by logs.EpisodeLogger")

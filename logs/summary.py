@@ -76,7 +76,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     """The human-readable form of `summarize` for the terminal."""
     lines = [f"log: {summary['path']}"]
     for file in summary["files"]:
-        state = "complete" if file["complete"] else f"TRUNCATED: {file['cut_bytes']} bytes cut off ({file['error']})"
+        state = "complete" if file["complete"] else (f"TRUNCATED (no summary section): last {file['cut_bytes']} bytes "
+                                                     f"unreadable, everything before recovered ({file['error']})")
         lines.append(f"  {file['path']}  {file['bytes']} bytes  {state}")
     lines.append("channels:")
     for topic, entry in sorted(summary["channels"].items()):

@@ -152,7 +152,7 @@ def test_truncated_run_is_reported(run_dir: Path, tmp_path: Path, capsys: pytest
     summary = json.loads(out)
     assert summary["truncated"] is True and summary["files"][0]["cut_bytes"] > 0
     code, out, _ = run_cli("logs", "inspect", cut, capsys=capsys)
-    assert "TRUNCATED" in out and "bytes cut off" in out
+    assert "TRUNCATED" in out and "bytes unreadable" in out
 
 
 def test_console_script_prints_no_traceback(tmp_path: Path) -> None:
