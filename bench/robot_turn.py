@@ -95,7 +95,7 @@ def main() -> None:
         runner = RobotGameRunner(config, LookaheadOnlyPolicy(seed=args.seed), out_dir=None, logger=logger)
         report = runner.run(progress=True)
     for key in ("games", "wins", "draws", "losses", "misrecognised_moves", "robot_moves", "seconds_per_robot_turn",
-                "max_seconds_per_robot_turn", "seconds_per_dialogue_act", "seconds_per_human_turn", "frames"):
+                "max_seconds_per_robot_turn", "cpu_seconds_per_robot_turn", "seconds_per_dialogue_act", "seconds_per_human_turn", "frames"):
         figures[key] = report[key]
     figures["load_average_end"] = round(os.getloadavg()[0], 2)
     target_met = report["seconds_per_robot_turn"] is not None and report["seconds_per_robot_turn"] <= 2.0

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from robot_sim.human import HumanConfig, SimulatedHuman
+from robot_sim.localise import localise_sheet
 from robot_sim.motion import RobotMotion
 from robot_sim.scene import PepperScene, SceneConfig, check_game
 from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
@@ -92,11 +93,15 @@ class GameRecord:
     human_moves: int = 0
     robot_moves: int = 0
     robot_move_seconds: list[float] = field(default_factory=list)
+    #: CPU time of the process (all threads, incl. lavapipe's) per robot move: the cost without other jobs' load.
+    robot_move_cpu_seconds: list[float] = field(default_factory=list)
     dialogue_act_seconds: list[float] = field(default_factory=list)
     human_turn_seconds: list[float] = field(default_factory=list)
     frames: int = 0
     snapshot: str | None = None
     ik_failures: int = 0
+    #: Largest distance (m) between where the robot believed its target cell was and where it really was.
+    cell_localisation_error: float = 0.0
 
 
 class PerceivedHumanOpponent:
@@ -241,10 +246,19 @@ class RobotGameRunner:
                 self._robot_off_board = True  # the robot believed a cell empty that is not: a perception error
             mark = MarkSpec(action, kind, int(self._mark_rng.integers(2**31)), ROBOT_INK, 0.6,
                             ROBOT_PEN_MM / (1000.0 * self.scene.sheet_side))
+            # Where is the sheet now? From the latest frame (people nudge it), else the last estimate.
+            self.motion.settle(0.1)
+            frame = self.scene.render()  # a fresh look from the home posture (not a frame from mid-gesture)
+            self._log_frame(frame, self.scene.time)
+            estimate = localise_sheet(self.scene, frame)
+            self._sheet_estimate = estimate or self._sheet_estimate
+            believed = self._sheet_estimate.canvas_to_world(*self.scene.canvas.cell_pixel(action))
+            record.cell_localisation_error = max(record.cell_localisation_error,
+                                                 float(np.linalg.norm(believed - self.scene.cell_world(action))))
             if self.grid == 3 or self.config.ultimate_robot_draws:
-                self.motion.draw_mark(mark, self.scene.canvas_to_world)
+                self.motion.draw_mark(mark, self._sheet_estimate.canvas_to_world)
             else:
-                self.motion.point_at(self.scene.cell_world(action))
+                self.motion.point_at(believed)
                 self.human.draw_for_robot(action, kind, self._log_frame, ROBOT_INK)
             self._true_boards.append(self._true_digits())
         elif command in ("hello", "please", "happy", "no", "think", "asr", "read"):
@@ -277,14 +291,18 @@ class RobotGameRunner:
         self._robot_off_board = False
         self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0)
         self._log_frame(self.scene.render(), self.scene.time)
+        self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
+        if self._sheet_estimate is None:
+            raise ValueError("the mouth camera cannot see the game sheet at the home posture; check the scene configuration")
         while True:
-            started = time.perf_counter()
+            started, cpu_started = time.perf_counter(), time.process_time()
             td = self.policy(td)
             action = int(td["action"].reshape(-1)[0])
             self._act(action, env)
             if action < env.cells:
                 self._check_own_mark(action)
                 record.robot_move_seconds.append(time.perf_counter() - started)
+                record.robot_move_cpu_seconds.append(time.process_time() - cpu_started)
             else:
                 record.dialogue_act_seconds.append(time.perf_counter() - started)
             td = env.step(td)
@@ -354,6 +372,7 @@ class RobotGameRunner:
         """The JSON report of `ncbot robot play` (first keys as in the issue, then details)."""
         records = self.records
         moves = [s for r in records for s in r.robot_move_seconds]
+        moves_cpu = [s for r in records for s in r.robot_move_cpu_seconds]
         acts = [s for r in records for s in r.dialogue_act_seconds]
         human = [s for r in records for s in r.human_turn_seconds]
 
@@ -373,10 +392,13 @@ class RobotGameRunner:
             "robot_moves": sum(r.robot_moves for r in records),
             "own_mark_misread": int(getattr(self, "_own_mark_misses", 0)),
             "max_seconds_per_robot_turn": round(max(moves), 3) if moves else None,
+            "cpu_seconds_per_robot_turn": mean(moves_cpu),
+            "load_average": round(os.getloadavg()[0], 2),
             "seconds_per_dialogue_act": mean(acts),
             "seconds_per_human_turn": mean(human),
             "frames": sum(r.frames for r in records),
             "ik_failures": sum(r.ik_failures for r in records),
+            "max_cell_localisation_error_mm": round(1000 * max((r.cell_localisation_error for r in records), default=0.0), 2),
             "game": self.config.game,
             "agent": self.config.agent_name,
             "seed": self.config.seed,

@@ -250,14 +250,20 @@ class PepperScene:
             self._texture.upload(self.canvas.texture_rgba())
             self._uploaded_version = self.canvas.version
 
-    def nudge_sheet(self, dx: float, dy: float, dyaw: float) -> None:
-        """Move the sheet a little on the table (a person bumping it)."""
+    def nudge_sheet(self, dx: float, dy: float, dyaw: float, max_offset: float = 0.015, max_yaw: float = 0.1) -> None:
+        """Move the sheet a little on the table (a person bumping it); it stays within `max_offset` m and
+        `max_yaw` rad of where it was laid, so it never slides off the table's edge."""
         import sapien
 
-        pose = self.sheet.pose
-        yaw = dyaw
-        q = sapien.Pose(q=[math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]) * sapien.Pose(q=pose.q)
-        self.sheet.set_pose(sapien.Pose(np.array(pose.p) + np.array([dx, dy, 0.0]), q.q))
+        home = np.array(self.sheet_home_pose.p)
+        offset = np.clip(np.array(self.sheet.pose.p) + np.array([dx, dy, 0.0]) - home, -max_offset, max_offset)
+        offset[2] = 0.0
+        yaw = float(np.clip(self.sheet_yaw() + dyaw, -max_yaw, max_yaw))
+        self.sheet.set_pose(sapien.Pose(home + offset, [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]))
+
+    def sheet_yaw(self) -> float:
+        w, _, _, z = self.sheet.pose.q
+        return 2.0 * math.atan2(z, w)
 
     def place_human_arm(self, tip: np.ndarray, lift: float = 0.0, yaw: float = 0.0) -> None:
         """Put the human's pen tip at `tip` (+ `lift` above it), arm reaching from the far side of the table."""
