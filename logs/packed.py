@@ -4,7 +4,8 @@ Why: training and evaluation produce thousands of episodes per minute, and one J
 several times the env step itself (measured in logs/README.md). Here a whole batch is turned into rows with
 one numpy call per field, and an episode is written as the bytes of its rows in a protobuf
 `ncbot.EpisodeSteps` message (zstd then squeezes the many zero bytes). The row layout is a numpy structured
-dtype whose description travels in every message, so a file stays readable when layouts change.
+dtype (`row_dtype`); every message names it by version and sizes (`layout`, e.g. "ncbot-rows-v1:18,73,9,39"),
+so a reader knows exactly how to cut the bytes.
 
 Row fields: act, reward, step (env turn counter), user_act, user_move, user_utterance, mask / win / a_hat
 (bit-packed over the actions: action mask, winning available actions, available actions with negative
@@ -13,7 +14,6 @@ features), conf (float16 value of each vocabulary word's feature after the user 
 """
 from __future__ import annotations
 
-import json
 from functools import lru_cache
 from typing import Any
 
@@ -33,14 +33,21 @@ def row_dtype(n_actions: int, n_features: int, n_cells: int, n_words: int) -> np
                      ("obs", "<f2", (n_features,)), ("conf", "<f2", (n_words,))])
 
 
-def dtype_from_text(text: str) -> np.dtype:
-    return np.dtype([tuple(field) if len(field) == 2 else (field[0], field[1], tuple(field[2]))
-                     for field in json.loads(text)])
+LAYOUT_PREFIX = "ncbot-rows-v1:"
 
 
-def dtype_to_text(dtype: np.dtype) -> str:
-    return json.dumps([[name, dtype.fields[name][0].base.str, list(dtype.fields[name][0].shape)]
-                       if dtype.fields[name][0].shape else [name, dtype.fields[name][0].str] for name in dtype.names])
+def layout_text(dtype: np.dtype) -> str:
+    """The layout tag written in every message: version and the four sizes that fix `row_dtype`."""
+    sizes = (dtype.fields["q"][0].shape[0], dtype.fields["obs"][0].shape[0], dtype.fields["cells"][0].shape[0],
+             dtype.fields["conf"][0].shape[0])
+    return LAYOUT_PREFIX + ",".join(map(str, sizes))
+
+
+def dtype_from_layout(text: str) -> np.dtype:
+    if not text.startswith(LAYOUT_PREFIX):
+        raise ValueError(f"unknown packed step layout {text[:40]!r}; expected {LAYOUT_PREFIX}A,F,C,W "
+                         "(written by a newer ncbot?)")
+    return row_dtype(*(int(size) for size in text[len(LAYOUT_PREFIX):].split(",")))
 
 
 def batch_rows(arrays: dict[str, np.ndarray], names: NameTables) -> tuple[np.ndarray, list[str]]:
@@ -115,23 +122,13 @@ def descriptor_set() -> bytes:
 
 def encode(episode_id: int, n: int, dtype: np.dtype, rows: bytes, present: list[str]) -> bytes:
     """One episode's `n` rows (their raw bytes, layout `dtype`) as a serialised `ncbot.EpisodeSteps`."""
-    return message_class()(episode=episode_id, n=n, layout=_layout_text(dtype), present=present,
+    return message_class()(episode=episode_id, n=n, layout=layout_text(dtype), present=present,
                            rows=rows).SerializeToString()
-
-
-_LAYOUTS: dict[np.dtype, str] = {}
-
-
-def _layout_text(dtype: np.dtype) -> str:
-    text = _LAYOUTS.get(dtype)
-    if text is None:
-        text = _LAYOUTS[dtype] = dtype_to_text(dtype)
-    return text
 
 
 def decode(message: Any) -> tuple[int, np.ndarray, set[str]]:
     """(episode id, rows, present fields) of a decoded `ncbot.EpisodeSteps` message."""
-    rows = np.frombuffer(message.rows, dtype_from_text(message.layout))
+    rows = np.frombuffer(message.rows, dtype_from_layout(message.layout))
     if len(rows) != message.n:
         raise ValueError(f"packed episode {message.episode} holds {len(rows)} rows, expected {message.n}")
     return int(message.episode), rows, set(message.present)
