@@ -97,10 +97,6 @@ class Boards:
     move_order: torch.Tensor  # (B, cells) int64
     outcome: torch.Tensor  # (B,) int64
 
-    def take_rows(self, rows: torch.Tensor) -> "Boards":
-        """A new Boards holding the games ``rows`` (int64 indices, repeats allowed) of this one."""
-        return Boards(**{name: getattr(self, name).index_select(0, rows) for name in self.__dataclass_fields__})
-
 
 class _Engine:
     """What both games share: state creation and the player-agnostic helpers."""
@@ -352,47 +348,52 @@ class UltimateEngine(_Engine):
         rows = torch.cat([forced_rows, free_rows.repeat_interleave(9)])
         cells = torch.cat([self.subgrid_cells.index_select(0, target.index_select(0, forced_rows)), self.subgrid_cells.repeat(free_rows.numel(), 1)])
         rewards = torch.full((state.board.shape[0] * 81,), REWARD_LOSE)
-        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state.take_rows(rows), player, cells).reshape(-1))
+        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state, player, rows, cells).reshape(-1))
         return rewards.view(-1, 81)
 
-    def _rewards_at(self, state: Boards, player: int, cells: torch.Tensor) -> torch.Tensor:
-        """(N, K) rewards of ``player`` taking the candidate ``cells`` (N, K) of each game (legal ones matter)."""
+    def _rewards_at(self, state: Boards, player: int, rows: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
+        """(N, K) rewards of ``player`` taking ``cells`` (N, K) in games ``rows`` (N,) (legal squares matter)."""
         sub_table, meta_table = self._packed_tables()
         opponent = 3 - player
+        # per-game facts, computed once per game and then spread over its rows
+        meta_code = (state.owners * self.pow4).sum(1)  # (B,)
+        opponent_now = self._open_bits(lookup(self.tables.win_bits[opponent], state.codes), state.owners)
+        player_now = self._open_bits(lookup(self.tables.win_bits[player], state.codes), state.owners)
+        dead_before = (lookup(meta_table[player], meta_code) & 2) != 0
+        meta_code, opponent_now, player_now, dead_before = (
+            t.index_select(0, rows).unsqueeze(1) for t in (meta_code, opponent_now, player_now, dead_before)
+        )
+        owners = state.owners.index_select(0, rows)  # (N, 9)
+
         sub, pos = lookup(self.subgrid_of, cells), lookup(self.position_of, cells)  # (N, K)
         bit = 1 << sub
-        owner_s = state.owners.gather(1, sub)
-        empty = state.board.gather(1, cells) == 0
-        code_after = state.codes.gather(1, sub) + empty.long() * player * lookup(self.cell_pow3, cells)
+        owner_s = owners.gather(1, sub)
+        empty = lookup(state.board.view(-1), rows.unsqueeze(1) * 81 + cells) == 0
+        code_after = state.codes.index_select(0, rows).gather(1, sub) + empty.long() * player * lookup(self.cell_pow3, cells)
         facts = lookup(sub_table[player], code_after)
         open_s = owner_s == 0
         wins_sub = open_s & (facts & 1 != 0)
         draws_sub = open_s & ~wins_sub & (facts & 2 != 0)
         delta = wins_sub.long() * player + draws_sub.long() * DRAWN  # change of the subgrid's owner
         owner_after_s = owner_s + delta
-        meta_code = (state.owners * self.pow4).sum(1, keepdim=True)  # (N, 1)
         meta_facts = lookup(meta_table[player], meta_code + delta * lookup(self.pow4, sub))
         win = meta_facts & 1 != 0
 
         # Where the opponent is sent, and whether it can move at all.
-        target_open = torch.where(pos == sub, owner_after_s, state.owners.gather(1, pos)) == 0
+        target_open = torch.where(pos == sub, owner_after_s, owners.gather(1, pos)) == 0
         if self.free_move == "anywhere":
-            free_has_moves = (state.n_marks < 80).unsqueeze(1)
+            free_has_moves = (state.n_marks.index_select(0, rows) < 80).unsqueeze(1)
         else:
-            open_bits = ((state.owners == 0).long() * self.bit9).sum(1, keepdim=True)
+            open_bits = ((owners == 0).long() * self.bit9).sum(1, keepdim=True)
             free_has_moves = torch.where(owner_after_s == 0, open_bits, open_bits & ~bit) != 0
         draw = ~win & ~target_open & ~free_has_moves
 
         # Open subgrids where each side could complete a line, after each candidate move.
         still_open = owner_after_s == 0
-        codes_now = state.codes
-        opponent_now = self._open_bits(lookup(self.tables.win_bits[opponent], codes_now), state.owners).unsqueeze(1)
-        player_now = self._open_bits(lookup(self.tables.win_bits[player], codes_now), state.owners).unsqueeze(1)
         opponent_threats = (opponent_now & ~bit) | ((still_open & (facts & 4 != 0)).long() * bit)
         player_threats = (player_now & ~bit) | ((still_open & (facts & 8 != 0)).long() * bit)
         opponent_threats = opponent_threats & (meta_facts >> 2 & 511)
         about_to_lose = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
-        dead_before = (lookup(meta_table[player], meta_code) & 2) != 0
         about_to_draw = (meta_facts & 2 != 0) & ~dead_before
         about_to_win = (player_threats & (meta_facts >> 11 & 511)) != 0
         return _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
