@@ -165,3 +165,14 @@ def test_bad_config_is_one_clear_error(sapien_render_system):
         PepperScene(SceneConfig(game="chess"))
     with pytest.raises(ValueError, match="camera must be at least"):
         PepperScene(SceneConfig(camera_width=4))
+
+
+def test_sheet_is_localised_from_the_camera_after_a_nudge(scene):
+    from robot_sim.localise import localise_sheet
+
+    scene.nudge_sheet(0.01, -0.008, np.radians(4))
+    estimate = localise_sheet(scene, scene.render())
+    assert estimate is not None
+    errors = [np.linalg.norm(estimate.canvas_to_world(*scene.canvas.cell_pixel(c)) - scene.cell_world(c)) for c in range(9)]
+    assert max(errors) < 0.005, "cell centres from the camera should be within 5 mm at 160x120"
+    assert abs(estimate.yaw - scene.sheet_yaw()) < np.radians(1.5)
