@@ -122,8 +122,8 @@ class _Engine:
         )
 
     def from_boards(self, boards: torch.Tensor, last_move: torch.Tensor | None = None) -> Boards:
-        """State from raw boards; only valid for 3x3 (Ultimate owners depend on move order: replay instead)."""
-        raise NotImplementedError
+        """State from raw boards: 3x3 only (Ultimate owners depend on the order of play)."""
+        raise ValueError("Ultimate states depend on the order of play (subgrid owners): build them with new() and play()")
 
     @staticmethod
     def _place(state: Boards, cells: torch.Tensor, player: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
@@ -211,32 +211,22 @@ class StandardEngine(_Engine):
         code = state.codes[:, :1]  # (B, 1)
         after = torch.where(state.board == 0, code + player * self.pow3, code)  # (B, 9): code after each move
         dead_before = lookup(self.tables.dead, code).long() * 3**9
-        return lookup(self._reward_after[player], after + dead_before)
+        return lookup(self._reward_table()[player], after + dead_before)
 
     @staticmethod
     @lru_cache(maxsize=1)
     def _reward_table() -> torch.Tensor:
-        """(3, 2 * 3^9) reward of reaching a grid content by ``player``'s move, given whether it was dead before."""
-        tables, codes = grid_tables(3), torch.arange(3**9)
+        """(3, 2 * 3^9): reward of the board content a move of the player reached; second half: it was dead before."""
+        tables = grid_tables(3)
         rows = torch.zeros(3, 2 * 3**9)
         for player in (1, 2):
-            after = codes
-            common = dict(
-                win=tables.has_line[player][after],
-                draw=tables.full[after] & ~tables.has_line[player][after],
-                about_to_lose=tables.win_bits[3 - player][after] != 0,
-                about_to_win=tables.win_bits[player][after] != 0,
-            )
-            for dead_before in (0, 1):
-                about_to_draw = tables.dead[after] & (dead_before == 0)
-                rows[player, dead_before * 3**9:(dead_before + 1) * 3**9] = _prioritise(
-                    common["win"], common["draw"], common["about_to_lose"], about_to_draw, common["about_to_win"]
-                )
+            win = tables.has_line[player]
+            draw = tables.full & ~win
+            about_to_lose = tables.win_bits[3 - player] != 0
+            about_to_win = tables.win_bits[player] != 0
+            rows[player, : 3**9] = _prioritise(win, draw, about_to_lose, tables.dead, about_to_win)
+            rows[player, 3**9:] = _prioritise(win, draw, about_to_lose, torch.zeros_like(win), about_to_win)
         return rows
-
-    @property
-    def _reward_after(self) -> torch.Tensor:
-        return self._reward_table()
 
 
 def _prioritise(win, draw, about_to_lose, about_to_draw, about_to_win) -> torch.Tensor:

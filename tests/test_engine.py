@@ -139,3 +139,16 @@ def test_engine_rejects_unknown_game_and_variant() -> None:
         make_engine("chess")
     with pytest.raises(ValueError, match="free_move must be one of anywhere, open_subgrids"):
         make_engine("ultimate", "sometimes")
+
+
+def test_from_boards_reads_hand_made_3x3_positions() -> None:
+    engine = make_engine("standard")
+    boards = torch.tensor([[1, 1, 1, 2, 2, 0, 0, 0, 0], [1, 2, 1, 1, 2, 2, 2, 1, 1], [1, 0, 0, 0, 2, 0, 0, 0, 0]])
+    state = engine.from_boards(boards)
+    assert state.outcome.tolist() == [1, 3, 0]
+    assert engine.legal(state)[2].nonzero().flatten().tolist() == [1, 2, 3, 5, 6, 7, 8]
+    # x (1) to move on the third board (x a1, o b2): b1 makes a1-b1 with c1 open and o has no threat -> +5
+    rewards = engine.move_rewards(state, 1)[2]
+    assert float(rewards[1]) == 5.0 and float(rewards[8]) == 0.0
+    with pytest.raises(ValueError, match="order of play"):
+        make_engine("ultimate").from_boards(torch.zeros(1, 81))
