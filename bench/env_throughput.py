@@ -1,6 +1,6 @@
 """Env steps per second of the dialogue env vs torchrl's TicTacToeEnv (random masked actions, auto-reset).
 
-Run: python bench/env_throughput.py [--seconds 2] [--batches 1 64 1024]
+Run: python bench/env_throughput.py [--seconds 2] [--batches 1 64 1024] [--png throughput.png]
 One "env step" is one action of one game (a batch-1024 call counts 1024). Our envs build the full state
 every step (features, act filter, look-ahead rewards of every action, winning actions). Figures depend on
 the machine and on other load: run it on an idle machine for numbers you quote.
@@ -36,6 +36,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=2.0, help="measuring time per configuration")
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 64, 1024])
+    parser.add_argument("--png", default=None, help="also draw the figures as a bar chart into this PNG")
     args = parser.parse_args()
     torch.set_num_threads(1)
     from torchrl.envs.custom import TicTacToeEnv
@@ -53,6 +54,34 @@ def main() -> None:
     print(f"{'batch':>6} {'TicTacToeEnv':>14} {'ncbot 3x3':>12} {'ncbot ultimate':>15} {'3x3/TTT':>8} {'ult/TTT':>8}")
     for batch, ref, std, ult in rows:
         print(f"{batch:>6} {ref:>14,.0f} {std:>12,.0f} {ult:>15,.0f} {std / ref:>8.2f} {ult / ref:>8.2f}")
+    if args.png:
+        draw(rows, args.png)
+
+
+def draw(rows: list[tuple[int, float, float, float]], path: str) -> None:
+    """Grouped bars of steps/s per batch size (log scale), written atomically."""
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    labels = ["TicTacToeEnv", "ncbot 3x3", "ncbot ultimate"]
+    for i, label in enumerate(labels):
+        ax.bar([k + (i - 1) * 0.27 for k in range(len(rows))], [row[1 + i] for row in rows], width=0.27, label=label)
+    ax.set_xticks(range(len(rows)), [f"batch {row[0]}" for row in rows])
+    ax.set_yscale("log")
+    ax.set_ylabel("env steps / s")
+    ax.set_title("Env throughput (random masked actions, 1 thread)")
+    ax.legend()
+    fig.tight_layout()
+    tmp = f"{path}.tmp.png"
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    os.replace(tmp, path)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
