@@ -239,12 +239,16 @@ class DialogueGameEnv(EnvBase):
             parts.append(boards.move_order.float() / boards.n_marks.clamp(min=1).unsqueeze(1).float())
         return torch.cat(parts, dim=1)
 
-    def _output(self) -> TensorDict:
-        """The TensorDict of the current state (fresh tensors: safe to stack into rollouts)."""
+    def _output(self, reward: torch.Tensor | None = None) -> TensorDict:
+        """The TensorDict of the current state with done flags (and ``reward`` after a step); fresh tensors."""
         mask = self.d.mask
+        terminated = self.d.closed.unsqueeze(1)
+        truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
+        extra = {} if reward is None else {"reward": reward}
         # _new_unsafe skips per-key validation: every tensor here is built by the env with the right batch
         return TensorDict._new_unsafe(
             {
+                **extra,
                 "observation": self._observation(),
                 "action_mask": mask,
                 "dialogue_mask": self.d.dialogue_mask,
@@ -257,7 +261,9 @@ class DialogueGameEnv(EnvBase):
                 "user_act": self.d.user_act.unsqueeze(1),
                 "user_move": self.d.user_move.unsqueeze(1),
                 "user_utterance": self.d.user_utterance.unsqueeze(1),
-                "terminated": self.d.closed.unsqueeze(1),
+                "terminated": terminated,
+                "truncated": truncated,
+                "done": terminated | truncated,
             },
             batch_size=self.batch_size,
         )
@@ -270,10 +276,7 @@ class DialogueGameEnv(EnvBase):
             rows = torch.ones(self.batch_size[0], dtype=torch.bool)
         if bool(rows.any()):
             self._reset_rows(rows)
-        out = self._output()
-        out.set("truncated", (self.d.turn >= self.max_actions).unsqueeze(1) & ~out.get("terminated"))
-        out.set("done", out.get("terminated") | out.get("truncated"))
-        return out
+        return self._output()
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
@@ -311,9 +314,9 @@ class DialogueGameEnv(EnvBase):
         action = tensordict.get("action").reshape(-1).long()
         if action.shape[0] != self.batch_size[0]:
             raise ValueError(f"action must hold {self.batch_size[0]} entries (one per game), got shape {tuple(tensordict.get('action').shape)}")
-        low, high = int(action.min()), int(action.max())
-        if low < 0 or high >= self.n_actions:
-            self._check_action_index(low if low < 0 else high)
+        out_of_range = (action < 0) | (action >= self.n_actions)
+        if bool(out_of_range.any()):
+            self._check_action_index(int(action[out_of_range][0]))
         index = action.unsqueeze(1)
         accepted = self.d.mask.gather(1, index).squeeze(1)
         reward = self.d.lookahead.gather(1, index)
@@ -358,13 +361,7 @@ class DialogueGameEnv(EnvBase):
         self.d.turn = self.d.turn + 1
         self._refresh()
 
-        out = self._output()
-        terminated = out.get("terminated")
-        truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
-        out.set("reward", reward)
-        out.set("truncated", truncated)
-        out.set("done", terminated | truncated)
-        return out
+        return self._output(reward)
 
     def _user_cells(self, rows: torch.Tensor) -> torch.Tensor:
         """(B,) the user's square in ``rows`` (others 0): uniform among legal ones, or the opponent's choice."""
