@@ -114,6 +114,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     batch_frames = frames_per_batch(config)
     stop_on_episodes = config.train.episodes is not None
     remaining = -1 if stop_on_episodes else max(0, config.collector.total_frames - counters["frames"])
+    if remaining > 0:  # whole collector batches (TorchRL would round up anyway, with a warning)
+        remaining = -(-remaining // batch_frames) * batch_frames
     collector = None
     if remaining != 0:
         collector = Collector(
