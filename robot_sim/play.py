@@ -102,6 +102,8 @@ class GameRecord:
     ik_failures: int = 0
     #: Largest distance (m) between where the robot believed its target cell was and where it really was.
     cell_localisation_error: float = 0.0
+    #: Robot moves whose fresh mark the robot's own look at the sheet did not read.
+    own_mark_misreads: int = 0
 
 
 class PerceivedHumanOpponent:
@@ -324,15 +326,16 @@ class RobotGameRunner:
 
     def _check_own_mark(self, cell: int) -> None:
         """After drawing, look at the sheet once (the robot's own check that its mark landed in the cell)."""
-        self.last_frame = frame = self.scene.render()
-        self._own_mark_checks = getattr(self, "_own_mark_checks", 0) + 1
         from vision.grid import read_page
 
+        frame = self.scene.render()
+        self._log_frame(frame, self.scene.time)
         try:
             reading = read_page(_rgb_to_bgr(frame), self.grid, self.recogniser.classifier)
-            self._own_mark_misses = getattr(self, "_own_mark_misses", 0) + (reading.cells[cell] == "")
+            missed = reading.cells[cell] == ""
         except ValueError:
-            self._own_mark_misses = getattr(self, "_own_mark_misses", 0) + 1
+            missed = True
+        self._record.own_mark_misreads += int(missed)
 
     def _true_outcome(self) -> str:
         if self._robot_off_board:
@@ -390,7 +393,7 @@ class RobotGameRunner:
             "unseen_moves": sum(r.unseen_moves for r in records),
             "human_moves": sum(r.human_moves for r in records),
             "robot_moves": sum(r.robot_moves for r in records),
-            "own_mark_misread": int(getattr(self, "_own_mark_misses", 0)),
+            "own_mark_misread": sum(r.own_mark_misreads for r in records),
             "max_seconds_per_robot_turn": round(max(moves), 3) if moves else None,
             "cpu_seconds_per_robot_turn": mean(moves_cpu),
             "load_average": round(os.getloadavg()[0], 2),

@@ -42,17 +42,20 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     assert boards[-1]["cells"] == extra["true_boards"][-1]
 
 
-def test_robot_cli_rejects_bad_input_with_one_line(tmp_path):
-    import subprocess
+def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys):
     import sys
 
+    from pipelines.cli import main
+
     for args, needle in ((["--rrd"], "--rrd needs --out"), (["--checkpoint", str(tmp_path / "missing.pt")], "does not exist"),
-                         (["--game", "chess"], "game must be one of")):
-        result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "play", *args],
-                                capture_output=True, text=True, timeout=120)
-        assert result.returncode == 2, result.stderr
-        assert needle in result.stderr and "Traceback" not in result.stderr
-        assert len(result.stderr.strip().splitlines()) == 1
+                         (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder")):
+        monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", *args])
+        with pytest.raises(SystemExit) as exit_info:
+            main()
+        err = capsys.readouterr().err
+        assert exit_info.value.code == 2, err
+        assert needle in err and "Traceback" not in err
+        assert len(err.strip().splitlines()) == 1
 
 
 def test_lookahead_policy_is_seeded_and_respects_masks():
@@ -73,3 +76,20 @@ def test_lookahead_policy_is_seeded_and_respects_masks():
         from torchrl.envs.utils import step_mdp
         td = step_mdp(td)
     assert isinstance(np.asarray(first), np.ndarray) and torch.is_tensor(td["action"])
+
+
+def test_render_command_writes_the_mouth_camera_view(tmp_path):
+    import subprocess
+    import sys
+
+    import cv2
+
+    output = tmp_path / "mouth.png"
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(output),
+                             "--width", "160", "--height", "120", "--marks", "x4,o0", "--frames", "2"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["output"] == str(output) and report["ms_per_frame_median"] > 0
+    image = cv2.imread(str(output))
+    assert image.shape == (120, 160, 3) and image.std() > 20
