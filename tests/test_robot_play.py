@@ -93,3 +93,16 @@ def test_render_command_writes_the_mouth_camera_view(tmp_path):
     assert report["output"] == str(output) and report["ms_per_frame_median"] > 0
     image = cv2.imread(str(output))
     assert image.shape == (120, 160, 3) and image.std() > 20
+
+
+def test_no_vulkan_device_is_one_line_with_the_recipe(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, VK_ICD_FILENAMES=str(tmp_path / "no_such_icd.json"))
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(tmp_path / "x.png")],
+                            capture_output=True, text=True, timeout=300, env=env)
+    assert result.returncode == 2
+    assert "scripts/setup.sh" in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
