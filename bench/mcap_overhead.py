@@ -6,7 +6,9 @@ Three measurements, each printed with the figures it produced:
           logging, with the default packed training log and with one JSON message per action (random
           Q-values so the messages are as large as in training). This is the WORST case for the time
           ratio: real training also spends time on gradient updates that logging does not touch.
-  train   the same `ncbot train` run with and without `--no-mcap` (skip with --skip-train).
+  train   the share of a real training run's wall time spent inside the logger (timed in the same
+          process, so machine noise cancels out); with --ab also the same `ncbot train` run with and
+          without `--no-mcap` as separate processes (skip both with --skip-train).
   encode  the per-action /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
           same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
           logs/README.md.
@@ -134,6 +136,48 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
           f"= {last['bytes_per_episode']:.0f} bytes per episode (train and eval together: {by_phase})")
 
 
+def bench_train_share(config: str, frames: int, repeats: int) -> None:
+    """Time spent inside the logger as a share of the same process's whole training run.
+
+    Immune to the between-run noise of a shared machine: both times come from one run. The logger's
+    calls (record_steps, which also compresses and writes chunks, and close) are wrapped with a timer."""
+    from logs import EpisodeLogger
+    from pipelines.train import resolve_run, train
+
+    spent = {"seconds": 0.0, "calls": 0}
+    original_record, original_close = EpisodeLogger.record_steps, EpisodeLogger.close
+
+    def timed(method):
+        def wrapper(self, *args, **kwargs):
+            started = time.perf_counter()
+            try:
+                return method(self, *args, **kwargs)
+            finally:
+                spent["seconds"] += time.perf_counter() - started
+                spent["calls"] += 1
+        return wrapper
+
+    EpisodeLogger.record_steps, EpisodeLogger.close = timed(original_record), timed(original_close)
+    shares = []
+    try:
+        for repeat in range(repeats):
+            spent.update(seconds=0.0, calls=0)
+            out = Path(tempfile.mkdtemp(prefix="mcap_share_"))
+            run_config, run_dir, resuming = resolve_run(config, [f"collector.total_frames={frames}"], out=str(out),
+                                                        seed=repeat, episodes=None, resume=None, mcap=True)
+            run_config.logger.progress = False
+            started = time.perf_counter()
+            train(run_config, run_dir, resume=resuming)
+            total = time.perf_counter() - started
+            shares.append(spent["seconds"] / total)
+            print(f"  run {repeat}: {total:.1f} s in train(), {spent['seconds']:.2f} s inside the logger "
+                  f"({spent['calls']} calls) = {100 * shares[-1]:.1f} %")
+    finally:
+        EpisodeLogger.record_steps, EpisodeLogger.close = original_record, original_close
+    print(f"[train-share] {config} collector.total_frames={frames}: logger share of training wall time, "
+          f"median {100 * statistics.median(shares):.1f} % over {repeats} runs")
+
+
 def bench_encoding(log_dir: Path) -> None:
     from mcap.writer import CompressionType, Writer
 
@@ -201,14 +245,18 @@ def main() -> None:
     parser.add_argument("--config", default="pipelines/configs/default.yaml", help="training config for [train]")
     parser.add_argument("--train-frames", type=int, default=40960, help="collector.total_frames of each training run")
     parser.add_argument("--skip-train", action="store_true")
-    parser.add_argument("--skip-env", action="store_true", help="only the [train] measurement")
+    parser.add_argument("--skip-env", action="store_true", help="only the [train] measurements")
+    parser.add_argument("--ab", action="store_true", help="also run ncbot train with and without --no-mcap "
+                                                          "(separate runs: noisy on a shared machine)")
     args = parser.parse_args()
     os.chdir(Path(__file__).resolve().parent.parent)
     if not args.skip_env:
         log_dir = bench_env(args.game, args.batch, args.steps, args.frames, args.repeats)
         bench_encoding(log_dir)
     if not args.skip_train:
-        bench_train(args.config, args.train_frames, args.repeats)
+        bench_train_share(args.config, args.train_frames, args.repeats)
+        if args.ab:
+            bench_train(args.config, args.train_frames, args.repeats)
 
 
 if __name__ == "__main__":

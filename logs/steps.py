@@ -26,16 +26,6 @@ OPTIONAL_KEYS = ("observation", ("next", "observation"), "lookahead_reward", "wi
 
 
 @dataclass
-class PendingEpisode:
-    """Where one batch index's current episode lies in the batches seen so far, and its running totals."""
-
-    parts: list[bytes] = field(default_factory=list)  # the bytes of its step rows, batch by batch
-    robot_first: bool = True
-    length: int = 0
-    total_reward: float = 0.0
-
-
-@dataclass
 class FinishedEpisode:
     """An episode ready to write: its step rows (None when not kept) and its summary fields."""
 
@@ -80,14 +70,29 @@ def step_arrays(td: Any) -> dict[str, np.ndarray]:
 
 
 class EpisodeAssembler:
-    """Collects the steps of each batch index and hands back the episodes that finished.
+    """Follows the running episode of every batch row across calls and hands back the episodes that ended.
 
-    Work per batch is a few numpy calls plus a Python loop over batch rows and episode ends, never over
-    steps. Rows are copies, so callers may reuse their buffers."""
+    The state of the running episodes is kept in arrays (length, return so far, seat, where it started), so
+    a call costs a few numpy operations over the batch plus Python work per *ending episode* only, never
+    per step or per row. The rows of each call are kept until no running episode needs them."""
 
     def __init__(self) -> None:
-        self.pending: dict[int, PendingEpisode] = {}
-        self.abandoned = 0  # unfinished episodes dropped because a new one began at their batch index
+        self._resize(0)
+        self.calls: dict[int, np.ndarray] = {}  # call number -> its rows as raw bytes, (B, T * row width)
+        self.call_count = 0
+        self.abandoned = 0  # unfinished episodes dropped (a new one began at their row, or the row went idle)
+
+    def _resize(self, batch: int) -> None:
+        self.length = np.zeros(batch, np.int64)  # steps of the running episode so far (0: none running)
+        self.total = np.zeros(batch)  # its return so far
+        self.robot_first = np.ones(batch, bool)
+        self.start_call = np.zeros(batch, np.int64)  # call and time index of its first step
+        self.start_t = np.zeros(batch, np.int64)
+
+    @property
+    def pending(self) -> int:
+        """How many rows have an unfinished episode waiting."""
+        return int((self.length > 0).sum())
 
     def add(self, arrays: dict[str, np.ndarray], names: NameTables, detail: bool = True,
             active: np.ndarray | None = None) -> list[FinishedEpisode]:
@@ -95,66 +100,94 @@ class EpisodeAssembler:
         With `detail` False only the summary (return, length, outcome, seat) is kept; rows b with
         `active[b]` False are skipped (and any episode waiting there dropped)."""
         batch, steps = arrays["action"].shape[:2]
+        if batch != len(self.length):  # another env stream: whatever was running there is abandoned
+            self.abandoned += self.pending
+            self._resize(batch)
+            self.calls.clear()
+        call = self.call_count
+        self.call_count += 1
+        dtype, present, width = None, [], 0
         if detail:
             rows, present = batch_rows(arrays, names)
-            dtype, raw = rows.dtype, rows.view(np.uint8).reshape(batch, steps * rows.dtype.itemsize)
-        else:
-            dtype, raw, present = None, None, []
-        width = dtype.itemsize if dtype is not None else 0
-        rewards = np.zeros((batch, steps + 1))
-        np.cumsum(arrays["next.reward"].reshape(batch, steps), axis=1, out=rewards[:, 1:])
-        cumulative = rewards.tolist()  # a segment's return is a difference of two of these
-        done = arrays["next.done"].reshape(batch, steps)
-        starts = (arrays["turn"].reshape(batch, steps)[:, 0] == 0).tolist() if "turn" in arrays else [False] * batch
-        first = arrays["robot_first"].reshape(batch, steps).tolist() if "robot_first" in arrays else None
-        ends_by_row: dict[int, list[int]] = {}
-        for b, t in zip(*(index.tolist() for index in np.nonzero(done))):
-            ends_by_row.setdefault(b, []).append(t)
-        ending = _ending_flags(arrays, batch, steps) if ends_by_row else None
+            dtype, width = rows.dtype, rows.dtype.itemsize
+            self.calls[call] = rows.view(np.uint8).reshape(batch, steps * width)
+        cumulative = np.cumsum(arrays["next.reward"].reshape(batch, steps).astype(np.float64), axis=1)
+        first = arrays["robot_first"].reshape(batch, steps).astype(bool) if "robot_first" in arrays \
+            else np.ones((batch, steps), bool)
+        done = arrays["next.done"].reshape(batch, steps).astype(bool)
+        restart = arrays["turn"].reshape(batch, steps)[:, 0] == 0 if "turn" in arrays else np.zeros(batch, bool)
+        if active is not None:
+            done = done & active[:, None]
+            restart = restart | ~active
+        # an unfinished episode where a new one starts (turn 0) was abandoned, e.g. an eval env closed mid-game
+        self.abandoned += int((restart & (self.length > 0)).sum())
+        self.length[restart] = 0
+        fresh = self.length == 0
+        self.total[fresh] = 0.0
+        self.robot_first[fresh] = first[fresh, 0]
+        self.start_call[fresh] = call
+        self.start_t[fresh] = 0
+
+        end_rows, end_times = np.nonzero(done)
+        outcomes, cuts = _ending_flags(arrays, end_rows, end_times)
         finished: list[tuple[int, int, FinishedEpisode]] = []
-        for b in range(batch):
-            if active is not None and not active[b]:
-                self.pending.pop(b, None)
-                continue
-            episode = self.pending.get(b)
-            if episode is not None and starts[b]:
-                # a new episode starts where an unfinished one was waiting: its stream was abandoned
-                # (e.g. an evaluation env closed mid-game); drop it rather than glue two games together
-                self.abandoned += 1
-                episode = None
-            ends = ends_by_row.get(b, [])
-            t0 = 0
-            for t_end in ends + [steps - 1]:
-                if t0 > t_end:
-                    break
-                if episode is None:
-                    episode = PendingEpisode(robot_first=True if first is None else bool(first[b][t0]))
-                if raw is not None:
-                    episode.parts.append(raw[b, t0 * width:(t_end + 1) * width].tobytes())
-                episode.length += t_end + 1 - t0
-                episode.total_reward += cumulative[b][t_end + 1] - cumulative[b][t0]
-                if t_end in ends:
-                    outcome, truncated = ending[b][t_end]
-                    finished.append((t_end, b, FinishedEpisode(
-                        b"".join(episode.parts) if raw is not None else None, dtype, present, b, t_end, episode.length,
-                        "first" if episode.robot_first else "second", outcome, episode.total_reward, truncated)))
-                    episode = None
-                t0 = t_end + 1
-            if episode is None:
-                self.pending.pop(b, None)
-            else:
-                self.pending[b] = episode
+        previous_row, previous_t = -1, -1
+        for b, t, outcome, cut in zip(end_rows.tolist(), end_times.tolist(), outcomes, cuts):
+            if b != previous_row:  # the episode that was running at this row when the call began
+                length, total = int(self.length[b]), float(self.total[b])
+                start_call, start_t, robot_first = int(self.start_call[b]), int(self.start_t[b]), bool(self.robot_first[b])
+                t0 = 0 if start_call < call else start_t
+            else:  # a later episode of the same row, begun in this call
+                length, total, start_call, start_t = 0, 0.0, call, previous_t + 1
+                robot_first, t0 = bool(first[b, start_t]), start_t
+            length += t + 1 - t0
+            total += float(cumulative[b, t] - (cumulative[b, t0 - 1] if t0 > 0 else 0.0))
+            data = self._bytes(b, start_call, start_t, call, t, width) if detail else None
+            finished.append((t, b, FinishedEpisode(data, dtype, present, b, t, length,
+                                                   "first" if robot_first else "second", outcome, total, cut)))
+            previous_row, previous_t = b, t
+            # what follows this end in the call is the row's running episode from now on
+            self.length[b], self.start_call[b], self.start_t[b] = 0, call, t + 1
+            self.total[b] = 0.0
+            if t + 1 < steps:
+                self.robot_first[b] = first[b, t + 1]
+        # rows now hold steps from start_t (this call) or from the start of the call onwards
+        began_here = self.start_call == call
+        tail = np.where(began_here, steps - self.start_t, steps)
+        offset = np.where(began_here, self.start_t, 0)
+        before = np.where(offset > 0, cumulative[np.arange(batch), np.maximum(offset - 1, 0)], 0.0)
+        self.total += cumulative[:, -1] - before
+        self.length += tail
+        if active is not None:
+            self.length[~active] = 0
+        running = self.length > 0
+        oldest = int(self.start_call[running].min()) if running.any() else call + 1
+        for number in [number for number in self.calls if number < oldest]:
+            del self.calls[number]
         return [item[2] for item in sorted(finished, key=lambda item: (item[0], item[1]))]
 
+    def _bytes(self, b: int, start_call: int, start_t: int, end_call: int, end_t: int, width: int) -> bytes:
+        """The raw rows of row b from (start_call, start_t) to (end_call, end_t) inclusive."""
+        parts = []
+        for number in range(start_call, end_call + 1):
+            raw = self.calls[number]
+            t0 = start_t if number == start_call else 0
+            t1 = end_t + 1 if number == end_call else raw.shape[1] // width
+            parts.append(raw[b, t0 * width:t1 * width].tobytes())
+        return parts[0] if len(parts) == 1 else b"".join(parts)
 
-def _ending_flags(arrays: dict[str, np.ndarray], batch: int, steps: int) -> list[list[tuple[str, bool]]]:
-    """(outcome name, truncated) of every (b, t), in case an episode ends there."""
-    def grid(key: str) -> np.ndarray:
-        return arrays[key].reshape(batch, steps) if key in arrays else np.zeros((batch, steps), np.int64)
 
-    outcome = (grid("next.outcome").astype(np.int64) % len(OUTCOMES)).tolist()
-    truncated = (grid("next.truncated").astype(bool) & ~grid("next.terminated").astype(bool)).tolist()
-    return [[(OUTCOMES[o], c) for o, c in zip(row_outcome, row_cut)] for row_outcome, row_cut in zip(outcome, truncated)]
+def _ending_flags(arrays: dict[str, np.ndarray], rows: np.ndarray, times: np.ndarray) -> tuple[list[str], list[bool]]:
+    """Outcome names and truncation flags at the given (b, t) episode ends."""
+    def at_ends(key: str) -> np.ndarray:
+        if key not in arrays:
+            return np.zeros(len(rows), np.int64)
+        values = arrays[key]
+        return values.reshape(values.shape[0], values.shape[1])[rows, times]
+
+    outcomes = [OUTCOMES[code] for code in (at_ends("next.outcome").astype(np.int64) % len(OUTCOMES)).tolist()]
+    truncated = (at_ends("next.truncated").astype(bool) & ~at_ends("next.terminated").astype(bool)).tolist()
+    return outcomes, truncated
 
 
 def expand_episode(episode_id: int, rows: np.ndarray, present: set[str] | list[str],
