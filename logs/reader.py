@@ -128,10 +128,11 @@ class LogReader:
                              f"{', '.join(schemas.NCBOT_TOPICS)} as written by logs.EpisodeLogger")
 
     def names(self) -> dict[str, str]:
-        """The last `ncbot.names` metadata seen (name tables of acts, utterances, features)."""
+        """The last `ncbot.names` metadata seen so far (name tables of acts, utterances, features); the same
+        dict object until newer names are read, so callers can cache what they derive from it."""
         found: dict[str, str] = {}
         for scan in self.scans.values():
-            found.update(scan.metadata.get("ncbot.names", {}))
+            found = scan.metadata.get("ncbot.names", found)
         return found
 
     def _file_messages(self, file: Path, wanted: frozenset[str] | None) -> Iterator[LogMessage]:
@@ -228,6 +229,7 @@ def read_episode_records(path: str | Path, episode_ids: Iterable[int] | None = N
     reader = reader or LogReader(path)
     wanted = None if episode_ids is None else set(int(e) for e in episode_ids)
     records: dict[int, EpisodeRecord] = {}
+    tables: tuple[int, NameTables] = (-1, NameTables())
     for message in reader.messages(list(schemas.NCBOT_TOPICS)):
         episode_id = message.data.get("episode") if isinstance(message.data, dict) else \
             int(message.data.episode) if message.topic == schemas.EPISODE_STEPS_TOPIC else None
@@ -238,7 +240,10 @@ def read_episode_records(path: str | Path, episode_ids: Iterable[int] | None = N
             record.summary = message.data
         elif message.topic == schemas.EPISODE_STEPS_TOPIC:
             _, rows, present = packed.decode(message.data)
-            steps, dialogue, boards = expand_episode(episode_id, rows, present, NameTables.from_metadata(reader.names()))
+            metadata = reader.names()
+            if tables[0] != id(metadata):
+                tables = (id(metadata), NameTables.from_metadata(metadata))
+            steps, dialogue, boards = expand_episode(episode_id, rows, present, tables[1])
             record.steps.extend(steps)
             record.dialogue.extend(dialogue)
             record.boards.extend(boards)
