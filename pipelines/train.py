@@ -48,6 +48,11 @@ def frames_per_batch(config: RunConfig) -> int:
     return max(batch, (config.collector.frames_per_batch // batch) * batch)
 
 
+def next_multiple(frames: int, every: int) -> int:
+    """The first multiple of `every` strictly after `frames`: when the next evaluation or checkpoint is due."""
+    return (frames // every + 1) * every
+
+
 def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_THRESHOLD) -> float | None:
     """Wall time of the first periodic evaluation whose task success reached `threshold`."""
     for record in history:
@@ -143,8 +148,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
         }
 
     mcap_logger = _open_mcap(config, out_dir)
-    next_eval = (counters["frames"] // config.train.eval_every_frames + 1) * config.train.eval_every_frames
-    next_ckpt = (counters["frames"] // config.checkpoint.every_frames + 1) * config.checkpoint.every_frames
+    next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
+    next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
     bar_total = config.train.episodes if stop_on_episodes else config.collector.total_frames
     bar = tqdm(total=bar_total, initial=counters["episodes"] if stop_on_episodes else counters["frames"],
                unit="game" if stop_on_episodes else "frame", disable=not config.logger.progress,
@@ -174,10 +179,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             if counters["frames"] >= next_eval or finished:
                 last_eval = periodic_eval(float(np.mean(losses)) if losses else float("nan"))
                 losses.clear()
-                next_eval += config.train.eval_every_frames * max(1, (counters["frames"] - next_eval) // config.train.eval_every_frames + 1)
+                next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
             if counters["frames"] >= next_ckpt:
                 save_periodic(training_state(), out_dir, counters["frames"], config.checkpoint.keep)
-                next_ckpt += config.checkpoint.every_frames * max(1, (counters["frames"] - next_ckpt) // config.checkpoint.every_frames + 1)
+                next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
             bar.update(episodes_ended if stop_on_episodes else frames)
             bar.set_postfix(eps=f"{float(agent.egreedy.eps):.3f}", upd=counters["updates"],
                             success=f"{last_eval['task_success']:.3f}" if last_eval else "-", refresh=False)
