@@ -269,7 +269,6 @@ class RobotGameRunner:
     # ------------------------------------------------------------------ one game
     def play_game(self, index: int) -> GameRecord:
         from envs import make_env
-        from tensordict import TensorDict
         from torchrl.envs.utils import step_mdp
 
         cfg = self.config

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_sim.pepper_model import (ARM_JOINTS, BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
+from robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
                                     write_pepper_urdf)
 from robot_sim.render_system import get_render_system
 from robot_sim.sheet import SheetCanvas
@@ -215,7 +215,6 @@ class PepperScene:
         for name, joint in self.joints.items():
             if name not in BASE_JOINTS:
                 joint.set_drive_target(float(q[self.joint_index[name]]))
-        self._targets = q
 
     def set_base_velocity(self, vx: float, vy: float, vyaw: float) -> None:
         for name, v in zip(BASE_JOINTS, (vx, vy, vyaw)):
