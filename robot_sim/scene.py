@@ -133,13 +133,13 @@ class PepperScene:
         self._uploaded_version = self.canvas.version
 
     def _build_robot(self) -> None:
+        import tempfile
+
         urdf = PACKAGED_URDF
         if self.config.meshes_dir is not None:
-            import tempfile
-
             urdf = write_pepper_urdf(Path(tempfile.gettempdir()) / "ncbot-pepper-meshes.urdf", self.config.meshes_dir)
-        if not urdf.is_file():
-            raise FileNotFoundError(f"Pepper URDF {urdf} is missing; regenerate it with `ncbot robot urdf`")
+        elif not urdf.is_file():  # an install without package data: the description is code, so rebuild it
+            urdf = write_pepper_urdf(Path(tempfile.gettempdir()) / "ncbot-pepper.urdf")
         loader = self.scene.create_urdf_loader()
         loader.fix_root_link = True
         self.robot = loader.load(str(urdf))
