@@ -266,6 +266,7 @@ class DialogueGameEnv(EnvBase):
                 "done": terminated | truncated,
             },
             batch_size=self.batch_size,
+            device=self.device,  # without it EnvBase.step_and_maybe_reset moves (copies) the TensorDict to the env's device every call
         )
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDict:
@@ -277,6 +278,26 @@ class DialogueGameEnv(EnvBase):
         if bool(rows.any()):
             self._reset_rows(rows)
         return self._output()
+
+    def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        """Merge the reset output into the input TensorDict with one update instead of a per-key ``where``.
+
+        Why this is exact: the env is stateful and ``_reset`` returns every game's current state, so for the
+        games not reset its values equal the input's (the previous step's output); TorchRL's generic path
+        (``where(~_reset, input, reset_output)`` over every key, ~2 ms at batch 1024 with our 16 keys) would
+        pick the same numbers. Keys the env does not emit (e.g. a policy's outputs) are padded with 0 on the
+        reset rows exactly as TorchRL does. ``_reset`` never leaves a reset game done, so the done check is
+        skipped too.
+        """
+        if tensordict is None:
+            return tensordict_reset
+        reset = tensordict.pop("_reset", None)
+        others = [key for key in tensordict.keys() if key not in tensordict_reset.keys()]
+        if others and reset is not None and not bool(reset.all()):
+            keep = ~reset.reshape(self.batch_size)
+            padded = tensordict.select(*others).where(keep, tensordict_reset.select(), pad=0)
+            tensordict_reset.update(padded)
+        return tensordict.update(tensordict_reset)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
