@@ -274,3 +274,42 @@ def register_agent_opponent() -> None:
         return AgentOpponent(arg, game, free_move, seed)
 
     register_opponent("agent", factory, usage="agent:CHECKPOINT")
+    register_qmcts_opponent()
+
+
+# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
+def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
+    """(config, GuidedMCTS) of a saved agent: its Q-network gives the priors and values of a PUCT search."""
+    from modules.guided_mcts import GuidedMCTS, TurnFeatures
+    from pipelines.evaluate import load_agent
+
+    config, greedy = load_agent(checkpoint)
+    free_move = free_move or config.env.free_move
+    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
+    features = TurnFeatures(config.env.game, config.env.temporal, free_move)
+    return config, GuidedMCTS(qnet, features, config.env.game, free_move, simulations)
+
+
+def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0):
+    """(config, policy) for eval / ladder: the agent's greedy dialogue policy with game moves chosen by the search."""
+    from modules.guided_mcts import GuidedMCTSPolicy
+    from pipelines.evaluate import load_agent
+
+    config, greedy = load_agent(checkpoint)
+    _, search = load_guided_search(checkpoint, simulations)
+    return config, GuidedMCTSPolicy(greedy, search, seed)
+
+
+def register_qmcts_opponent() -> None:
+    """Make ``qmcts:N:CHECKPOINT`` (MCTS guided by a trained agent's Q-network) a valid opponent name."""
+    from envs.opponents import register_opponent
+    from modules.guided_mcts import QMCTSOpponent, parse_qmcts
+
+    def factory(arg, *, game, free_move, seed):
+        simulations, checkpoint = parse_qmcts(arg)
+        config, search = load_guided_search(checkpoint, simulations, free_move)
+        if config.env.game != game:
+            raise ValueError(f"qmcts checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
+        return QMCTSOpponent(search, game, free_move, seed)
+
+    register_opponent("qmcts", factory, usage="qmcts:N:CHECKPOINT")

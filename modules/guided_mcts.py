@@ -1,0 +1,260 @@
+"""MCTS guided by the learnt Q-network: the paper's future work ("MinMax/MCTS combined with the learnt policy").
+
+PUCT search (AlphaZero-style selection) on the opponents' bitboards with three inputs from the agent:
+- priors: softmax(Q / temperature) over the legal cells of the side to move, read from the Q-network on the
+  features of a typical game turn seen from that side (``TurnFeatures``);
+- values: a leaf is scored by ``value_weight * v_Q + (1 - value_weight) * random playout``, where
+  v_Q = (clip(max Q, -5, 5) / 5 + 1) / 2 maps the paper's reward scale (+5 win / -5 loss) to [0, 1];
+- the root keeps the paper's one-step masks: a winning cell is taken at once, and cells after which the other
+  side wins at once are searched only when every cell is such (Algorithm 2's A and A_hat).
+
+``simulations`` is the budget per decision. All chance comes from one seed per decision drawn from the caller's
+torch generator, so results are reproducible by seed. Two front-ends: ``QMCTSOpponent`` (an ``envs.opponents``
+opponent, name ``qmcts:N:CHECKPOINT`` registered by ``pipelines.ladder``) and ``GuidedMCTSPolicy`` (the robot's
+policy at eval time: the greedy dialogue policy, with its game moves chosen by the search).
+"""
+from __future__ import annotations
+
+import math
+import random
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from torch import nn
+
+from envs.opponents.base import Opponent
+from envs.opponents.bitboards import CELL_OF, DRAW, ONGOING, StandardBits, UltimateBits, make_bits
+from modules.deep_lookahead import move_order, owners_from_order, win_in_one
+
+DEFAULT_C_PUCT = 1.5
+DEFAULT_TEMPERATURE = 2.0  # Q-values span about +-5 (the paper's rewards): a softer softmax keeps the search broad
+DEFAULT_VALUE_WEIGHT = 0.25  # v_Q is a shaped-reward estimate, not a win rate: playouts stay the main signal
+
+
+class TurnFeatures:
+    """Paper features of a typical game turn for arbitrary boards, as the agent saw them while playing.
+
+    Own marks as robot moves, the other side's as human moves, the words of "I take this one" and the user's
+    move utterance, no command, and (temporal) the last mark at 1.0 and the others at 0.5 (a tree node knows its
+    last move but not the order of the earlier ones). Same reading as ``pipelines.ladder.AgentOpponent``.
+    """
+
+    def __init__(self, game: str, temporal: bool, free_move: str = "anywhere") -> None:
+        from envs import make_env
+        from envs.dialogue import MOVE, USER_ACTS
+
+        env = make_env(game, batch_size=(1,), temporal=temporal, free_move=free_move, seed=0)
+        names, model = env.feature_names, env.model
+        self.cells, self.n_features = env.cells, env.n_features
+        self.robot_plane = 0
+        self.human_plane = self.cells
+        self.time_plane = self.n_features - self.cells if temporal else None
+        base = torch.zeros(self.n_features)
+        word_start = names.index(f"word[{model.words[0]}]")
+        move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
+                             key=lambda u: len(model.utterance_texts[u]))
+        base[word_start:word_start + len(model.words)] = torch.maximum(model.template_words[1 + MOVE],
+                                                                       model.utterance_words[move_utterance])
+        self.base = base
+        env.close()
+
+    def __call__(self, own: list[int], other: list[int], last_move: int) -> torch.Tensor:
+        """(F,) features for one position: ``own``/``other`` are the cells of the side to move / the other side."""
+        features = self.base.clone()
+        features[[self.robot_plane + c for c in own]] = 1.0
+        features[[self.human_plane + c for c in other]] = 1.0
+        if self.time_plane is not None:
+            features[[self.time_plane + c for c in own + other]] = 0.5
+            if last_move >= 0:
+                features[self.time_plane + last_move] = 1.0
+        return features
+
+
+class _Node:
+    """A tree node; ``value`` sums the results (win 1, draw 0.5) for ``mover``, the side whose move led here."""
+
+    __slots__ = ("pos", "move", "mover", "visits", "value", "moves", "priors", "children")
+
+    def __init__(self, pos: tuple, move: int, mover: int) -> None:
+        self.pos, self.move, self.mover = pos, move, mover
+        self.visits, self.value = 0, 0.0
+        self.moves: list[int] | None = None  # set on expansion
+        self.priors: list[float] = []
+        self.children: dict[int, _Node] = {}
+
+
+class GuidedMCTS:
+    """PUCT search whose priors and leaf values come from a Q-network (see the module docstring)."""
+
+    def __init__(self, qnet: nn.Module, features: TurnFeatures, game: str, free_move: str = "anywhere",
+                 simulations: int = 100, c_puct: float = DEFAULT_C_PUCT, temperature: float = DEFAULT_TEMPERATURE,
+                 value_weight: float = DEFAULT_VALUE_WEIGHT) -> None:
+        if simulations < 1:
+            raise ValueError(f"guided MCTS needs at least 1 simulation, got {simulations}")
+        if not 0.0 <= value_weight <= 1.0:
+            raise ValueError(f"value_weight must be in [0, 1], got {value_weight}")
+        if temperature <= 0:
+            raise ValueError(f"temperature must be > 0, got {temperature}")
+        self.qnet, self.features = qnet, features
+        self.engine: StandardBits | UltimateBits = make_bits(game, free_move)
+        self.cells = 9 if game == "standard" else 81
+        self.simulations, self.c_puct = int(simulations), float(c_puct)
+        self.temperature, self.value_weight = float(temperature), float(value_weight)
+
+    # -- Q-network reads --------------------------------------------------------------------------------------
+    def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
+        """(cells of the side to move, cells of the other side) of a bitboard position."""
+        if self.cells == 9:
+            sides = (pos[0], pos[1])
+            lists = ([c for c in range(9) if sides[0] >> c & 1], [c for c in range(9) if sides[1] >> c & 1])
+        else:
+            lists = tuple([CELL_OF[k][p] for k in range(9) for p in range(9) if subs[k] >> p & 1] for subs in (pos[0], pos[1]))
+        turn = self.engine.turn(pos)
+        return (lists[0], lists[1]) if turn == 0 else (lists[1], lists[0])
+
+    @torch.no_grad()
+    def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
+        own, other = self._cells_of(pos)
+        q = self.qnet(self.features(own, other, last_move).unsqueeze(0))[0]
+        return q[moves].tolist()
+
+    def _expand(self, node: _Node, moves: list[int]) -> float:
+        """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move."""
+        q = self._q(node.pos, node.move, moves)
+        top = max(q)
+        weights = [math.exp((v - top) / self.temperature) for v in q]
+        total = sum(weights)
+        node.moves, node.priors = moves, [w / total for w in weights]
+        return (max(-5.0, min(5.0, top)) / 5.0 + 1.0) / 2.0
+
+    # -- the search --------------------------------------------------------------------------------------------
+    def search(self, pos: tuple, root_moves: list[int], rng: random.Random) -> tuple[int, dict[int, int]]:
+        """The chosen root move and the visit count of every searched root move."""
+        engine = self.engine
+        turn = engine.turn(pos)
+        for move in root_moves:  # A: a winning cell is taken at once
+            if engine.result(engine.play(pos, move)) == turn:
+                return move, {move: 0}
+        safe = [m for m in root_moves if not win_in_one(engine, engine.play(pos, m))]  # A_hat: immediate losses
+        moves = safe or list(root_moves)
+        if len(moves) == 1:
+            return moves[0], {moves[0]: 0}
+        root = _Node(pos, -1, -1)
+        self._expand(root, moves)
+        rand = rng.random
+        for _ in range(self.simulations):
+            node, path = root, [root]
+            while node.moves is not None and node.moves:
+                node = self._select_child(node)
+                path.append(node)
+                if node.visits == 0:
+                    break
+            result = engine.result(node.pos)
+            if result != ONGOING:
+                value_for_mover = 1.0 if result == node.mover else 0.5 if result == DRAW else 0.0
+            else:
+                if node.moves is None:
+                    v_q = self._expand(node, engine.moves(node.pos))
+                else:
+                    v_q = 0.5
+                playout = engine.rollout(node.pos, rand)
+                rollout_for_mover = 1.0 if playout == node.mover else 0.5 if playout == DRAW else 0.0
+                value_for_mover = self.value_weight * (1.0 - v_q) + (1.0 - self.value_weight) * rollout_for_mover
+            for visited in path:
+                visited.visits += 1
+                visited.value += value_for_mover if visited.mover == node.mover else 1.0 - value_for_mover
+        visits = {move: child.visits for move, child in root.children.items()}
+        prior = dict(zip(root.moves, root.priors))
+        best = max(visits.values())
+        tied = sorted(m for m, v in visits.items() if v == best)
+        top_prior = max(prior[m] for m in tied)
+        tied = [m for m in tied if prior[m] == top_prior]
+        return tied[int(rand() * len(tied))], visits
+
+    def _select_child(self, node: _Node) -> _Node:
+        sqrt_parent = math.sqrt(max(1, node.visits))
+        best_score, best_move, best_prior = -1.0, -1, 0.0
+        for move, prior in zip(node.moves, node.priors):
+            child = node.children.get(move)
+            if child is None or child.visits == 0:
+                score = 0.5 + self.c_puct * prior * sqrt_parent
+            else:
+                score = child.value / child.visits + self.c_puct * prior * sqrt_parent / (1 + child.visits)
+            if score > best_score:
+                best_score, best_move, best_prior = score, move, prior
+        child = node.children.get(best_move)
+        if child is None:
+            child = _Node(self.engine.play(node.pos, best_move), best_move, self.engine.turn(node.pos))
+            node.children[best_move] = child
+        return child
+
+
+class QMCTSOpponent(Opponent):
+    """``qmcts:N:CHECKPOINT``: the Q-guided search as a move chooser for batches of boards (env user, arena)."""
+
+    def __init__(self, search: GuidedMCTS, game: str, free_move: str, seed: int = 0) -> None:
+        super().__init__(game, free_move, seed)
+        self.search = search
+        self.name = f"qmcts:{search.simulations}"
+
+    def _select(self, boards, last_move, legal, player, generator, owners):
+        cells = torch.zeros(boards.shape[0], dtype=torch.long)
+        seeds = torch.randint(0, 2**62, (boards.shape[0],), generator=generator).tolist()
+        board_rows, last_moves, legal_rows = boards.tolist(), last_move.tolist(), legal.tolist()
+        owner_rows = owners.tolist() if owners is not None else [None] * boards.shape[0]
+        for row in torch.nonzero(legal.any(dim=1)).flatten().tolist():
+            root_moves = [c for c, ok in enumerate(legal_rows[row]) if ok]
+            pos = self.search.engine.from_board(board_rows[row], player, last_moves[row], owner_rows[row])
+            cells[row], _ = self.search.search(pos, root_moves, random.Random(seeds[row]))
+        return cells
+
+
+class GuidedMCTSPolicy(TensorDictModuleBase):
+    """The robot's eval-time policy: the greedy dialogue policy, with every game move chosen by ``GuidedMCTS``.
+
+    Dialogue acts stay the greedy policy's; on rows where ``action_mask`` allows game moves the search replaces
+    the action (its root moves are exactly those cells). Ultimate owners come from the temporal features when
+    the observation has them (exact), else from the board.
+    """
+
+    in_keys = ["observation", "action_mask", "board"]
+    out_keys = ["action"]
+
+    def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0) -> None:
+        super().__init__()
+        self.greedy, self.search = greedy, search
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        tensordict = self.greedy(tensordict)
+        cells = self.search.cells
+        moves = tensordict.get("action_mask")[:, :cells]
+        rows = moves.any(-1).nonzero().flatten().tolist()
+        if not rows:
+            return tensordict
+        boards = tensordict.get("board")
+        order = move_order(tensordict.get("observation"), boards) if cells == 81 else None
+        action = tensordict.get("action").clone()
+        seeds = torch.randint(0, 2**62, (len(rows),), generator=self.generator).tolist()
+        board_rows = boards.tolist()
+        for row, seed in zip(rows, seeds):
+            owners = owners_from_order(board_rows[row], order[row].tolist()) if order is not None else None
+            pos = self.search.engine.from_board(board_rows[row], 1, -1, owners)
+            root_moves = moves[row].nonzero().flatten().tolist()
+            action[row], _ = self.search.search(pos, root_moves, random.Random(seed))
+        tensordict.set("action", action)
+        return tensordict
+
+
+def parse_qmcts(arg: str | None) -> tuple[int, str]:
+    """``"N:CHECKPOINT"`` (the part after ``qmcts:``) -> (simulations, checkpoint path); ValueError otherwise."""
+    budget, _, checkpoint = (arg or "").partition(":")
+    try:
+        simulations = int(budget)
+    except ValueError:
+        simulations = 0
+    if simulations < 1 or not checkpoint:
+        raise ValueError(f"opponent 'qmcts' needs a simulation budget and a checkpoint, e.g. "
+                         f"'qmcts:100:runs/default/checkpoint.pt'; got 'qmcts:{arg or ''}'")
+    return simulations, checkpoint
