@@ -70,6 +70,18 @@ class TurnFeatures:
                 features[self.time_plane + last_move] = 1.0
         return features
 
+    def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
+        """(B, F) features of (B, cells) boards (codes 1/2) seen from ``player``; ``last_move`` (B,), -1 none."""
+        features = self.base.repeat(boards.shape[0], 1)
+        features[:, self.robot_plane:self.robot_plane + self.cells] = (boards == player).float()
+        features[:, self.human_plane:self.human_plane + self.cells] = ((boards != 0) & (boards != player)).float()
+        if self.time_plane is not None:
+            times = (boards != 0).float() * 0.5
+            has_last = (last_move >= 0).nonzero().flatten()
+            times[has_last, last_move[has_last]] = 1.0
+            features[:, self.time_plane:self.time_plane + self.cells] = times
+        return features
+
 
 class _Node:
     """A tree node; ``value`` sums the results (win 1, draw 0.5) for ``mover``, the side whose move led here."""
