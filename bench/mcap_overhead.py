@@ -2,10 +2,11 @@
 
 Three measurements, each printed with the figures it produced:
 
-  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, without
-          logging, with the default packed training log and with one JSON message per action (random
-          Q-values so the messages are as large as in training). This is the WORST case for the time
-          ratio: real training also spends time on gradient updates that logging does not touch.
+  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, logged
+          with the default packed training log and with one JSON message per action (random Q-values so
+          the messages are as large as in training); time inside the logger against the rest of the same
+          run. This is the WORST case for the ratio: real training also spends time on gradient updates
+          and evaluations that logging does not touch.
   train   the share of a real training run's wall time spent inside the logger (timed in the same
           process, so machine noise cancels out); with --ab also the same `ncbot train` run with and
           without `--no-mcap` as separate processes (skip both with --skip-train).
@@ -13,8 +14,8 @@ Three measurements, each printed with the figures it produced:
           same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
           logs/README.md.
 
-Timing on a shared 2-core machine is noisy: each variant is run `--repeats` times, interleaved, and the
-median is reported.
+Timing on a shared 2-core machine is noisy, so every time ratio compares two times measured inside the
+same run (logger calls timed around the call); each variant is run `--repeats` times and the median shown.
 
     python bench/mcap_overhead.py                       # all three, 3x3
     python bench/mcap_overhead.py --game ultimate --skip-train
@@ -50,7 +51,7 @@ def random_policy_run(game: str, batch: int, steps: int, frames: int, seed: int,
     logger = EpisodeLogger(log_dir, run_info={"bench": "mcap_overhead"}, step_detail={"train": detail}) \
         if log_dir is not None else None
     td = env.reset()
-    episodes, window = 0, []
+    episodes, window, inside = 0, [], 0.0
     started = time.perf_counter()
     for _ in range(steps):
         mask = td["action_mask"]
@@ -63,42 +64,45 @@ def random_policy_run(game: str, batch: int, steps: int, frames: int, seed: int,
             batch_td = torch.stack(window, dim=1)
             window = []
             if logger is not None:
+                logging_started = time.perf_counter()
                 logger.record_steps(batch_td, phase="train", agent="random", seed=seed, epsilon=1.0, env_steps=0,
                                     env=env)
+                inside += time.perf_counter() - logging_started
         td = next_root
     if logger is not None:
+        logging_started = time.perf_counter()
         logger.close()
+        inside += time.perf_counter() - logging_started
     elapsed = time.perf_counter() - started
     env.close()
-    return {"seconds": elapsed, "episodes": episodes, "env_steps": steps * batch}
+    return {"seconds": elapsed, "logger_seconds": inside, "episodes": episodes, "env_steps": steps * batch}
 
 
 def bench_env(game: str, batch: int, steps: int, frames: int, repeats: int) -> Path:
-    variants = ("off", "packed", "per_action")
-    timings: dict[str, list[float]] = {variant: [] for variant in variants}
+    """Logger time relative to the rest of the same run (robust to a busy machine), and bytes per episode."""
+    variants = ("packed", "per_action")
+    ratios: dict[str, list[float]] = {variant: [] for variant in variants}
+    per_step: dict[str, list[float]] = {variant: [] for variant in variants}
     sizes: dict[str, list[tuple[int, int]]] = {variant: [] for variant in variants}
     keep = Path(tempfile.mkdtemp(prefix="mcap_bench_"))
     for repeat in range(repeats):
         for variant in variants:
-            log_dir = keep / f"{variant}{repeat}" if variant != "off" else None
-            result = random_policy_run(game, batch, steps, frames, seed=repeat, log_dir=log_dir,
-                                       detail=variant if variant != "off" else "packed")
-            timings[variant].append(result["seconds"])
-            if log_dir is not None:
-                from logs.reader import read_episodes
+            log_dir = keep / f"{variant}{repeat}"
+            result = random_policy_run(game, batch, steps, frames, seed=repeat, log_dir=log_dir, detail=variant)
+            rest = result["seconds"] - result["logger_seconds"]
+            ratios[variant].append(result["logger_seconds"] / rest)
+            per_step[variant].append(result["logger_seconds"] / result["env_steps"])
+            from logs.reader import read_episodes
 
-                total = sum(p.stat().st_size for p in log_dir.glob("*.mcap"))
-                sizes[variant].append((total, len(read_episodes(log_dir))))
-    total_steps = steps * batch
-    off = statistics.median(timings["off"])
+            total = sum(p.stat().st_size for p in log_dir.glob("*.mcap"))
+            sizes[variant].append((total, len(read_episodes(log_dir))))
     print(f"[env] {game}, {batch} envs x {steps} steps, logged {frames} steps at a time as (B, T) batches, "
-          f"{repeats} repeats, random policy on the real env (medians)")
-    print(f"  no logging            {off:7.3f} s  ({1e6 * off / total_steps:.1f} us per env step)")
-    for variant in variants[1:]:
-        median = statistics.median(timings[variant])
+          f"{repeats} repeats, random policy on the real env; time inside the logger vs the rest of the same "
+          f"run (env steps, policy, batching), medians")
+    for variant in variants:
         per_episode = sum(s[0] for s in sizes[variant]) / max(1, sum(s[1] for s in sizes[variant]))
-        print(f"  train steps {variant:<10} {median:7.3f} s  +{100 * (median - off) / off:5.1f} % of the env-only loop "
-              f"({1e6 * (median - off) / total_steps:.1f} us per logged step), "
+        print(f"  training steps {variant:<10}: +{100 * statistics.median(ratios[variant]):5.1f} % "
+              f"({1e6 * statistics.median(per_step[variant]):.1f} us per logged step), "
               f"{per_episode:.0f} bytes per training episode on disk")
     return keep / "per_action0"
 
