@@ -11,8 +11,8 @@ Writing (the training pipeline and the robot simulator)::
 
 Reading: `read_episodes(path)` (summaries), `read_episode_records(path, ids)` (steps, dialogue, boards),
 `LogReader(path)` (any message, with crash recovery: `scans[file].cut_bytes`), `summarize(path)` (what
-`ncbot logs inspect --json` prints). Channels and their JSON Schemas are in `logs.schemas`; why JSON and
-what it costs is in `logs/README.md`.
+`ncbot logs inspect --json` prints, in `logs.summary`). Channels and their schemas are in `logs.schemas` and
+`logs.packed`; why the formats are what they are, with measurements, is in `logs/README.md`.
 """
 from logs.reader import EpisodeRecord, FileScan, LogMessage, LogReader, read_episode_records, read_episodes
 from logs.schemas import OUTCOMES, PHASES

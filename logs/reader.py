@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
-from logs import schemas
+from logs import packed, schemas
 from logs.names import NameTables
-from logs import packed
 from logs.steps import expand_episode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"

@@ -10,7 +10,7 @@ episode is written in one piece and never split across files.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
