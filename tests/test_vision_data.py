@@ -1,0 +1,81 @@
+"""The seeded generators: same seed -> same pixels, marks drawn where asked, progress animates a drawing."""
+import numpy as np
+import pytest
+
+from vision.data import CLEAN_SEED, NOISY_SEED, TEST_SEED, TRAIN_SEED
+from vision.data.cells import make_cells
+from vision.data.frames import make_frame
+from vision.data.sequences import make_move_sequence
+from vision.sheet import cell_center, draw_sheet
+from vision.strokes import draw_mark
+
+
+def test_seeds_for_training_and_testing_differ() -> None:
+    assert len({CLEAN_SEED, NOISY_SEED, TRAIN_SEED, TEST_SEED}) == 4
+    assert TEST_SEED > TRAIN_SEED + 1_000_000  # the default training draws far fewer seeds than that
+
+
+def test_cells_are_deterministic_and_balanced() -> None:
+    a, la = make_cells(30, 5, noisy=True)
+    b, lb = make_cells(30, 5, noisy=True)
+    c, _ = make_cells(30, 6, noisy=True)
+    assert a.shape == (30, 40, 40) and a.dtype == np.uint8
+    assert np.array_equal(a, b) and np.array_equal(la, lb)
+    assert not np.array_equal(a, c)
+    assert np.bincount(la, minlength=3).tolist() == [10, 10, 10]
+
+
+def test_marks_put_ink_where_asked_and_progress_draws_part() -> None:
+    inks = []
+    for progress in (0.0, 0.3, 1.0):
+        img = np.full((100, 100, 3), 255, np.uint8)
+        draw_mark(img, "nought", (30, 60), 40, np.random.default_rng(3), progress=progress, ink=(200, 0, 0))
+        inks.append(int((img.min(axis=2) < 200).sum()))
+        if progress == 1.0:
+            ys, xs = np.nonzero(img.min(axis=2) < 200)
+            assert abs(xs.mean() - 30) < 8 and abs(ys.mean() - 60) < 8
+            assert img[ys, xs, 0].mean() > img[ys, xs, 2].mean()  # blue ink (BGR) stays blue
+    assert inks[0] == 0 < inks[1] < inks[2]
+
+
+@pytest.mark.parametrize("style", ["pen", "sketch", "hershey"])
+def test_every_style_draws_on_gray_images(style: str) -> None:
+    img = np.full((60, 60), 250, np.uint8)
+    draw_mark(img, "cross", (30, 30), 40, np.random.default_rng(0), style=style)
+    assert (img < 150).sum() > 20
+
+
+def test_draw_mark_rejects_bad_input() -> None:
+    img = np.zeros((10, 10), np.uint8)
+    with pytest.raises(ValueError, match="kind"):
+        draw_mark(img, "triangle", (5, 5), 5, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="progress"):
+        draw_mark(img, "cross", (5, 5), 5, np.random.default_rng(0), progress=2.0)
+    with pytest.raises(ValueError, match="uint8"):
+        draw_mark(img.astype(float), "cross", (5, 5), 5, np.random.default_rng(0))
+
+
+def test_sheet_layout_puts_cells_between_the_lines() -> None:
+    page = draw_sheet(3, 300, 300)
+    gray = page.mean(axis=2)
+    for cell in range(9):
+        x, y = cell_center(3, cell, 300, 300)
+        assert gray[int(y), int(x)] > 200  # a cell centre is paper, not a grid line
+    assert (gray < 100).sum() > 500       # the grid is drawn
+    with pytest.raises(ValueError, match="grid must be 3"):
+        draw_sheet(4)
+
+
+def test_frames_are_deterministic_with_a_truth_board() -> None:
+    a, b = make_frame(3, 11), make_frame(3, 11)
+    assert a.image.shape == (480, 640, 3) and np.array_equal(a.image, b.image)
+    assert len(a.board) == 9 and set(a.board) <= {"", "x", "o"}
+    assert a.board == b.board and not np.array_equal(a.image, make_frame(3, 12).image)
+    assert len(make_frame(9, 3).board) == 81
+
+
+def test_move_sequence_draws_the_move_under_a_hand() -> None:
+    seq = make_move_sequence(3, 4, before=1, drawing=2, after=1)
+    assert seq.hand == [False, True, True, False]
+    assert seq.known_board[seq.move] == "" and seq.symbol in ("x", "o")
+    assert not np.array_equal(seq.frames[0], seq.frames[-1])

@@ -1,0 +1,77 @@
+"""Algorithm 1 on frame sequences of a person drawing a move with a hand over the sheet."""
+import numpy as np
+import pytest
+import torch
+
+from vision.data import TEST_SEED
+from vision.data.frames import make_frame
+from vision.data.sequences import make_move_sequence
+from vision.recogniser import MoveRecogniser
+
+torch.set_num_threads(1)
+
+
+def _run(rec: MoveRecogniser, seq):
+    rec.reset()
+    statuses = []
+    for frame, hand in zip(seq.frames, seq.hand):
+        result = rec.update(frame, seq.known_board)
+        statuses.append(result.status)
+        if result.status == "move":
+            assert not hand, "a move was reported from a frame showing the hand"
+            return result, statuses
+    return None, statuses
+
+
+@pytest.mark.parametrize("grid, seed, still", [(3, 1, 0), (3, 2, 0), (3, 3, 2), (3, 4, 1), (9, 5, 1)])
+def test_move_reported_within_three_clean_frames_never_with_the_hand(grid, seed, still) -> None:
+    seq = make_move_sequence(grid, TEST_SEED + 500 + seed, before=3, drawing=4, after=4, still_hand=still)
+    result, statuses = _run(MoveRecogniser(grid), seq)
+    assert result is not None, statuses
+    assert (result.move, result.label) == (seq.move, seq.symbol)
+    first_clean_after = max(i for i, h in enumerate(seq.hand) if h) + 1
+    assert len(statuses) - first_clean_after <= 3, statuses
+    assert "moving" in statuses or "occluded" in statuses
+
+
+def test_no_move_while_the_board_is_unchanged() -> None:
+    seq = make_move_sequence(3, TEST_SEED + 520, before=5, drawing=0, after=0)
+    rec = MoveRecogniser(3)
+    statuses = [rec.update(f, seq.known_board).status for f in seq.frames]
+    assert statuses[:2] == ["waiting", "waiting"] and set(statuses) == {"waiting"}
+
+
+def test_already_known_marks_are_not_moves() -> None:
+    frame = make_frame(3, TEST_SEED + 521)
+    rec = MoveRecogniser(3)
+    results = [rec.update(frame.image, frame.board) for _ in range(3)]
+    assert results[-1].status == "waiting" and results[-1].probabilities.shape == (9, 3)
+    empty_known = [""] * 9
+    if any(frame.board):
+        rec.reset()
+        result = [rec.update(frame.image, empty_known) for _ in range(3)][-1]
+        assert result.status == "move" and frame.board[result.move] == result.label
+
+
+def test_page_not_found() -> None:
+    table = np.full((480, 640, 3), 60, np.uint8)
+    result = MoveRecogniser(3).update(table, [""] * 9)
+    assert result.status == "no_page" and "sheet" in result.detail
+
+
+def test_env_style_boards_and_bad_arguments() -> None:
+    frame = make_frame(3, TEST_SEED + 522)
+    rec = MoveRecogniser(3)
+    assert rec.update(frame.image, np.zeros(9, np.int8)).status == "waiting"
+    with pytest.raises(ValueError, match="9 cells"):
+        rec.update(frame.image, [""] * 8)
+    with pytest.raises(ValueError, match="tau"):
+        MoveRecogniser(3, tau=-1)
+    with pytest.raises(ValueError, match="grid must be 3"):
+        MoveRecogniser(5)
+
+
+def test_recognise_loop_stops_at_the_move() -> None:
+    seq = make_move_sequence(3, TEST_SEED + 530, before=2, drawing=3, after=5)
+    result = MoveRecogniser(3, gamma_ms=0).recognise(iter(seq.frames), seq.known_board)
+    assert result.status == "move" and result.move == seq.move
