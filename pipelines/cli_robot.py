@@ -93,13 +93,16 @@ def render(
     marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'x4,o0,x8' (mark and cell)."),
     seed: int = typer.Option(0, help="Seed of the hand-drawn marks."),
     frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
+    view: str = typer.Option("mouth", help="mouth (the robot's CameraBottom) or overview (third person, for people)."),
 ) -> None:
-    """Render one mouth-camera frame of the home posture to a PNG and print the render cost."""
+    """Render one mouth-camera (or overview) frame of the home posture to a PNG and print the render cost."""
     import time
 
     import cv2
     import numpy as np
 
+    if view not in ("mouth", "overview"):
+        raise ValueError(f"--view must be mouth or overview; got {view!r}")
     from robot_sim.render_system import SimulatorUnavailable
     from robot_sim.scene import PepperScene, SceneConfig
     from robot_sim.sheet import HUMAN_INK, MARK_OF_PLAYER, MarkSpec
@@ -113,12 +116,13 @@ def render(
         if token[0] not in MARK_OF_PLAYER or not token[1:].isdigit() or int(token[1:]) >= scene.grid ** 2:
             raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell in [0, {scene.grid ** 2}), e.g. x4")
         scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)), HUMAN_INK), 1.0)
-    frame = scene.render()
+    grab = scene.render if view == "mouth" else (lambda: scene.render_overview(width, height))
+    frame = grab()
     times = []
     for _ in range(frames):
         scene.step(0.02)
         started = time.perf_counter()
-        frame = scene.render()
+        frame = grab()
         times.append(time.perf_counter() - started)
     output.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(output), frame[:, :, ::-1]):

@@ -321,6 +321,8 @@ class RobotGameRunner:
             path = self.out_dir / f"game-{index:03d}.png"
             _write_png_atomic(path, self._annotated(self.last_frame, record))
             record.snapshot = str(path)
+            # A third-person view for people reading the run (the robot never sees it).
+            _write_png_atomic(self.out_dir / f"game-{index:03d}-overview.png", _rgb_to_bgr(self.scene.render_overview()))
         return record
 
     def _check_own_mark(self, cell: int) -> None:

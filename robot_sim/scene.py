@@ -278,6 +278,27 @@ class PepperScene:
         self.arm_visible = False
 
     # ---------------------------------------------------------------- camera
+    def render_overview(self, width: int = 640, height: int = 480,
+                        eye: tuple[float, float, float] = (1.25, -1.05, 1.55),
+                        target: tuple[float, float, float] = (0.25, 0.0, 0.8)) -> np.ndarray:
+        """A third-person view of robot, table and sheet (for people, never for the robot's perception)."""
+        import sapien
+
+        if getattr(self, "_overview", None) is None or self._overview.width != width or self._overview.height != height:
+            self._overview = self.scene.add_camera("overview", width, height, math.radians(50.0), 0.05, 10.0)
+        forward = np.array(target, dtype=np.float64) - np.array(eye, dtype=np.float64)
+        forward /= np.linalg.norm(forward)
+        left = np.cross([0.0, 0.0, 1.0], forward)
+        left /= np.linalg.norm(left)
+        matrix = np.eye(4)
+        matrix[:3, :3] = np.stack([forward, left, np.cross(forward, left)], axis=1)
+        matrix[:3, 3] = eye
+        self._overview.entity.set_pose(sapien.Pose(matrix))
+        self.refresh_sheet()
+        self.scene.update_render()
+        self._overview.take_picture()
+        return np.ascontiguousarray(self._overview.get_picture("Color")[:, :, :3])
+
     def render(self) -> np.ndarray:
         """One mouth-camera frame as uint8 RGB (H, W, 3), with the sheet's latest texture."""
         self.refresh_sheet()
