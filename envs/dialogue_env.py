@@ -226,8 +226,9 @@ class DialogueGameEnv(EnvBase):
         legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
         mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
         lookahead = torch.where(mask, 0.0, ILLEGAL_ACT_REWARD)
-        if bool(legal.any()):
-            lookahead[:, :cells] = torch.where(legal, self.engine.move_rewards(self.boards, ROBOT), ILLEGAL_ACT_REWARD)
+        can_move = legal.any(1)
+        if bool(can_move.any()):
+            lookahead[:, :cells] = torch.where(legal, self.engine.move_rewards(self.boards, ROBOT, can_move), ILLEGAL_ACT_REWARD)
         self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
 
     def _observation(self) -> torch.Tensor:

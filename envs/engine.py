@@ -149,14 +149,15 @@ class _Engine:
         """
         raise NotImplementedError
 
-    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+    def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
         """(B, cells) float32: the paper's one-step reward if ``player`` took each cell now (legal cells only).
 
         Priority: +5 the move wins; +1 it ends the game in a draw; -5 "about to lose": afterwards the opponent
         has a legal move that wins at once; +1 "about to draw": the move makes the position dead (no line can
         be completed by anyone any more) when it was not before; +5 "about to win": afterwards ``player``
         has a square that would win the game if it were ``player``'s turn (in Ultimate ignoring where the
-        opponent's reply sends it); else 0. Entries of illegal cells are meaningless (the env overwrites them).
+        opponent's reply sends it); else 0. Entries of illegal cells are meaningless (the env overwrites them),
+        and so are the rows outside ``active`` ((B,) bool, default all), which an engine may skip.
         """
         raise NotImplementedError
 
@@ -207,7 +208,7 @@ class StandardEngine(_Engine):
         state.codes[:, 0] += active.long() * player * self.pow3.index_select(0, cells)
         self._update_outcome(state)
 
-    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
+    def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
         code = state.codes[:, :1]  # (B, 1)
         after = torch.where(state.board == 0, code + player * self.pow3, code)  # (B, 9): code after each move
         dead_before = lookup(self.tables.dead, code).long() * 3**9
@@ -259,19 +260,22 @@ class UltimateEngine(_Engine):
         self.bit9 = 1 << torch.arange(9)
         self.cell_pow3 = self.pow3[self.position_of]  # (81,)
         self.subgrid_cells = torch.tensor([[(k // 3 * 3 + r) * 9 + k % 3 * 3 + c for r in range(3) for c in range(3)] for k in range(9)])
+        # (10, 81) bool: row k < 9 the squares of subgrid k, row 9 every square (a free move)
+        self.region_cells = torch.cat([self.subgrid_of.unsqueeze(0) == torch.arange(9).unsqueeze(1), torch.ones(1, 81, dtype=torch.bool)])
+        self.positions = torch.arange(9).unsqueeze(0)  # (1, 9): the 9 squares of one subgrid, in position order
 
     def legal(self, state: Boards) -> torch.Tensor:
-        empty = state.board == 0
-        last = state.last_move
-        target = self.position_of[last.clamp(min=0)]  # (B,)
-        forced = (last >= 0) & (state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0)
-        in_target = self.subgrid_of.unsqueeze(0) == target.unsqueeze(1)
-        if self.free_move == "anywhere":
-            free = empty
-        else:
-            free = empty & (state.owners.index_select(1, self.subgrid_of) == 0)
-        legal = torch.where(forced.unsqueeze(1), empty & in_target, free)
-        return legal & (state.outcome == 0).unsqueeze(1)
+        # one row of the (10, 81) region table per game: its forced subgrid, or row 9 (free) for the rest
+        region = torch.where(self._forced(state), self.position_of.index_select(0, state.last_move.clamp(min=0)), 9)
+        allowed = self.region_cells.index_select(0, region)
+        if self.free_move == "open_subgrids":
+            allowed = allowed & (state.owners.index_select(1, self.subgrid_of) == 0)
+        return allowed & (state.board == 0) & (state.outcome == 0).unsqueeze(1)
+
+    def _forced(self, state: Boards) -> torch.Tensor:
+        """(B,) whether the player to move is sent to an open subgrid (the one at the last move's position)."""
+        target = self.position_of.index_select(0, state.last_move.clamp(min=0))
+        return (state.last_move >= 0) & (state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0)
 
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         if active is None:
@@ -328,21 +332,29 @@ class UltimateEngine(_Engine):
             meta[p] = owners.has_line[p].long() | owners.dead.long() << 1 | owners.win_bits[q] << 2 | owners.win_bits[p] << 11
         return sub, meta
 
-    def move_rewards(self, state: Boards, player: int) -> torch.Tensor:
-        """See ``_Engine.move_rewards``. Only squares that can be legal are evaluated, nine at a time: a game
-        sent to an open subgrid is one row of its 9 squares, a free game becomes 9 rows (one per subgrid)."""
+    def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
+        """See ``_Engine.move_rewards``. Only squares that can be legal are evaluated, one subgrid (9 squares) per
+        row: a game sent to an open subgrid is one row, a free game becomes 9 rows (one per subgrid). With
+        ``active`` (B,) bool, only those games are evaluated (the others' entries are meaningless): the env
+        passes the games where the robot has a legal move."""
+        forced = self._forced(state)
         target = self.position_of.index_select(0, state.last_move.clamp(min=0))
-        forced = (state.last_move >= 0) & (state.owners.gather(1, target.unsqueeze(1)).squeeze(1) == 0)
+        free = ~forced
+        if active is not None:
+            forced, free = forced & active, free & active
         forced_rows = forced.nonzero().squeeze(1)
-        free_rows = (~forced).nonzero().squeeze(1)
+        free_rows = free.nonzero().squeeze(1)
         rows = torch.cat([forced_rows, free_rows.repeat_interleave(9)])
-        cells = torch.cat([self.subgrid_cells.index_select(0, target.index_select(0, forced_rows)), self.subgrid_cells.repeat(free_rows.numel(), 1)])
+        subs = torch.cat([target.index_select(0, forced_rows), self.positions.squeeze(0).repeat(free_rows.numel())])
+        cells = self.subgrid_cells.index_select(0, subs)  # (N, 9)
         rewards = torch.full((state.board.shape[0] * 81,), REWARD_LOSE)
-        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state, player, rows, cells).reshape(-1))
+        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state, player, rows, subs, cells).reshape(-1))
         return rewards.view(-1, 81)
 
-    def _rewards_at(self, state: Boards, player: int, rows: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
-        """(N, K) rewards of ``player`` taking ``cells`` (N, K) in games ``rows`` (N,) (legal squares matter)."""
+    def _rewards_at(self, state: Boards, player: int, rows: torch.Tensor, subs: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
+        """(N, 9) rewards of ``player`` taking the squares ``cells`` (N, 9) of subgrid ``subs`` (N,) in games
+        ``rows`` (N,), in position order (only legal squares matter). One subgrid per row keeps the subgrid's
+        facts (owner, code, bit) per row, (N, 1), and the positions a constant row: few (N, 9) ops."""
         sub_table, meta_table = self._packed_tables()
         opponent = 3 - player
         # per-game facts, computed once per game and then spread over its rows
@@ -355,11 +367,12 @@ class UltimateEngine(_Engine):
         )
         owners = state.owners.index_select(0, rows)  # (N, 9)
 
-        sub, pos = lookup(self.subgrid_of, cells), lookup(self.position_of, cells)  # (N, K)
+        sub, pos = subs.unsqueeze(1), self.positions  # (N, 1), (1, 9)
         bit = 1 << sub
-        owner_s = owners.gather(1, sub)
+        owner_s = owners.gather(1, sub)  # (N, 1)
         empty = lookup(state.board.view(-1), rows.unsqueeze(1) * 81 + cells) == 0
-        code_after = state.codes.index_select(0, rows).gather(1, sub) + empty.long() * player * lookup(self.cell_pow3, cells)
+        code = lookup(state.codes.view(-1), rows * 9 + subs).unsqueeze(1)
+        code_after = code + empty.long() * (player * self.pow3)
         facts = lookup(sub_table[player], code_after)
         open_s = owner_s == 0
         wins_sub = open_s & (facts & 1 != 0)
@@ -370,7 +383,7 @@ class UltimateEngine(_Engine):
         win = meta_facts & 1 != 0
 
         # Where the opponent is sent, and whether it can move at all.
-        target_open = torch.where(pos == sub, owner_after_s, owners.gather(1, pos)) == 0
+        target_open = torch.where(pos == sub, owner_after_s, owners) == 0
         if self.free_move == "anywhere":
             free_has_moves = (state.n_marks.index_select(0, rows) < 80).unsqueeze(1)
         else:
