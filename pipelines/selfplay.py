@@ -129,11 +129,12 @@ class SnapshotPool(Opponent):
         return allowed
 
 
-def make_selfplay_pool(env_config, settings: SelfPlayConfig, qnet: nn.Module, seed: int) -> SnapshotPool:
-    """The pool for a run's env, seeded with the starting weights (so the first games have an opponent)."""
-    pool = SnapshotPool(env_config.game, env_config.free_move, env_config.temporal, settings, seed=seed)
-    pool.maybe_add(qnet, 0)
-    return pool
+def make_selfplay_pool(env_config, settings: SelfPlayConfig, seed: int) -> SnapshotPool:
+    """The (empty) pool for a run's env; it plays uniformly at random until the first ``maybe_add``.
+
+    Built before the Q-network because the network's sizes come from the env, which needs its opponent.
+    """
+    return SnapshotPool(env_config.game, env_config.free_move, env_config.temporal, settings, seed=seed)
 
 
 def pool_summary(pool: SnapshotPool) -> dict:
