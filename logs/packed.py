@@ -45,8 +45,8 @@ def layout_text(dtype: np.dtype) -> str:
 
 def dtype_from_layout(text: str) -> np.dtype:
     if not text.startswith(LAYOUT_PREFIX):
-        raise ValueError(f"unknown packed step layout {text[:40]!r}; expected {LAYOUT_PREFIX}A,F,C,W "
-                         "(written by a newer ncbot?)")
+        raise ValueError(f"unknown packed step layout {text[:40]!r}: this ncbot reads {LAYOUT_PREFIX}A,F,C,W "
+                         "(the file was written by another ncbot version)")
     return row_dtype(*(int(size) for size in text[len(LAYOUT_PREFIX):].split(",")))
 
 

@@ -63,7 +63,7 @@ def _decision_text(step: dict, names: NameTables, max_q: int) -> str:
     mask = [int(a) for a in step.get("mask", [])]
     excluded = set(int(a) for a in step.get("A_hat", []))
     candidates = set(int(a) for a in step.get("A", mask))
-    parts = [f"mask {len(mask)} acts", f"A={sorted(candidates) if candidates != set(mask) else 'all available'}",
+    parts = [f"mask={mask}", f"A={sorted(candidates) if candidates != set(mask) else 'all available'}",
              f"A_hat={sorted(excluded)}"]
     q_values = step.get("q")
     if q_values:

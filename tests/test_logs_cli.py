@@ -80,7 +80,7 @@ def test_show_replays_one_dialogue(run_dir: Path, capsys: pytest.CaptureFixture)
     assert code == 0, err
     assert out.startswith("episode 0: train standard agent=proposed")
     assert "[step 0] robot chose act_" in out and "ROBOT: utterance number" in out and "Q: " in out
-    assert "A_hat=" in out and "mask " in out
+    assert "A_hat=" in out and "mask=[0, " in out
     assert sum(1 for line in out.splitlines() if line.strip().startswith("[step")) == 3  # first to end: row 2 at t=2
 
 
