@@ -83,7 +83,8 @@ def _moving(values: np.ndarray, size: int) -> np.ndarray:
     return (cumulative[size:] - cumulative[:-size]) / size
 
 
-def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200) -> dict[str, dict[str, Any]]:
+def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200,
+                        progress: bool = False) -> dict[str, dict[str, Any]]:
     """Draw task success, reward per step and dialogue length against env steps into a PNG (atomically)."""
     import matplotlib
 
@@ -93,7 +94,7 @@ def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200)
     output = Path(output)
     if output.suffix.lower() != ".png":
         raise ValueError(f"the curve is written as PNG; give an output path ending in .png, got {output}")
-    series = curve_series(read_episodes(path), window)
+    series = curve_series(read_episodes(path, progress=progress), window)
     if not series:
         raise ValueError(f"{path} has no train or eval episodes to draw a learning curve from")
     figure, axes = plt.subplots(1, 3, figsize=(15, 4.2))

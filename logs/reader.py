@@ -17,6 +17,7 @@ from logs.names import NameTables
 from logs.steps import expand_episode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+PROGRESS_MIN_BYTES = 16 * 2**20
 
 # Foxglove protobuf types the logger writes, decoded by schema name.
 _PROTOBUF_TYPES = {
@@ -93,8 +94,9 @@ class LogReader:
     `scans` holds the per-file findings and `require_ncbot()` rejects a foreign MCAP.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, progress: bool = False) -> None:
         self.path = Path(path)
+        self.progress = progress  # a tqdm bar (bytes read, rate, ETA) for logs of PROGRESS_MIN_BYTES or more
         self.files = list_log_files(path)
         for file in self.files:
             check_mcap_file(file)
@@ -103,8 +105,13 @@ class LogReader:
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[LogMessage]:
         """Every message on `topics` (all if None), file by file in log order; JSON is decoded."""
         wanted = None if topics is None else frozenset(topics)
-        for file in self.files:
-            yield from self._file_messages(file, wanted)
+        total = sum(file.stat().st_size for file in self.files)
+        from tqdm import tqdm
+
+        with tqdm(total=total, unit="B", unit_scale=True, desc=f"reading {self.path.name}", leave=False,
+                  disable=not self.progress or total < PROGRESS_MIN_BYTES) as bar:
+            for file in self.files:
+                yield from self._file_messages(file, wanted, bar)
 
     def scan(self) -> list[FileScan]:
         """Read everything once (counts, time span, truncation) without keeping messages."""
@@ -134,7 +141,7 @@ class LogReader:
             found = scan.metadata.get("ncbot.names", found)
         return found
 
-    def _file_messages(self, file: Path, wanted: frozenset[str] | None) -> Iterator[LogMessage]:
+    def _file_messages(self, file: Path, wanted: frozenset[str] | None, bar: Any) -> Iterator[LogMessage]:
         from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
         from mcap.stream_reader import StreamReader, breakup_chunk
 
@@ -155,6 +162,7 @@ class LogReader:
                 except Exception as error:  # a cut-off record: stop here, keep what was complete
                     scan.error = f"{type(error).__name__}: {error}".strip()
                     break
+                bar.update(handle.tell() - scan.good_bytes)
                 scan.good_bytes = handle.tell()
                 for item in inner:
                     if isinstance(item, Message):
@@ -201,9 +209,9 @@ def _decoder(channel: tuple[str, str, str], schema_of: dict) -> Any:
 
 
 # --------------------------------------------------------------------------- convenience readers
-def read_episodes(path: str | Path, require_ncbot: bool = True) -> list[dict[str, Any]]:
+def read_episodes(path: str | Path, require_ncbot: bool = True, progress: bool = False) -> list[dict[str, Any]]:
     """All `/episode` summaries of a file or run directory, in log order (ValueError on a foreign MCAP)."""
-    reader = LogReader(path)
+    reader = LogReader(path, progress=progress)
     episodes = [message.data for message in reader.messages([schemas.EPISODE_TOPIC])]
     if require_ncbot:
         reader.require_ncbot()

@@ -8,9 +8,9 @@ from logs.names import NameTables
 from logs.reader import EpisodeRecord, LogReader, read_episode_records
 
 
-def load_episode(path: str | Path, episode_id: int) -> tuple[EpisodeRecord, NameTables]:
+def load_episode(path: str | Path, episode_id: int, progress: bool = False) -> tuple[EpisodeRecord, NameTables]:
     """The logged record of one episode and the name tables stored with it; ValueError if absent."""
-    reader = LogReader(path)
+    reader = LogReader(path, progress=progress)
     records = read_episode_records(path, [episode_id], reader=reader)
     reader.require_ncbot()
     if episode_id not in records:

@@ -39,7 +39,7 @@ def parse_episode_spec(spec: str | None) -> set[int] | None:
 
 
 def export_to_rerun(path: str | Path, output: str | Path, episodes: Iterable[int] | None = None,
-                    max_episodes: int = 200) -> dict[str, Any]:
+                    max_episodes: int = 200, progress: bool = False) -> dict[str, Any]:
     """Write the chosen episodes (default: the last `max_episodes`) and any camera/joint/tf messages in their
     time range to `output` (.rrd, atomically). Returns counts of what was written."""
     import rerun as rr
@@ -47,7 +47,7 @@ def export_to_rerun(path: str | Path, output: str | Path, episodes: Iterable[int
     output = Path(output)
     if output.suffix != ".rrd":
         raise ValueError(f"rerun recordings end in .rrd; got output path {output}")
-    reader = LogReader(path)
+    reader = LogReader(path, progress=progress)
     if episodes is None:  # pick ids from the cheap summaries first so a long run is never loaded whole
         ids = [m.data["episode"] for m in reader.messages([schemas.EPISODE_TOPIC])]
         episodes = ids[-max_episodes:] if ids else None

@@ -21,9 +21,10 @@ PATH_HELP = "an episodes-NNNN.mcap file or a run directory holding them"
 def inspect_log(path: Path = typer.Argument(..., help=PATH_HELP),
                 as_json: bool = typer.Option(False, "--json", help="print one JSON object instead of text")) -> None:
     """Channels and schemas, message counts, time span, episodes by phase, and whether a file was cut off."""
+    from logs.reader import LogReader
     from logs.summary import format_summary, summarize
 
-    summary = summarize(path)
+    summary = summarize(path, LogReader(path, progress=True))
     typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
 
 
@@ -41,7 +42,7 @@ def list_episodes(path: Path = typer.Argument(..., help=PATH_HELP),
         raise ValueError(f"--phase must be one of {', '.join(PHASES)}, got {phase!r}")
     if outcome is not None and outcome not in OUTCOMES:
         raise ValueError(f"--outcome must be one of {', '.join(OUTCOMES)}, got {outcome!r}")
-    reader = LogReader(path)
+    reader = LogReader(path, progress=True)
     episodes = [m.data for m in reader.messages([EPISODE_TOPIC])]
     reader.require_ncbot()
     matches = [e for e in episodes if (phase is None or e.get("phase") == phase)
@@ -67,7 +68,7 @@ def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
     """Replay one dialogue: utterances, the board after each move, Q-values and masks of each robot decision."""
     from logs.replay import format_episode, load_episode
 
-    record, names = load_episode(path, episode_id)
+    record, names = load_episode(path, episode_id, progress=True)
     typer.echo(format_episode(record, names, max_q=max_q))
 
 
@@ -78,7 +79,7 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
     """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
     from logs.curve import plot_learning_curve
 
-    series = plot_learning_curve(path, output, window)
+    series = plot_learning_curve(path, output, window, progress=True)
     for label, entry in series.items():
         last = []
         if "train" in entry and len(entry["train"]["x"]):
@@ -99,7 +100,7 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
     """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
     from logs.rerun_export import export_to_rerun, parse_episode_spec
 
-    counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes)
+    counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=True)
     typer.echo(f"wrote {output} ({counts['bytes']} bytes): {counts['episodes']} episodes, {counts['steps']} steps, "
                f"{counts['camera_frames']} camera frames, {counts['joint_states']} joint states, "
                f"{counts['transforms']} transforms; open with `rerun {output}`")
