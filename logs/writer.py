@@ -355,6 +355,8 @@ class EpisodeLogger:
 
     def _finish_file(self) -> None:
         if self._writer is not None:
+            # indexed in the summary: the next logger on this run continues ids without reading the file
+            self._writer.add_metadata("ncbot.end", {"next_episode": str(self._next_episode)})
             self._writer.finish()
             self._file.close()
             self._writer = None
@@ -432,13 +434,24 @@ def _check_phase(phase: str) -> None:
 
 
 def _next_episode_id(run_dir: Path, existing: list[int]) -> int:
-    """Continue after the largest episode id of the run: ids grow with file index, so the newest file that
-    holds any episode has it (files are read with crash recovery)."""
-    from logs.reader import read_episodes
+    """Continue after the largest episode id of the run. A finished file says it in its `ncbot.end` metadata
+    (read through the summary index); otherwise (a crashed writer) the newest file holding an episode is
+    read with crash recovery: ids grow with the file index."""
+    from logs.reader import MCAP_MAGIC, read_episodes
 
     for index in reversed(existing):
-        ids = [int(summary["episode"]) for summary in read_episodes(run_dir / episode_file_name(index),
-                                                                       require_ncbot=False)]
+        path = run_dir / episode_file_name(index)
+        with open(path, "rb") as handle:
+            handle.seek(max(0, path.stat().st_size - len(MCAP_MAGIC)))
+            complete = handle.read() == MCAP_MAGIC
+            if complete:
+                from mcap.reader import make_reader
+
+                handle.seek(0)
+                for record in make_reader(handle).iter_metadata():
+                    if record.name == "ncbot.end":
+                        return int(record.metadata["next_episode"])
+        ids = [int(summary["episode"]) for summary in read_episodes(path, require_ncbot=False)]
         if ids:
             return max(ids) + 1
     return 0

@@ -199,6 +199,8 @@ def test_kill_9_while_writing_leaves_a_readable_file(tmp_path: Path) -> None:
     assert len(episodes) >= flushed  # everything reported as flushed before the kill is there
     assert [e["episode"] for e in episodes] == list(range(len(episodes)))
     assert summarize(tmp_path)["truncated"] is True
+    with EpisodeLogger(tmp_path) as log:  # a new run after the crash continues the ids of what was recovered
+        assert log.new_episode_id() == len(episodes)
 
 
 def test_robot_streams_round_trip_as_foxglove_protobuf(tmp_path: Path) -> None:
