@@ -111,7 +111,13 @@ class DialogueGameEnv(EnvBase):
         self._asks_move = torch.zeros(len(dlg.SYSTEM_TYPES), dtype=torch.bool)
         self._asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
         self._utterance_acts = torch.cat([model.utterance_acts, torch.tensor([-1])])
-        self._utterance_words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))])
+        # the words of each utterance as column indices (padded with V, a spare column): ASR confidences are
+        # drawn for these few words only (torch.rand costs ~10 ns per number, (B, V) draws dominated the step)
+        words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))]) > 0
+        width = max(1, int(words.sum(1).max()))
+        order = torch.sort(words.to(torch.uint8), dim=1, descending=True, stable=True).indices[:, :width]
+        present = torch.arange(width).unsqueeze(0) < words.sum(1, keepdim=True)
+        self._utterance_word_columns = torch.where(present, order, len(model.words))
         allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
         self._filter_table = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1).contiguous()
 
@@ -373,8 +379,9 @@ class DialogueGameEnv(EnvBase):
         user_act = torch.where(silent, -1, user_act)
         self.d.agreed = self.d.agreed | (accepted & (act_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES))
 
-        confidence = torch.rand(self.d.user_words.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
-        heard = self._utterance_words.index_select(0, utterance) * confidence
+        columns = self._utterance_word_columns.index_select(0, utterance)
+        confidence = torch.rand(columns.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
+        heard = torch.zeros(columns.shape[0], len(self.words) + 1).scatter_(1, columns, confidence)[:, :-1]
         self.d.user_words = torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
         utterance = torch.where(utterance == silence, -1, utterance)
         self.d.last_sys = torch.where(accepted, act_type + 1, self.d.last_sys)
@@ -389,7 +396,7 @@ class DialogueGameEnv(EnvBase):
         """(B,) the user's square in ``rows`` (others 0): uniform among legal ones, or the opponent's choice."""
         legal = self.engine.legal(self.boards) & rows.unsqueeze(1)
         if self.opponent is None:
-            return (torch.rand(legal.shape, generator=self._rng) + legal).argmax(1)
+            return uniform_choice(legal, self._rng)
         index = rows.nonzero().squeeze(1)
         boards = self.boards
         kwargs: dict[str, Any] = {"rows": index} if "rows" in self._opponent_params else {}
@@ -411,7 +418,7 @@ class DialogueGameEnv(EnvBase):
         mask = tensordict.get("action_mask", None)
         if mask is None:
             mask = self.d.mask
-        tensordict.set("action", (torch.rand(mask.shape, generator=self._action_rng) + mask).argmax(-1))
+        tensordict.set("action", uniform_choice(mask, self._action_rng))
         return tensordict
 
     def _set_seed(self, seed: int | None) -> None:
@@ -441,6 +448,19 @@ class _Dialogues:
     mask: torch.Tensor  # (B, A) action_mask
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
+
+
+def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) a uniformly random True column of each row of ``mask`` (B, n) (0 for an all-False row).
+
+    Why not ``(rand(B, n) + mask).argmax``: torch.rand costs ~10 ns per number, so one number per row
+    and the k-th True column (k = floor(u * count), via a cumulative sum) is several times faster.
+    """
+    counts = mask.to(torch.int32).cumsum_(1)
+    total = counts[:, -1:]
+    k = (torch.rand(total.shape, generator=generator) * total).to(torch.int32)
+    k = torch.minimum(k, total - 1)  # u * count may round up to count in float32
+    return (counts > k).to(torch.uint8).argmax(1)
 
 
 def _check_batch(batch_size: Any) -> int:
