@@ -36,6 +36,7 @@ def play(
     occlusion: bool = typer.Option(True, help="Show the human's arm and hand while drawing."),
     wait_probability: float = typer.Option(0.0, help="Chance that the human waits before drawing."),
     nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
+    robot_frame_period: float = typer.Option(1.0, help="Simulated seconds between logged camera frames while the robot moves."),
     robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
     audio: bool = typer.Option(False, help="Speak through espeak-ng into OUT/speech/*.wav when installed."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
@@ -48,6 +49,8 @@ def play(
         raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
     if meshes is not None and not meshes.is_dir():
         raise FileNotFoundError(f"meshes folder {meshes} does not exist; expected a folder of <Link>.dae/.stl/.obj files")
+    if robot_frame_period <= 0:
+        raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
         raise ValueError("--wait-probability and --nudge-probability must be in [0, 1]")
     import torch
@@ -69,7 +72,7 @@ def play(
         game=game, games=games, seed=seed, starts=starts, camera_width=width, camera_height=height,
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
-        ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name,
+        ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
         meshes_dir=None if meshes is None else str(meshes))
     try:
         with torch.no_grad():

@@ -50,8 +50,10 @@ class RobotPlayConfig:
     camera_width: int = 640
     camera_height: int = 480
     shader: str = "default"
-    #: Simulated seconds between two logged camera frames while the robot moves.
-    robot_frame_period: float = 0.5
+    #: Simulated seconds between two logged camera frames while the robot moves. Rendering is most of a turn's
+    #: cost: 1.0 s gives ~5 frames per move (1.5-1.75 s wall per move on the shared 2-core machine), 0.5 s ~10
+    #: (2.4-3.0 s). The human's turn is watched at `human.frame_period` regardless.
+    robot_frame_period: float = 1.0
     human: HumanConfig = field(default_factory=HumanConfig)
     #: Ultimate: False = as in the paper, the robot points and says its move and the human draws it.
     ultimate_robot_draws: bool = False
