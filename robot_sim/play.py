@@ -183,6 +183,10 @@ class RobotGameRunner:
         """Run the simulated human's move in the scene and return the cell the recogniser reports."""
         started = time.perf_counter()
         record = self._record
+        if self.rules.is_over(self.true_state):
+            # Only after a perception error: the env believes the game goes on, the real one is over.
+            self._diverged = True
+            return int(np.flatnonzero(legal)[0])
         human_mark = 1 if self._robot_mark == 2 else 2
         true_cell = self.human.choose(self.true_state, human_mark)
         kind = MARK_OF_PLAYER["x" if human_mark == 1 else "o"]
@@ -247,7 +251,7 @@ class RobotGameRunner:
             if action in legal:
                 self.true_state = self.rules.play(self.true_state, action)
             else:
-                self._robot_off_board = True  # the robot believed a cell empty that is not: a perception error
+                self._diverged = True  # the robot believed a cell empty that is not: belief and truth diverged
             mark = MarkSpec(action, kind, int(self._mark_rng.integers(2**31)), ROBOT_INK, 0.6,
                             ROBOT_PEN_MM / (1000.0 * self.scene.sheet_side))
             # Where is the sheet now? From the latest frame (people nudge it), else the last estimate.
@@ -291,7 +295,7 @@ class RobotGameRunner:
         self._robot_mark = 1 if robot_first else 2
         self.true_state = self.rules.new()
         self._true_boards: list[str] = []
-        self._robot_off_board = False
+        self._diverged = False
         self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0)
         self._log_frame(self.scene.render(), self.scene.time)
         self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
@@ -314,7 +318,7 @@ class RobotGameRunner:
                 done = bool(td["next", "done"].item())
                 extra = self._episode_extra(record) if done else None
                 self.logger.record_steps(td, phase="robot", agent=cfg.agent_name, seed=seed, env=env, extra=extra)
-            if bool(td["next", "done"].item()) or self._robot_off_board:
+            if bool(td["next", "done"].item()) or self._diverged:
                 break
             td = step_mdp(td)
         record.outcome = self._true_outcome()
@@ -341,7 +345,7 @@ class RobotGameRunner:
         self._record.own_mark_misreads += int(missed)
 
     def _true_outcome(self) -> str:
-        if self._robot_off_board:
+        if self._diverged:
             return "unfinished"
         result = self.rules.outcome(self.true_state)
         if result is None:
