@@ -179,9 +179,8 @@ class AgentOpponent:
     def __init__(self, checkpoint: str, game: str, free_move: str, seed: int) -> None:
         import torch
 
-        from envs import make_env
-        from envs.dialogue import MOVE, USER_ACTS
         from envs.rules import make_game
+        from modules.guided_mcts import TurnFeatures
         from modules.qnet import make_qnet
         from pipelines.checkpoint import load_checkpoint
         from pipelines.config import config_from_dict
@@ -193,21 +192,8 @@ class AgentOpponent:
         self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
         self.qnet.load_state_dict(data["qnet"])
         self.qnet.eval()
-        env = make_env(game, batch_size=(1,), temporal=config.env.temporal, free_move=free_move, seed=seed)
-        names = env.feature_names
-        self.cells = env.cells
-        self.robot_plane = names.index("robot_move[" + "0" * len(str(self.cells - 1)) + "]")
-        self.human_plane = self.robot_plane + self.cells
-        self.time_plane = self.robot_plane + len(names) - self.cells if config.env.temporal else None
-        base = torch.zeros(len(names))
-        model = env.model
-        word_start = names.index(f"word[{model.words[0]}]")
-        move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
-                             key=lambda u: len(model.utterance_texts[u]))
-        base[word_start:word_start + len(model.words)] = torch.maximum(model.template_words[1 + MOVE],
-                                                                       model.utterance_words[move_utterance])
-        self.base = base
-        env.close()
+        self.features = TurnFeatures(game, config.env.temporal, free_move)
+        self.cells = self.features.cells
         self.rules = make_game(game, free_move)
         self.game, self.free_move = game, free_move
         self.generator = torch.Generator().manual_seed(seed)
@@ -218,14 +204,7 @@ class AgentOpponent:
         from envs.opponents.lines import subgrid_owners
 
         rows = boards.shape[0]
-        features = self.base.repeat(rows, 1)
-        features[:, self.robot_plane:self.robot_plane + self.cells] = (boards == player).float()
-        features[:, self.human_plane:self.human_plane + self.cells] = ((boards != 0) & (boards != player)).float()
-        if self.time_plane is not None:
-            times = (boards != 0).float() * 0.5
-            has_last = last_move >= 0
-            times[has_last.nonzero().flatten(), last_move[has_last]] = 1.0
-            features[:, self.time_plane:self.time_plane + self.cells] = times
+        features = self.features.batch(boards, player, last_move)
         with torch.no_grad():
             q = self.qnet.module(features)[:, :self.cells]
         if self.game == "ultimate" and owners is None:

@@ -104,7 +104,7 @@ def test_masks_match_brute_force_on_real_env_positions(game, free_move, plies):
     rules = make_game(game, free_move)
     td = env.reset()
     checked = deep_found = 0
-    for _ in range(110 if game == "ultimate" else 120):
+    for _ in range(80 if game == "ultimate" else 120):
         moves = td["action_mask"][:, :env.cells]
         all_moves = moves.clone()
         found = rule.forced_losses(td, torch.cat([all_moves, torch.zeros_like(td["action_mask"][:, env.cells:])], 1))
@@ -138,3 +138,21 @@ def test_greedy_mask_drops_forced_losses_and_keeps_one_step():
     assert greedy[0].nonzero().flatten().tolist() == [1, 3, 5, 7]
     _, greedy1 = LOOKAHEAD_RULES["k1"].masks_from_tensordict(td)
     assert greedy1[0].nonzero().flatten().tolist() == [1, 2, 3, 5, 6, 7]
+
+
+def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
+    """`agent.lookahead: k3` passes config validation, trains through the Collector and reloads for eval."""
+    from pipelines.config import load_config
+    from pipelines.evaluate import evaluate_agent, load_agent
+    from pipelines.train import train
+    from tests.learning_helpers import write_tiny_config
+
+    config = load_config(write_tiny_config(tmp_path), ["agent.lookahead=k3", "collector.total_frames=128"])
+    assert config.lookahead == "k3"
+    train(config, tmp_path / "run")
+    loaded, policy = load_agent(tmp_path / "run" / "checkpoint.pt")
+    assert policy[1].lookahead == "k3"
+    result = evaluate_agent(loaded, policy, games=20, seat="second", seed=0, opponent="minimax")
+    assert result.games == 20
+    with pytest.raises(ValueError, match="agent.lookahead"):
+        load_config(write_tiny_config(tmp_path), ["agent.lookahead=k9"])
