@@ -27,7 +27,7 @@ NCBOT_TOPICS = (EPISODE_TOPIC, EPISODE_STEPS_TOPIC, STEP_TOPIC, DIALOGUE_TOPIC, 
 #: one columnar message per episode on /episode/steps ("packed"), or not at all ("none").
 STEP_DETAIL_CHOICES = ("per_action", "packed", "none")
 
-PHASES = ("train", "eval", "robot")
+PHASES = ("train", "eval", "robot", "play")
 #: Outcome names from the robot's point of view, indexed by the env's `outcome` code.
 OUTCOMES = ("none", "win", "loss", "draw")
 

@@ -24,7 +24,7 @@ from logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_a
 
 FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
 DEFAULT_MAX_FILE_BYTES = 256 * 2**20
-DEFAULT_STEP_DETAIL = {"train": "packed", "eval": "packed", "robot": "per_action"}
+DEFAULT_STEP_DETAIL = {"train": "packed", "eval": "packed", "robot": "per_action", "play": "per_action"}
 MESSAGE_RECORD_OVERHEAD = 31  # MCAP Message record header: opcode, length, channel, sequence, two times
 
 
@@ -73,7 +73,7 @@ class EpisodeLogger:
     def __init__(self, run_dir: str | os.PathLike, run_info: dict[str, Any] | None = None, *,
                  max_file_bytes: int = DEFAULT_MAX_FILE_BYTES,
                  step_detail: Mapping[str, str] | None = None,
-                 board_image_phases: Iterable[str] = ("robot",),
+                 board_image_phases: Iterable[str] = ("robot", "play"),
                  flush_interval_s: float = 1.0, chunk_bytes: int = 2**20) -> None:
         if max_file_bytes <= 0:
             raise ValueError(f"max_file_bytes must be positive, got {max_file_bytes}")
