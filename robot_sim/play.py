@@ -49,7 +49,6 @@ class RobotPlayConfig:
     free_move: str = "anywhere"
     camera_width: int = 640
     camera_height: int = 480
-    shader: str = "default"
     #: Simulated seconds between two logged camera frames while the robot moves. Rendering is most of a turn's
     #: cost: 1.0 s gives ~5 frames per move (1.5-1.75 s wall per move on the shared 2-core machine), 0.5 s ~10
     #: (2.4-3.0 s). The human's turn is watched at `human.frame_period` regardless.
@@ -280,7 +279,7 @@ class RobotGameRunner:
         cfg = self.config
         seed = cfg.seed * 1000 + index
         self.scene = PepperScene(SceneConfig(game=cfg.game, camera_width=cfg.camera_width,
-                                             camera_height=cfg.camera_height, shader=cfg.shader,
+                                             camera_height=cfg.camera_height,
                                              meshes_dir=cfg.meshes_dir))
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)

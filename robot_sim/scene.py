@@ -47,8 +47,6 @@ class SceneConfig:
     physics_hz: int = 200
     #: Optional folder of licensed Pepper meshes (<Link>.dae ...) replacing the primitive visuals.
     meshes_dir: str | None = None
-    #: "default" (lit colour) or "minimal" (colour only, faster).
-    shader: str = "default"
     home_qpos: dict[str, float] = field(default_factory=dict)
 
     def resolved_sheet_side(self) -> float:
@@ -73,13 +71,7 @@ class PepperScene:
         self.grid = check_game(self.config.game)
         if self.config.camera_width < 32 or self.config.camera_height < 24:
             raise ValueError(f"camera must be at least 32x24 pixels; got {self.config.camera_width}x{self.config.camera_height}")
-        if self.config.shader not in ("default", "minimal"):
-            raise ValueError(f"shader must be 'default' or 'minimal'; got {self.config.shader!r}")
         render_system = get_render_system()
-        if self.config.shader == "minimal":
-            sapien.render.set_camera_shader_dir("minimal")
-        else:
-            sapien.render.set_camera_shader_dir("default")
         self.scene = sapien.Scene([sapien.physx.PhysxCpuSystem(), render_system])
         self.scene.set_timestep(1.0 / self.config.physics_hz)
         self.scene.set_ambient_light([0.45, 0.45, 0.45])
