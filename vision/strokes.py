@@ -45,7 +45,7 @@ def _pressure_widths(n: int, width: float, rng: np.random.Generator) -> np.ndarr
 
 def _pen_nought(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
     radius = 0.5 * size * rng.uniform(0.72, 1.0)
-    aspect = rng.uniform(0.62, 1.12)
+    aspect = rng.uniform(0.5, 1.15)
     tilt = rng.uniform(0, np.pi)
     start = rng.uniform(0, 2 * np.pi)
     sweep = 2 * np.pi * rng.choice([rng.uniform(0.80, 0.97), rng.uniform(0.97, 1.08), rng.uniform(1.08, 1.35)])
@@ -166,8 +166,8 @@ def mark_strokes(kind: str, size: float, rng: np.random.Generator, width: float 
     """Strokes of one mark centred on (0, 0), in drawing order (not for style "hershey")."""
     if kind not in MARK_KINDS:
         raise ValueError(f"mark kind {kind!r} is unknown; expected one of {MARK_KINDS}")
-    if width is None:
-        width = max(1.0, size * rng.uniform(0.035, 0.10))
+    if width is None:  # mostly ballpoint; sometimes a felt-tip, which makes a small mark nearly a blob
+        width = max(1.0, size * (rng.uniform(0.035, 0.10) if rng.random() < 0.85 else rng.uniform(0.10, 0.16)))
     if style == "pen":
         return _pen_nought(size, width, rng) if kind == "nought" else _pen_cross(size, width, rng)
     if style == "sketch":

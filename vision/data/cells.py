@@ -85,7 +85,7 @@ def render_cell(label: int, rng: np.random.Generator, noisy: bool = False, style
     if label != NOTHING:
         spread = 0.16 if noisy else 0.05
         centre = side * (0.5 + rng.uniform(-spread, spread, 2))
-        size = side * rng.uniform(0.45, 0.85)
+        size = side * (rng.uniform(0.45, 0.85) if rng.random() < 0.85 else rng.uniform(0.3, 0.45))
         draw_mark(img, LABELS[label], tuple(centre), size, rng, ink=_gray_ink(rng), style=style)
     elif noisy and rng.random() < 0.25:
         cv2.circle(img, tuple(int(v) for v in rng.uniform(0.2, 0.8, 2) * side), int(rng.integers(1, 4)),

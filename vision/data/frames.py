@@ -82,7 +82,7 @@ class Scene:
             row, col = divmod(cell, self.grid)
             jitter = rng.uniform(-0.1, 0.1, 2) * step
             center = (left + (col + 0.5) * step + jitter[0], top + (row + 0.5) * step + jitter[1])
-            self.marks[key] = Mark(SYMBOL_KIND[symbol], center, step * rng.uniform(0.45, 0.78),
+            self.marks[key] = Mark(SYMBOL_KIND[symbol], center, step * (rng.uniform(0.45, 0.78) if rng.random() < 0.85 else rng.uniform(0.32, 0.45)),
                                    self.inks[symbol == "x"], int(rng.integers(2**31)),
                                    self.styles[int(rng.integers(len(self.styles)))])
         return self.marks[key]
