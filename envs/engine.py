@@ -126,15 +126,15 @@ class _Engine:
         raise ValueError("Ultimate states depend on the order of play (subgrid owners): build them with new() and play()")
 
     @staticmethod
-    def _place(state: Boards, cells: torch.Tensor, player: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
-        """Put ``player``'s mark on ``cells`` in the ``active`` rows; returns the clamped cell index (B,)."""
-        cells = torch.where(active, cells, torch.zeros_like(cells))
+    def _place(state: Boards, cells: torch.Tensor, mark: torch.Tensor, active: torch.Tensor) -> torch.Tensor:
+        """Put ``mark`` (B,) int64, 0 in the inactive rows, on ``cells`` of the ``active`` rows; returns the
+        clamped cell index (B,). Adds rather than overwrites (the squares are empty: moves are legal), which
+        spares reading the old values: inactive rows add 0 to their square 0."""
+        cells = torch.where(active, cells, 0)
         index = cells.unsqueeze(1)
-        old = state.board.gather(1, index)
-        state.board.scatter_(1, index, torch.where(active.unsqueeze(1), player.unsqueeze(1).to(torch.int8), old))
-        state.n_marks += active.long()
-        old_order = state.move_order.gather(1, index)
-        state.move_order.scatter_(1, index, torch.where(active.unsqueeze(1), state.n_marks.unsqueeze(1), old_order))
+        state.board.scatter_add_(1, index, mark.to(torch.int8).unsqueeze(1))
+        state.n_marks += active
+        state.move_order.scatter_add_(1, index, (state.n_marks * active).unsqueeze(1))
         state.last_move = torch.where(active, cells, state.last_move)
         return cells
 
@@ -203,9 +203,9 @@ class StandardEngine(_Engine):
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         if active is None:
             active = torch.ones_like(cells, dtype=torch.bool)
-        player = self._as_player(player, cells)
-        cells = self._place(state, cells, player, active)
-        state.codes[:, 0] += active.long() * player * self.pow3.index_select(0, cells)
+        mark = active * player  # (B,) int64: the player's mark in the active rows, 0 elsewhere
+        cells = self._place(state, cells, mark, active)
+        state.codes[:, 0] += mark * self.pow3.index_select(0, cells)
         self._update_outcome(state)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
@@ -281,9 +281,10 @@ class UltimateEngine(_Engine):
         if active is None:
             active = torch.ones_like(cells, dtype=torch.bool)
         player = self._as_player(player, cells)
-        cells = self._place(state, cells, player, active)
+        mark = active * player
+        cells = self._place(state, cells, mark, active)
         sub = self.subgrid_of.index_select(0, cells).unsqueeze(1)
-        code = state.codes.gather(1, sub).squeeze(1) + active.long() * player * self.cell_pow3.index_select(0, cells)
+        code = state.codes.gather(1, sub).squeeze(1) + mark * self.cell_pow3.index_select(0, cells)
         state.codes.scatter_(1, sub, code.unsqueeze(1))
         owner = state.owners.gather(1, sub).squeeze(1)
         deciding = active & (owner == 0)
