@@ -117,7 +117,11 @@ class DialogueGameEnv(EnvBase):
         width = max(1, int(words.sum(1).max()))
         order = torch.sort(words.to(torch.uint8), dim=1, descending=True, stable=True).indices[:, :width]
         present = torch.arange(width).unsqueeze(0) < words.sum(1, keepdim=True)
-        self._utterance_word_columns = torch.where(present, order, len(model.words))
+        # user words live in columns C.. of a (B, C + V) block whose first C (command) columns stay 0, so one
+        # maximum with the robot's last act's commands + words row gives the whole tail of the observation
+        n_commands = model.template_commands.shape[1]
+        self._utterance_word_columns = torch.where(present, order + n_commands, n_commands + len(model.words))
+        self._system_features = torch.cat([model.template_commands, model.template_words], dim=1)
         allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
         self._filter_table = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1).contiguous()
 
@@ -181,7 +185,7 @@ class DialogueGameEnv(EnvBase):
         self.d.user_act = torch.full((batch,), -1, dtype=torch.int64)
         self.d.user_move = torch.full((batch,), -1, dtype=torch.int64)
         self.d.user_utterance = torch.full((batch,), -1, dtype=torch.int64)
-        self.d.user_words = torch.zeros(batch, len(self.model.words))
+        self.d.user_words = torch.zeros(batch, self._system_features.shape[1])
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone())
@@ -238,12 +242,11 @@ class DialogueGameEnv(EnvBase):
         self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
 
     def _observation(self) -> torch.Tensor:
-        boards, model = self.boards, self.model
-        last_sys = self.d.last_sys
-        words = torch.maximum(model.template_words.index_select(0, last_sys), self.d.user_words)
-        parts = [(boards.board == ROBOT).float(), (boards.board == USER).float(), model.template_commands.index_select(0, last_sys), words]
+        boards = self.boards
+        commands_and_words = torch.maximum(self._system_features.index_select(0, self.d.last_sys), self.d.user_words)
+        parts = [boards.board == ROBOT, boards.board == USER, commands_and_words]  # torch.cat promotes to float
         if self.temporal:
-            parts.append(boards.move_order.float() / boards.n_marks.clamp(min=1).unsqueeze(1).float())
+            parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)
 
     def _output(self, reward: torch.Tensor | None = None) -> TensorDict:
@@ -387,7 +390,7 @@ class DialogueGameEnv(EnvBase):
 
         columns = self._utterance_word_columns.index_select(0, utterance)
         confidence = torch.rand(columns.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
-        heard = torch.zeros(columns.shape[0], len(self.words) + 1).scatter_(1, columns, confidence)[:, :-1]
+        heard = torch.zeros(columns.shape[0], self.d.user_words.shape[1] + 1).scatter_(1, columns, confidence)[:, :-1]
         self.d.user_words = torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
         utterance = torch.where(utterance == silence, -1, utterance)
         self.d.last_sys = torch.where(accepted, act_type + 1, self.d.last_sys)
@@ -450,7 +453,7 @@ class _Dialogues:
     user_act: torch.Tensor  # (B,) the user's act in the last step (-1 none)
     user_move: torch.Tensor  # (B,) the user's square in the last step (-1 none)
     user_utterance: torch.Tensor  # (B,) id of the user's utterance in the last step (-1 none)
-    user_words: torch.Tensor  # (B, V) ASR confidence of each word of that utterance
+    user_words: torch.Tensor  # (B, C + V) ASR confidence of each word of that utterance (columns C..; 0 for the C commands)
     mask: torch.Tensor  # (B, A) action_mask
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
