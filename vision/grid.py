@@ -45,9 +45,9 @@ class PageReading(PageCells):
     probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (n*n, 3), order LABELS
 
 
-def _line_mask(ink: np.ndarray, length: int, horizontal: bool) -> np.ndarray:
+def _line_mask(ink: np.ndarray, length: int, horizontal: bool, thicken: int = 3) -> np.ndarray:
     """Ink that forms straight lines at least `length` long (thickened across so slight tilts survive)."""
-    across = np.ones((3, 1) if horizontal else (1, 3), np.uint8)
+    across = np.ones((thicken, 1) if horizontal else (1, thicken), np.uint8)
     along = np.ones((1, length) if horizontal else (length, 1), np.uint8)
     return cv2.morphologyEx(cv2.dilate(ink, across), cv2.MORPH_OPEN, along)
 
@@ -98,8 +98,9 @@ def locate_grid(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarra
     side = page_gray.shape[0]
     ink = _ink(page_gray, side // 12)
     min_length = side / 5
-    horizontal = _line_mask(ink, int(min_length), True)
-    vertical = _line_mask(ink, int(min_length), False)
+    thicken = max(3, side // 50) | 1  # hand-drawn grid lines slant and bow by a few pixels
+    horizontal = _line_mask(ink, int(min_length), True, thicken)
+    vertical = _line_mask(ink, int(min_length), False, thicken)
     rows, x0, x1 = _lines(horizontal, min_length)
     cols, y0, y1 = _lines(vertical.T, min_length)
     if not rows or not cols or x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
