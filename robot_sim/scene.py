@@ -20,6 +20,8 @@ from robot_sim.sheet import SheetCanvas
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
 SKIN = [0.87, 0.68, 0.56, 1.0]
+#: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.
+SHEET_MARGIN = 0.03
 SLEEVE = [0.25, 0.32, 0.45, 1.0]
 
 
@@ -120,7 +122,7 @@ class PepperScene:
         # A plane faces +x; turn it to face up (+z), scaled to the sheet.
         builder.add_plane_visual(sapien.Pose(q=[0.7071068, 0.0, -0.7071068, 0.0]), [1.0, side / 2, side / 2], material)
         self.sheet = builder.build_kinematic(name="sheet")
-        self.sheet_home_pose = sapien.Pose([self.config.table_edge_x + 0.01 + side / 2, 0.0, self.config.table_height + 0.0008])
+        self.sheet_home_pose = sapien.Pose([self.config.table_edge_x + SHEET_MARGIN + side / 2, 0.0, self.config.table_height + 0.0008])
         self.sheet.set_pose(self.sheet_home_pose)
         self._uploaded_version = self.canvas.version
 
