@@ -303,17 +303,24 @@ class DialogueGameEnv(EnvBase):
             return tensordict_reset
         reset = tensordict.pop("_reset", None)
         emitted = set(tensordict_reset.keys())
-        others = [key for key in tensordict.keys() if key not in emitted]
+        others = [key for key in tensordict.keys() if key not in emitted]  # e.g. "action", a policy's outputs
+        padded: dict[str, Any] = {}
         if others and reset is not None and not bool(reset.all()):
             keep = ~reset.reshape(self.batch_size)
-            padded = tensordict.select(*others).where(keep, tensordict_reset.select(), pad=0)
-            tensordict_reset.update(padded)
+            for key in others:
+                value = tensordict.get(key)
+                if isinstance(value, torch.Tensor):
+                    condition = keep.reshape(keep.shape + (1,) * (value.ndim - keep.ndim))
+                    padded[key] = torch.where(condition, value, torch.zeros((), dtype=value.dtype))
+                else:  # a nested TensorDict: TorchRL's own padding
+                    padded[key] = value.where(keep, value.empty(), pad=0)
         if type(tensordict) is TensorDict and not tensordict.is_locked and tensordict.batch_size == self.batch_size:
             # a plain dict update: every value was built by the env with this batch size and device, so the
             # per-key validation of TensorDict.update (~40 µs a key) has nothing to find
             tensordict._tensordict.update(tensordict_reset._tensordict)
+            tensordict._tensordict.update(padded)
             return tensordict
-        return tensordict.update(tensordict_reset)
+        return tensordict.update(tensordict_reset).update(padded)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
