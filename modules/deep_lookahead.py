@@ -14,7 +14,7 @@ the observation (time[c] = move number / marks) and owners are exact; without th
 and the rare two-line subgrid is credited to the robot (as ``envs.opponents.lines`` does).
 
 The search runs on the opponents' bitboards (``envs.opponents.bitboards``), one Python search per game that needs
-it: games whose set A is already a win, or with at most one safe move, skip it. Exactness is tested against a
+it: games with at most one safe move skip it. Exactness is tested against a
 brute-force search over ``envs.rules`` (tests/test_deep_lookahead.py); cost per decision: bench/lookahead_cost.py.
 
 Rule names: ``k1`` .. ``k5`` assume the paper's ``free_move="anywhere"``; ``k1_open`` .. ``k5_open`` the
@@ -131,8 +131,10 @@ class KStepLookahead:
     """Mask rule ``kN``: the paper's Algorithm 2 with A_hat extended by an exact N-ply forced-loss search.
 
     ``explore_mask`` is the paper's set A (as in ``one_step``); ``greedy_mask`` is A minus the one-step A_hat minus
-    the moves that lose by force within N plies, falling back to the one-step mask when every move loses by force
-    (then the robot at least avoids immediate losses) and to A when even that is empty.
+    the moves that lose by force within N plies. The env's A also holds "about to win" moves (making a threat earns
+    +5), and a threat can lead into a forced loss; when every move of A does, the greedy mask takes the other
+    available moves that survive the search, then falls back to the one-step mask (the robot at least avoids
+    immediate losses) and to A.
     """
 
     needs_tensordict = True
@@ -152,9 +154,12 @@ class KStepLookahead:
     def masks_from_tensordict(self, td: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
         available, reward, winning = td.get(AVAILABLE_KEY), td.get(LOOKAHEAD_REWARD_KEY), td.get(WINNING_KEY)
         set_a = _nonempty_or(winning & available, available)
-        one_step = _nonempty_or(set_a & ~(reward < 0), set_a)
-        deep = self.forced_losses(td, one_step)
-        return set_a, _nonempty_or(one_step & ~deep, one_step)
+        safe_now = available & ~(reward < 0)  # available minus the one-step A_hat
+        deep = self.forced_losses(td, safe_now)
+        # The env's set A holds "about to win" moves (a threat earns +5), and a threat can walk into a forced
+        # loss: then the greedy choice may leave A for a move that survives the deeper search.
+        greedy = _nonempty_or(set_a & safe_now & ~deep, safe_now & ~deep)
+        return set_a, _nonempty_or(greedy, _nonempty_or(set_a & safe_now, set_a))
 
     def forced_losses(self, td: TensorDictBase, candidates: torch.Tensor) -> torch.Tensor:
         """(B, A) bool: candidate game moves after which the user forces a win within k plies."""
@@ -167,7 +172,7 @@ class KStepLookahead:
         if self.plies < 3 or cells not in self.engines:  # k1/k2: the env's one-step reward already says it all
             return out.reshape(*batch_shape, -1)
         moves = candidates[:, :cells]
-        rows = ((moves.sum(-1) >= 2) & (td.get(WINNING_KEY).reshape(moves.shape[0], -1)[:, :cells].sum(-1) == 0)).nonzero()
+        rows = (moves.sum(-1) >= 2).nonzero()  # one candidate: nothing to choose
         if rows.numel() == 0:
             return out.reshape(*batch_shape, -1)
         order = move_order(td.get("observation", None), boards) if cells == 81 else None

@@ -152,7 +152,10 @@ class LookaheadOnlyPolicy:
         self.generator = torch.Generator().manual_seed(seed)
 
     def __call__(self, td):
-        _, greedy = self.rule(td.get("action_mask"), td.get("lookahead_reward"), td.get("winning_actions"))
+        if getattr(self.rule, "needs_tensordict", False):  # k-step rules read the board (modules.deep_lookahead)
+            _, greedy = self.rule.masks_from_tensordict(td)
+        else:
+            _, greedy = self.rule(td.get("action_mask"), td.get("lookahead_reward"), td.get("winning_actions"))
         td.set("action", (torch.rand(greedy.shape, generator=self.generator) + greedy).argmax(-1))
         return td
 

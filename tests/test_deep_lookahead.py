@@ -114,14 +114,35 @@ def test_masks_match_brute_force_on_real_env_positions(game, free_move, plies):
             if len(legal) > 9:  # brute force on a free Ultimate root costs minutes; deeper free moves still occur
                 continue
             assert sorted(legal) == rules.legal(state)
-            expected = brute_losing(rules, state, legal, plies) if int(td["winning_actions"][row, :env.cells].sum()) == 0 \
-                and len(legal) >= 2 else set()
+            expected = brute_losing(rules, state, legal, plies) if len(legal) >= 2 else set()
             assert set(found[row, :env.cells].nonzero().flatten().tolist()) == expected, (row, state)
             checked += 1
             deep_found += bool(expected)
         td = env.step(env.rand_action(td))["next"]
         td = env.reset(td.set("_reset", td["done"])) if bool(td["done"].any()) else td
     assert checked > 40 and deep_found > 0, (checked, deep_found)
+
+
+def test_a_threat_that_walks_into_a_fork_is_dropped():
+    """Human on a1 and b3, robot in the centre: c1/a2/c2/a3 make threats (+5, the env's set A) but c1 lets the
+    human block with a fork; k3 keeps the other threats, and leaves A only if every threat loses by force."""
+    env = make_env("standard", batch_size=(1,), temporal=True, seed=0)
+    td = env.reset()
+    board = torch.tensor([[2, 0, 0, 0, 1, 0, 0, 2, 0]], dtype=torch.int8)
+    mask = torch.zeros(1, env.n_actions, dtype=torch.bool)
+    mask[0, :9] = board[0] == 0
+    threats = torch.zeros_like(mask)
+    threats[0, [2, 3, 5, 6]] = True
+    td.update({"board": board, "action_mask": mask, "winning_actions": threats,
+               "lookahead_reward": torch.where(threats, 5.0, torch.where(mask, 0.0, -5.0))})
+    explore, greedy = LOOKAHEAD_RULES["k3"].masks_from_tensordict(td)
+    assert explore[0].nonzero().flatten().tolist() == [2, 3, 5, 6]
+    assert greedy[0].nonzero().flatten().tolist() == [3, 5, 6]
+    only_bad = threats.clone()
+    only_bad[0, [3, 5, 6]] = False  # pretend c1 were the only threat: the greedy choice leaves A
+    td.update({"winning_actions": only_bad, "lookahead_reward": torch.where(only_bad, 5.0, torch.where(mask, 0.0, -5.0))})
+    _, greedy = LOOKAHEAD_RULES["k3"].masks_from_tensordict(td)
+    assert greedy[0].nonzero().flatten().tolist() == [3, 5, 6, 8]
 
 
 def test_greedy_mask_drops_forced_losses_and_keeps_one_step():
@@ -156,3 +177,16 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
     assert result.games == 20
     with pytest.raises(ValueError, match="agent.lookahead"):
         load_config(write_tiny_config(tmp_path), ["agent.lookahead=k9"])
+
+
+def test_lookahead_only_baseline_accepts_k_rules():
+    """`ncbot ladder --baseline` / `ncbot play` without a checkpoint: the masks alone, k5 included."""
+    from pipelines.play import LookaheadOnlyPolicy
+
+    env = make_env("standard", batch_size=(16,), seed=0, starts="human", opponent="minimax")
+    policy = LookaheadOnlyPolicy(0, "k5")
+    td = env.reset()
+    for _ in range(30):
+        td = env.step(policy(td))["next"]
+        td = env.reset(td.set("_reset", td["done"])) if bool(td["done"].any()) else td
+        assert not bool((td["outcome"] == 2).any())  # 5 plies see every trap of 3x3: never loses to minimax
