@@ -235,10 +235,13 @@ class DialogueGameEnv(EnvBase):
         dialogue_mask = self._filter_table.index_select(0, self._context())  # (B, A): moves = "GameMove allowed"
         legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
         mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
-        lookahead = torch.where(mask, 0.0, ILLEGAL_ACT_REWARD)
         can_move = legal.any(1)
         if bool(can_move.any()):
-            lookahead[:, :cells] = torch.where(legal, self.engine.move_rewards(self.boards, ROBOT, can_move), ILLEGAL_ACT_REWARD)
+            # moves' rewards padded with 0 for the other acts: allowed entries keep them, the rest get -5
+            rewards = torch.nn.functional.pad(self.engine.move_rewards(self.boards, ROBOT, can_move), (0, self.n_actions - cells))
+            lookahead = torch.where(mask, rewards, ILLEGAL_ACT_REWARD)
+        else:
+            lookahead = torch.where(mask, 0.0, ILLEGAL_ACT_REWARD)
         self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
 
     def _observation(self) -> torch.Tensor:
@@ -472,11 +475,11 @@ def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tens
     Why not ``(rand(B, n) + mask).argmax``: torch.rand costs ~10 ns per number, so one number per row
     and the k-th True column (k = floor(u * count), via a cumulative sum) is several times faster.
     """
-    counts = mask.to(torch.int32).cumsum_(1)
+    counts = mask.cumsum(1, dtype=torch.int32)  # non-decreasing rows: searchsorted finds the k-th True
     total = counts[:, -1:]
     k = (torch.rand(total.shape, generator=generator) * total).to(torch.int32)
     k = torch.minimum(k, total - 1)  # u * count may round up to count in float32
-    return (counts > k).to(torch.uint8).argmax(1)
+    return torch.searchsorted(counts, k, right=True).squeeze(1)
 
 
 def _check_batch(batch_size: Any) -> int:

@@ -209,10 +209,19 @@ class StandardEngine(_Engine):
         self._update_outcome(state)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
-        code = state.codes[:, :1]  # (B, 1)
-        after = torch.where(state.board == 0, code + player * self.pow3, code)  # (B, 9): code after each move
-        dead_before = lookup(self.tables.dead, code).long() * 3**9
-        return lookup(self._reward_table()[player], after + dead_before)
+        return self._move_reward_rows(player).index_select(0, state.codes[:, 0])
+
+    @staticmethod
+    @lru_cache(maxsize=2)
+    def _move_reward_rows(player: int) -> torch.Tensor:
+        """(3^9, 9) float32: row c holds the reward of ``player`` taking each square of the board with code c
+        (one gather per step instead of ~8 ops; taken squares hold meaningless values)."""
+        code = torch.arange(3**9).unsqueeze(1)  # (N, 1)
+        pow3 = 3 ** torch.arange(9)
+        empty = (code // pow3) % 3 == 0
+        after = torch.where(empty, code + player * pow3, code)  # (N, 9): code after each move
+        dead_before = lookup(grid_tables(3).dead, code).long() * 3**9
+        return lookup(StandardEngine._reward_table()[player], after + dead_before).contiguous()
 
     @staticmethod
     @lru_cache(maxsize=1)
