@@ -328,13 +328,15 @@ class DialogueGameEnv(EnvBase):
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
         boards, column = self.boards, rows.unsqueeze(1)
-        for name, value in (("board", 0), ("codes", 0), ("owners", 0), ("move_order", 0)):
-            setattr(boards, name, getattr(boards, name).masked_fill(column, value))
-        boards.last_move = boards.last_move.masked_fill(rows, -1)
-        boards.n_marks = boards.n_marks.masked_fill(rows, 0)
-        boards.outcome = boards.outcome.masked_fill(rows, 0)
-        self.d.agreed = self.d.agreed & ~rows
-        self.d.closed = self.d.closed & ~rows
+        # in place: the engine's tensors never leave the env (outputs copy them), so nobody else holds them
+        for grid in (boards.board, boards.codes, boards.owners, boards.move_order):
+            grid.masked_fill_(column, 0)
+        boards.last_move.masked_fill_(rows, -1)
+        boards.n_marks.masked_fill_(rows, 0)
+        boards.outcome.masked_fill_(rows, 0)
+        kept = ~rows
+        self.d.agreed = self.d.agreed & kept
+        self.d.closed = self.d.closed & kept
         self.d.last_sys = self.d.last_sys.masked_fill(rows, 0)
         self.d.last_user = self.d.last_user.masked_fill(rows, 0)
         self.d.turn = self.d.turn.masked_fill(rows, 0)
@@ -343,14 +345,15 @@ class DialogueGameEnv(EnvBase):
         self.d.user_utterance = self.d.user_utterance.masked_fill(rows, -1)
         self.d.user_words = self.d.user_words.masked_fill(column, 0.0)
         if self.starts == "robot":
-            first = torch.ones_like(rows)
+            self.d.robot_first = self.d.robot_first | rows
         elif self.starts == "human":
-            first = torch.zeros_like(rows)
-        elif self.starts == "alternate":
-            first = self.d.episodes % 2 == 0
+            self.d.robot_first = self.d.robot_first & kept
         else:
-            first = torch.rand(rows.shape, generator=self._rng) < 0.5
-        self.d.robot_first = torch.where(rows, first, self.d.robot_first)
+            if self.starts == "alternate":
+                first = self.d.episodes % 2 == 0
+            else:
+                first = torch.rand(rows.shape, generator=self._rng) < 0.5
+            self.d.robot_first = torch.where(rows, first, self.d.robot_first)
         self.d.episodes = self.d.episodes + rows.long()
         mask, dialogue_mask, lookahead = self._fresh_rows
         self.d.mask = torch.where(column, mask, self.d.mask)
