@@ -364,19 +364,22 @@ class DialogueGameEnv(EnvBase):
         action = tensordict.get("action").reshape(-1).long()
         if action.shape[0] != self.batch_size[0]:
             raise ValueError(f"action must hold {self.batch_size[0]} entries (one per game), got shape {tuple(tensordict.get('action').shape)}")
-        out_of_range = (action < 0) | (action >= self.n_actions)
-        if bool(out_of_range.any()):
+        try:  # the table read doubles as the range check (index_select refuses indices outside the table)
+            act_type = self._act_type.index_select(0, action)
+        except IndexError:
+            out_of_range = (action < 0) | (action >= self.n_actions)
             self._check_action_index(int(action[out_of_range][0]))
+            raise
         index = action.unsqueeze(1)
         accepted = self.d.mask.gather(1, index).squeeze(1)
         reward = self.d.lookahead.gather(1, index)
-        act_type = self._act_type.index_select(0, action)
+        done_type = torch.where(accepted, act_type, -1)  # the act type where the act was accepted, else -1
 
-        robot_moves = accepted & (act_type == dlg.MOVE)
+        robot_moves = done_type == dlg.MOVE
         if bool(robot_moves.any()):
             self.engine.play(self.boards, action, ROBOT, robot_moves)
-        self.d.agreed = self.d.agreed | (accepted & (act_type == dlg.REPLY_YES))
-        self.d.closed = self.d.closed | (accepted & (act_type == dlg.CLOSING))
+        self.d.agreed = self.d.agreed | (done_type == dlg.REPLY_YES)
+        self.d.closed = self.d.closed | (done_type == dlg.CLOSING)
 
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
         silence = self._silence
@@ -399,7 +402,7 @@ class DialogueGameEnv(EnvBase):
         silent = (user_act == dlg.USER_MOVE) & ~user_moves
         utterance = torch.where(silent, silence, utterance)
         user_act = torch.where(silent, -1, user_act)
-        self.d.agreed = self.d.agreed | (accepted & (act_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES))
+        self.d.agreed = self.d.agreed | ((done_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES))
 
         columns = self._utterance_word_columns.index_select(0, utterance)
         confidence = torch.rand(columns.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
