@@ -344,7 +344,7 @@ class UltimateEngine(_Engine):
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
         """See ``_Engine.move_rewards``. Only squares that can be legal are evaluated, one subgrid (9 squares) per
-        row: a game sent to an open subgrid is one row, a free game becomes 9 rows (one per subgrid). With
+        row: a game sent to an open subgrid is one row, a free game one row per subgrid it may play in. With
         ``active`` (B,) bool, only those games are evaluated (the others' entries are meaningless): the env
         passes the games where the robot has a legal move."""
         forced = self._forced(state)
@@ -353,9 +353,13 @@ class UltimateEngine(_Engine):
         if active is not None:
             forced, free = forced & active, free & active
         forced_rows = forced.nonzero().squeeze(1)
-        free_rows = free.nonzero().squeeze(1)
-        rows = torch.cat([forced_rows, free_rows.repeat_interleave(9)])
-        subs = torch.cat([target.index_select(0, forced_rows), self.positions.squeeze(0).repeat(free_rows.numel())])
+        # a free game: one row per subgrid that can hold a legal square (not full; open_subgrids: undecided)
+        playable = ~lookup(self.tables.full, state.codes)
+        if self.free_move == "open_subgrids":
+            playable = playable & (state.owners == 0)
+        free_rows, free_subs = (free.unsqueeze(1) & playable).nonzero().unbind(1)
+        rows = torch.cat([forced_rows, free_rows])
+        subs = torch.cat([target.index_select(0, forced_rows), free_subs])
         cells = self.subgrid_cells.index_select(0, subs)  # (N, 9)
         rewards = torch.full((state.board.shape[0] * 81,), REWARD_LOSE)
         rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state, player, rows, subs, cells).reshape(-1))
