@@ -97,9 +97,14 @@ class SimulatedHuman:
         self.scene.step(self.config.frame_period)
         sink(self.scene.render(), self.scene.time)
 
-    def draw(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int] = HUMAN_INK) -> MarkSpec:
-        """Act out drawing `kind` in `cell`, sending every rendered frame to `sink`; returns the mark drawn."""
+    def draw(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int] = HUMAN_INK,
+             drawing_frames: int | None = None) -> MarkSpec:
+        """Act out drawing `kind` in `cell`, sending every rendered frame to `sink`; returns the mark drawn.
+
+        `drawing_frames` overrides how many frames the pen-down part is rendered over (config default).
+        """
         cfg = self.config
+        drawing_frames = drawing_frames or cfg.drawing_frames
         scene = self.scene
         sheet_mm = 1000.0 * self.scene.sheet_side
         mark = MarkSpec(cell, kind, int(self.rng.integers(2**31)), ink, float(self.rng.uniform(cfg.mark_size[0], cfg.mark_size[1])),
@@ -113,8 +118,8 @@ class SimulatedHuman:
             for lift, back in ((0.20, 0.18), (0.05, 0.04)):  # reach in from the far side, then over the cell
                 scene.place_human_arm(start + np.array([back, 0.0, 0.0]), lift=lift, yaw=yaw)
                 self._frame(sink)
-        for k in range(1, cfg.drawing_frames + 1):
-            progress = k / cfg.drawing_frames
+        for k in range(1, drawing_frames + 1):
+            progress = k / drawing_frames
             scene.canvas.draw(mark, progress)
             if cfg.show_arm:
                 scene.place_human_arm(self._pen_point(mark, progress), lift=0.002, yaw=yaw)
@@ -130,5 +135,9 @@ class SimulatedHuman:
         return mark
 
     def draw_for_robot(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int]) -> MarkSpec:
-        """Ultimate game as in the paper: the robot says its move and the human draws it for the robot."""
-        return self.draw(cell, kind, sink, ink=ink)
+        """Ultimate game as in the paper: the robot says its move and the human draws it for the robot.
+
+        The robot knows this move (it chose it), so the drawing is only logged, over fewer frames; the robot's
+        look at the sheet afterwards checks the mark landed.
+        """
+        return self.draw(cell, kind, sink, ink=ink, drawing_frames=2)
