@@ -121,7 +121,7 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
 
 @vision_app.command("eval")
 def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
-             what: str = typer.Option("paper,cells,reading", help="Comma list of: paper, cells, reading."),
+             what: str = typer.Option("paper,cells,reading,recogniser", help="Comma list of: paper, cells, reading, recogniser."),
              frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading'."),
              weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
              loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
@@ -129,16 +129,16 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
     from vision import experiments as ex
 
     parts = [p.strip() for p in what.split(",") if p.strip()]
-    unknown = set(parts) - {"paper", "cells", "reading"}
+    unknown = set(parts) - {"paper", "cells", "reading", "recogniser"}
     if unknown or not parts:
-        raise ValueError(f"--what takes a comma list of paper, cells, reading; got {what!r}")
+        raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser; got {what!r}")
     _setup_threads()
     written = []
     if "paper" in parts:
         results = ex.paper_experiments(progress=True, loo_folds=loo_folds)
         written += ex.write_report(results, out, "paper_experiments")
         typer.echo(ex.markdown(results))
-    classifier = _classifier(weights) if {"cells", "reading"} & set(parts) else None
+    classifier = _classifier(weights) if {"cells", "reading", "recogniser"} & set(parts) else None
     if "cells" in parts:
         results = ex.heldout_cells(classifier)
         written += ex.write_report(results, out, "heldout_cells")
@@ -148,6 +148,14 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
                    for grid in (3, 9) for styles in (("pen",), ("sketch", "hershey"))]
         written += ex.write_report(results, out, "reading")
         typer.echo(ex.markdown(results))
+    if "recogniser" in parts:
+        rows = [ex.recogniser_sequences(grid, n, classifier=classifier, progress=True) for grid, n in ((3, frames), (9, max(1, frames // 4)))]
+        path = out / "recogniser.json"
+        out.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(rows, indent=1))
+        written.append(path)
+        for row in rows:
+            typer.echo(json.dumps(row))
     typer.echo("wrote " + ", ".join(str(p) for p in written))
 
 

@@ -22,6 +22,7 @@ PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)
 CELL_INSET = 0.07              # fraction of a cell trimmed on each side (grid-line remnants)
 FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
+CHROMA_DISTANCE = 12.0         # Lab a/b distance from the page's median colour that counts as "not paper"
 OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
 
 
@@ -32,6 +33,7 @@ class PageCells:
     cell_images: np.ndarray        # (n*n, 40, 40) uint8: exactly what the CNN sees
     occluded: np.ndarray           # (n*n,) bool: a hand/arm covers part of the cell
     hand_fraction: float           # fraction of the page under large non-paper blobs (hand, arm, shadow)
+    edge_fraction: float           # fraction of the page's rim that is not paper (a hand over the edge)
     page_corners: np.ndarray       # (4, 2) frame pixels, TL TR BR BL
     grid_corners: np.ndarray       # (4, 2) frame pixels of the grid square
     grid_image: np.ndarray         # (n*rho, n*rho) gray grid warp with the grid lines removed
@@ -120,9 +122,22 @@ def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
     return out
 
 
-def _foreign(paper_mask_page: np.ndarray, grid: int) -> np.ndarray:
-    """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin."""
+def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int) -> tuple[np.ndarray, float]:
+    """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin.
+
+    Non-paper = outside the paper mask, or off the page's own median colour in Lab chroma: pale skin in
+    bright light is nearly as white as paper but never as grey (the light's tint shifts paper and skin alike).
+    """
     side = paper_mask_page.shape[0]
+    lab = cv2.cvtColor(page_bgr, cv2.COLOR_BGR2LAB).astype(np.float32)
+    chroma = lab[:, :, 1:] - np.median(lab[:, :, 1:].reshape(-1, 2), axis=0)
+    coloured = np.hypot(chroma[:, :, 0], chroma[:, :, 1]) > CHROMA_DISTANCE
+    paper_mask_page = np.where(coloured, 0, paper_mask_page)
+    # a hand reaching over the sheet's edge: non-paper along the page's rim, even if too thin to open
+    rim = np.ones_like(paper_mask_page, bool)
+    rim[8:-8, 8:-8] = False
+    rim[:2], rim[-2:], rim[:, :2], rim[:, -2:] = False, False, False, False
+    edge_fraction = float((paper_mask_page[rim] < 128).mean())
     # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
     # robot sees it from closer, so the hand looks bigger on it)
     k = max(5, side // (16 if grid == 3 else 9)) | 1
@@ -130,7 +145,7 @@ def _foreign(paper_mask_page: np.ndarray, grid: int) -> np.ndarray:
     foreign = cv2.morphologyEx(foreign, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))  # pale skin is speckled
     border = max(2, side // 50)  # the warped page's own edge is not a hand
     foreign[:border], foreign[-border:], foreign[:, :border], foreign[:, -border:] = 0, 0, 0, 0
-    return foreign
+    return foreign, edge_fraction
 
 
 def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
@@ -160,7 +175,9 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
                              cv2.COLOR_BGR2GRAY)
     # hands are big: look for them on a small warp of the paper mask (cheap), boundaries scaled to it
     to_small = np.diag([FOREIGN_SIDE / page_side, FOREIGN_SIDE / page_side, 1.0]) @ to_page
-    foreign = _foreign(cv2.warpPerspective(paper_mask, to_small, (FOREIGN_SIDE, FOREIGN_SIDE), flags=cv2.INTER_NEAREST), grid)
+    small = (FOREIGN_SIDE, FOREIGN_SIDE)
+    foreign, edge_fraction = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
+                       cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid)
     bounds = locate_grid(page_gray, grid)
     if bounds is None:
         raise ValueError(f"no {grid}x{grid} grid found on the sheet (expected dark grid lines across the page)")
@@ -185,7 +202,7 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
             cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
     scale = FOREIGN_SIDE / page_side
     return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
-                     corners, grid_frame, gray)
+                     edge_fraction, corners, grid_frame, gray)
 
 
 def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,

@@ -28,7 +28,8 @@ from vision.page import check_frame, find_page, warp
 from vision.sheet import check_grid
 
 STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
-HAND_FRACTION = 0.003  # of the page area under large non-paper blobs: a hand (or its shadow) is there
+EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge
+HAND_FRACTION = 0.006  # of the page area under large non-paper blobs: a hand (or its shadow) is there
 MOTION_SIDE = 48  # the warped page is compared at this size, blurred: pen strokes barely count, a hand does
 
 
@@ -118,7 +119,7 @@ class MoveRecogniser:
         except ValueError as error:
             self._forget()
             return Recognition("no_page", motion=motion, detail=str(error))
-        if reading.occluded.any() or reading.hand_fraction > HAND_FRACTION:
+        if reading.occluded.any() or reading.hand_fraction > HAND_FRACTION or reading.edge_fraction > EDGE_FRACTION:
             self._forget()
             return Recognition("occluded", cells=reading.cells, motion=motion,
                                detail=f"hand over cells {np.flatnonzero(reading.occluded).tolist()}")
