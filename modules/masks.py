@@ -95,9 +95,15 @@ class LookaheadMasks(TensorDictModuleBase):
         self.rule = lookahead_rule(lookahead)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        explore, greedy = self.rule(
-            tensordict.get(AVAILABLE_KEY), tensordict.get(LOOKAHEAD_REWARD_KEY), tensordict.get(WINNING_KEY)
-        )
+        if getattr(self.rule, "needs_tensordict", False):  # e.g. k-step look-ahead (modules.deep_lookahead)
+            explore, greedy = self.rule.masks_from_tensordict(tensordict)
+        else:
+            explore, greedy = self.rule(
+                tensordict.get(AVAILABLE_KEY), tensordict.get(LOOKAHEAD_REWARD_KEY), tensordict.get(WINNING_KEY)
+            )
         tensordict.set(EXPLORE_MASK_KEY, explore)
         tensordict.set(GREEDY_MASK_KEY, greedy)
         return tensordict
+
+
+import modules.deep_lookahead  # noqa: E402,F401  (registers the k-step rules k1..k5, k1_open..k5_open)

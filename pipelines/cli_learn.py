@@ -62,14 +62,18 @@ def eval_command(
     seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
     mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
+    search: Optional[int] = typer.Option(None, "--search", help="Game moves by MCTS guided by the Q-network, N simulations."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
     import torch
 
     from pipelines.evaluate import evaluate_checkpoint
+    from pipelines.ladder import register_agent_opponent
 
     torch.set_num_threads(1)
-    result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap)
+    register_agent_opponent()  # --opponent agent:CKPT / qmcts:N:CKPT
+    result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap,
+                                 search=search)
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
     else:

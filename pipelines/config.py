@@ -15,6 +15,8 @@ from typing import Any, Literal
 
 import yaml
 
+from pipelines.selfplay import SelfPlayConfig
+
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
 
@@ -136,6 +138,7 @@ class RunConfig:
     eval: EvalConfig = field(default_factory=EvalConfig)
     logger: LoggerConfig = field(default_factory=LoggerConfig)
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
+    selfplay: SelfPlayConfig = field(default_factory=SelfPlayConfig)  # pipelines/selfplay.py
 
     @property
     def lookahead(self) -> str:
@@ -271,6 +274,7 @@ def _check_values(config: RunConfig) -> None:
         raise ValueError(f"config key 'collector.init_random_frames' must be >= 0, got {config.collector.init_random_frames}")
     if config.env.first not in ("robot", "human", "alternate", "random"):
         raise ValueError(f"config key 'env.first' must be one of 'robot', 'human', 'alternate', 'random', got {config.env.first!r}")
+    config.selfplay.check()
     from modules.masks import LOOKAHEAD_RULES
 
     if config.agent.lookahead is not None and config.agent.lookahead not in LOOKAHEAD_RULES:

@@ -151,9 +151,19 @@ def load_agent(checkpoint_path):
 
 
 def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", seat: str = "alternate",
-                        seed: int = 0, mcap_dir=None) -> EvalResult:
-    """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`)."""
-    config, policy = load_agent(checkpoint_path)
+                        seed: int = 0, mcap_dir=None, search: int | None = None) -> EvalResult:
+    """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`).
+
+    `search` > 0 chooses the robot's game moves by MCTS guided by the Q-network with that many simulations.
+    """
+    if search is not None and search < 1:
+        raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    if search:
+        from pipelines.ladder import load_guided_agent
+
+        config, policy = load_guided_agent(checkpoint_path, search, seed)
+    else:
+        config, policy = load_agent(checkpoint_path)
     if mcap_dir is None:
         return evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent)
     from logs import EpisodeLogger

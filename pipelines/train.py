@@ -87,7 +87,12 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
     # --- env and agent -------------------------------------------------------------------------------------------
     frames_done = state["frames"] if state else 0
-    env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done)
+    selfplay_pool = None
+    if config.selfplay.enabled:  # the user's moves come from frozen snapshots of this agent (pipelines/selfplay.py)
+        from pipelines.selfplay import make_selfplay_pool
+
+        selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
+    env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
     qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
     seeded_init(qnet, seed)
     agent = make_policies(
@@ -114,6 +119,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
         counters.update({k: state[k] for k in ("frames", "updates", "episodes")})
         counters["wall_offset"] = state["wall_time"]
         history = list(state["history"])
+    if selfplay_pool is not None:
+        selfplay_pool.maybe_add(qnet, counters["frames"])
 
     # --- the Collector: exploratory games with the same masks as at test time -----------------------------------
     batch_frames = frames_per_batch(config)
@@ -166,6 +173,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
             agent.egreedy.step(frames)
+            if selfplay_pool is not None:
+                selfplay_pool.maybe_add(qnet, counters["frames"])
 
             # --- learning: several updates per collected batch once the burn-in is in the buffer ----------------
             if len(buffer) >= config.collector.init_random_frames:
@@ -208,6 +217,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             result = evaluate_agent(config, agent.greedy, games=config.eval.games, seat=seat, seed=seed + 2 * EVAL_SEED_OFFSET,
                                     logger=mcap_logger, agent_name=config.agent.name)
             report[seat] = result.to_dict()
+        if selfplay_pool is not None:
+            from pipelines.selfplay import pool_summary
+
+            report["selfplay"] = pool_summary(selfplay_pool)
         report["history"] = history
     atomic_write_text(json.dumps(report, indent=2) + "\n", out_dir / "eval.json")
     plot_learning_curve(history, out_dir / "learning_curve.png",
