@@ -164,7 +164,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     losses: list[float] = []
     last_eval = history[-1] if history else None
     with mcap_logger or nullcontext():
-        for batch in collector or ():
+        for batch in collector if collector is not None else ():  # bool(collector) calls len(): inf when open-ended
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended

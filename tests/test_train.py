@@ -11,7 +11,7 @@ import torch
 from pipelines.checkpoint import load_checkpoint
 from pipelines.config import load_config
 from pipelines.train import train
-from tests.learning_helpers import write_tiny_config
+from tests.learning_helpers import TINY, write_tiny_config
 
 torch.set_num_threads(1)
 
@@ -68,3 +68,12 @@ def test_same_seed_same_numbers_other_seed_other_numbers(tmp_path: Path) -> None
     assert _numbers(first) == _numbers(again)
     other = train(load_config(path, ["train.seed=4"]), tmp_path / "c")
     assert _numbers(other) != _numbers(first)
+
+
+def test_episodes_budget_stops_after_that_many_training_games(tmp_path: Path) -> None:
+    """`--episodes N` runs an open-ended collector (total_frames=-1) and stops once N games have ended."""
+    config = load_config(write_tiny_config(tmp_path), ["train.episodes=120"])
+    report = train(config, tmp_path / "run")
+    state = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
+    assert 120 <= report["episodes"] == state["episodes"]
+    assert report["frames"] > TINY["collector"]["total_frames"]  # the frame budget did not stop it
