@@ -14,7 +14,7 @@ import re
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, Callable
 
 import torch
 
@@ -26,15 +26,16 @@ PERIODIC_DIR = "checkpoints"
 PERIODIC_PATTERN = re.compile(r"^step-(\d{9})\.pt$")
 
 
-def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
-    """torch.save to a temp file in the same folder, fsync it, then rename over `path` (atomic on POSIX)."""
+def _atomic_write(path: str | os.PathLike, mode: str, write: Callable[[IO], None]) -> Path:
+    """Write through a temp file in the same folder, fsync it, then rename over `path` (atomic on POSIX), so a
+    reader or a crash never sees half a file under its final name."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.fchmod(handle, 0o666 & ~_UMASK)  # mkstemp makes 0600 files; give the usual permissions
     try:
-        with os.fdopen(handle, "wb") as stream:
-            torch.save(obj, stream)
+        with os.fdopen(handle, mode) as stream:
+            write(stream)
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(temp_name, path)
@@ -42,24 +43,16 @@ def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
         Path(temp_name).unlink(missing_ok=True)
         raise
     return path
+
+
+def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
+    """torch.save `obj` to `path` atomically."""
+    return _atomic_write(path, "wb", lambda stream: torch.save(obj, stream))
 
 
 def atomic_write_text(text: str, path: str | os.PathLike) -> Path:
-    """Write a text file through a temp file + rename so readers never see half of it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.fchmod(handle, 0o666 & ~_UMASK)
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temp_name, path)
-    except BaseException:
-        Path(temp_name).unlink(missing_ok=True)
-        raise
-    return path
+    """Write a text file atomically so readers never see half of it."""
+    return _atomic_write(path, "w", lambda stream: stream.write(text))
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
