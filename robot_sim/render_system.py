@@ -1,7 +1,10 @@
-"""One SAPIEN render system per process, and a clear error when no Vulkan device exists.
+"""A warm SAPIEN render device per process, a fresh render world per scene, and a clear error when no Vulkan
+device exists.
 
-The first frame of a process costs seconds (shader start-up) and again whenever every scene has been freed,
-so every scene of the process is built on the single `RenderSystem` kept here.
+The first frame of a process costs seconds (shader start-up) and again whenever every render system has been
+freed, so one `RenderSystem` is kept alive here for the whole process. Each scene still gets a render system of
+its own (`new_render_system`, a few ms once the device is warm): a `RenderSystem` is a render world, and scenes
+built on a shared one would add their lights and bodies to each other's pictures.
 """
 from __future__ import annotations
 
@@ -40,3 +43,11 @@ def get_render_system():
         raise SimulatorUnavailable(f"{SETUP_RECIPE} ({error})") from error
     sapien.render.set_picture_format("Color", "r8g8b8a8unorm")
     return _RENDER_SYSTEM
+
+
+def new_render_system():
+    """A fresh render world for one scene, created on the process's warm device."""
+    import sapien
+
+    get_render_system()
+    return sapien.render.RenderSystem()

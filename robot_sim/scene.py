@@ -15,7 +15,7 @@ import numpy as np
 
 from robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
                                     write_pepper_urdf)
-from robot_sim.render_system import get_render_system
+from robot_sim.render_system import new_render_system
 from robot_sim.sheet import SheetCanvas
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
@@ -73,7 +73,7 @@ class PepperScene:
         self.grid = check_game(self.config.game)
         if self.config.camera_width < 32 or self.config.camera_height < 24:
             raise ValueError(f"camera must be at least 32x24 pixels; got {self.config.camera_width}x{self.config.camera_height}")
-        render_system = get_render_system()
+        render_system = new_render_system()
         self.scene = sapien.Scene([sapien.physx.PhysxCpuSystem(), render_system])
         self.scene.set_timestep(1.0 / self.config.physics_hz)
         self.scene.set_ambient_light([0.45, 0.45, 0.45])

@@ -176,3 +176,14 @@ def test_sheet_is_localised_from_the_camera_after_a_nudge(scene):
     errors = [np.linalg.norm(estimate.canvas_to_world(*scene.canvas.cell_pixel(c)) - scene.cell_world(c)) for c in range(9)]
     assert max(errors) < 0.005, "cell centres from the camera should be within 5 mm at 160x120"
     assert abs(estimate.yaw - scene.sheet_yaw()) < np.radians(1.5)
+
+
+def test_scenes_in_one_process_do_not_light_or_show_each_other(sapien_render_system):
+    """Each scene renders in its own world: a second scene (first still alive) gives the same picture."""
+    from robot_sim.scene import PepperScene, SceneConfig
+
+    first = PepperScene(SceneConfig(**SMALL))
+    before = first.render()
+    second = PepperScene(SceneConfig(**SMALL))
+    assert np.array_equal(second.render(), before)
+    assert np.array_equal(first.render(), before)
