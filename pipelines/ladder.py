@@ -8,8 +8,6 @@ win 1 and a draw 0.5. The goals of the issue are checked and printed with the ta
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -115,10 +113,9 @@ def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str,
 
 def draw_ladder(rows: list[dict[str, Any]], path: Path, title: str) -> Path:
     """Stacked win/draw/loss bars per opponent and seat (what a reader checks first: where does it lose?)."""
-    import matplotlib
+    from pipelines.plots import pyplot, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     labels = [f"{'' if r.get('policy', 'agent') == 'agent' else 'masks only: '}{r['opponent']}\n"
               f"{'robot first' if r['seat'] == 'first' else 'robot second'}" for r in rows]
@@ -139,15 +136,7 @@ def draw_ladder(rows: list[dict[str, Any]], path: Path, title: str) -> Path:
     ax.set_title(title)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(handle)
-    try:
-        fig.savefig(temp_name, dpi=120)
-        os.replace(temp_name, path)
-    finally:
-        plt.close(fig)
-        Path(temp_name).unlink(missing_ok=True)
+    save_figure(fig, path, dpi=120)
     return path
 
 

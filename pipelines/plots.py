@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -14,7 +15,8 @@ CURVES = (
 )
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display on the machines we run on)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,19 +25,24 @@ def _pyplot():
     return plt
 
 
-def _save(fig, path: str | os.PathLike) -> Path:
-    """Save through a temp file + rename so a crash never leaves half a PNG."""
+def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
+    """Save a PNG through a temp file + rename so a crash never leaves half a picture; closes the figure."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    temp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(temp, dpi=110, bbox_inches="tight")
-    os.replace(temp, path)
+    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(handle)
+    try:
+        fig.savefig(temp_name, dpi=dpi, bbox_inches="tight")
+        os.replace(temp_name, path)
+    finally:
+        pyplot().close(fig)
+        Path(temp_name).unlink(missing_ok=True)
     return path
 
 
 def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLike, title: str = "") -> Path:
     """Periodic-evaluation metrics and training loss, over env frames (left) and wall time (right)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(len(CURVES), 2, figsize=(10, 9), sharex="col")
     frames = [h["frames"] for h in history]
     seconds = [h["wall_time"] for h in history]
@@ -54,16 +61,14 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
     axes[-1, 0].set_xlabel("env frames (robot actions)")
     axes[-1, 1].set_xlabel("wall time (s, shared 2-core machine)")
     fig.suptitle(title or "learning curve (greedy evaluation vs random user)")
-    path = _save(fig, path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str | os.PathLike, title: str = "") -> Path:
     """Task success and avg reward per agent: mean over seeds (line) and min..max band; x = env frames."""
     import numpy as np
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     for name, runs in sorted(curves.items()):
         runs = [r for r in runs if r]
@@ -81,6 +86,4 @@ def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str |
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
     fig.suptitle(title or "learning curves per agent (mean over seeds, band = min..max)")
-    path = _save(fig, path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
