@@ -189,6 +189,8 @@ class DialogueGameEnv(EnvBase):
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone())
+        fresh = self._output()  # also fills d.observation / d.winning_actions, which partial resets reuse
+        self._fresh_features = (fresh["observation"][0].clone(), fresh["winning_actions"][0].clone())
 
     # ------------------------------------------------------------------ metadata helpers
     def user_utterance(self, utterance_id: int) -> str:
@@ -252,9 +254,21 @@ class DialogueGameEnv(EnvBase):
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)
 
-    def _output(self, reward: torch.Tensor | None = None) -> TensorDict:
-        """The TensorDict of the current state with done flags (and ``reward`` after a step); fresh tensors."""
+    def _output(self, reward: torch.Tensor | None = None, reset_rows: torch.Tensor | None = None) -> TensorDict:
+        """The TensorDict of the current state with done flags (and ``reward`` after a step); fresh tensors.
+
+        ``reset_rows`` (int64 indices): only these games changed since the last output (a partial reset), so the
+        observation and winning actions are the last ones with the fresh-dialogue row pasted in (2 ops
+        instead of ~10; a fresh dialogue's observation does not depend on anything random).
+        """
         mask = self.d.mask
+        if reset_rows is None:
+            observation, winning = self._observation(), mask & (self.d.lookahead == 5.0)
+        else:
+            fresh_observation, fresh_winning = self._fresh_features
+            observation = _paste_rows(self.d.observation, reset_rows, fresh_observation)
+            winning = _paste_rows(self.d.winning_actions, reset_rows, fresh_winning)
+        self.d.observation, self.d.winning_actions = observation, winning
         terminated = self.d.closed.unsqueeze(1)
         truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
         extra = {} if reward is None else {"reward": reward}
@@ -262,11 +276,11 @@ class DialogueGameEnv(EnvBase):
         return TensorDict._new_unsafe(
             {
                 **extra,
-                "observation": self._observation(),
+                "observation": observation,
                 "action_mask": mask,
                 "dialogue_mask": self.d.dialogue_mask,
                 "lookahead_reward": self.d.lookahead,
-                "winning_actions": mask & (self.d.lookahead == 5.0),
+                "winning_actions": winning,
                 "board": self.boards.board.clone(),  # the engine updates boards in place
                 "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
                 "robot_first": self.d.robot_first.unsqueeze(1),
@@ -288,8 +302,13 @@ class DialogueGameEnv(EnvBase):
             rows = tensordict.get("_reset").reshape(-1).bool()
         if rows is None:
             rows = torch.ones(self.batch_size[0], dtype=torch.bool)
+        if bool(rows.all()):
+            self._reset_rows(rows.nonzero().squeeze(1))
+            return self._output()
         if bool(rows.any()):
-            self._reset_rows(rows)
+            index = rows.nonzero().squeeze(1)
+            self._reset_rows(index)
+            return self._output(reset_rows=index)
         return self._output()
 
     def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
@@ -325,16 +344,21 @@ class DialogueGameEnv(EnvBase):
             return tensordict
         return tensordict.update(tensordict_reset).update(padded)
 
-    def _reset_rows(self, rows: torch.Tensor) -> None:
-        """Start new dialogues in the ``rows`` games (bool (B,)); the others keep their state."""
-        boards, column = self.boards, rows.unsqueeze(1)
+    def _reset_rows(self, index: torch.Tensor) -> None:
+        """Start new dialogues in the games ``index`` (int64 (N,)); the others keep their state.
+
+        Why indices rather than a bool column: a broadcast ``where`` / ``masked_fill`` over (B, F) costs
+        ~0.5 ns per element (15-50 µs at batch 1024), ``index_fill_`` / an index copy a few µs.
+        """
+        boards = self.boards
         # in place: the engine's tensors never leave the env (outputs copy them), so nobody else holds them
-        for grid in (boards.board, boards.codes, boards.owners, boards.move_order):
-            grid.masked_fill_(column, 0)
-        boards.last_move.masked_fill_(rows, -1)
-        boards.n_marks.masked_fill_(rows, 0)
-        boards.outcome.masked_fill_(rows, 0)
+        for grid in (boards.board, boards.codes, boards.owners, boards.move_order, boards.n_marks, boards.outcome):
+            grid.index_fill_(0, index, 0)
+        boards.last_move.index_fill_(0, index, -1)
+        self.d.user_words.index_fill_(0, index, 0.0)  # never handed out: the observation is built from it
+        rows = torch.zeros(self.batch_size[0], dtype=torch.bool).index_fill_(0, index, True)
         kept = ~rows
+        # the (B,) dialogue tensors are handed out (as views) in outputs: replaced, never changed in place
         self.d.agreed = self.d.agreed & kept
         self.d.closed = self.d.closed & kept
         self.d.last_sys = self.d.last_sys.masked_fill(rows, 0)
@@ -343,7 +367,6 @@ class DialogueGameEnv(EnvBase):
         self.d.user_act = self.d.user_act.masked_fill(rows, -1)
         self.d.user_move = self.d.user_move.masked_fill(rows, -1)
         self.d.user_utterance = self.d.user_utterance.masked_fill(rows, -1)
-        self.d.user_words = self.d.user_words.masked_fill(column, 0.0)
         if self.starts == "robot":
             self.d.robot_first = self.d.robot_first | rows
         elif self.starts == "human":
@@ -356,9 +379,9 @@ class DialogueGameEnv(EnvBase):
             self.d.robot_first = torch.where(rows, first, self.d.robot_first)
         self.d.episodes = self.d.episodes + rows.long()
         mask, dialogue_mask, lookahead = self._fresh_rows
-        self.d.mask = torch.where(column, mask, self.d.mask)
-        self.d.dialogue_mask = torch.where(column, dialogue_mask, self.d.dialogue_mask)
-        self.d.lookahead = torch.where(column, lookahead, self.d.lookahead)
+        self.d.mask = _paste_rows(self.d.mask, index, mask)
+        self.d.dialogue_mask = _paste_rows(self.d.dialogue_mask, index, dialogue_mask)
+        self.d.lookahead = _paste_rows(self.d.lookahead, index, lookahead)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
@@ -407,7 +430,8 @@ class DialogueGameEnv(EnvBase):
         columns = self._utterance_word_columns.index_select(0, utterance)
         confidence = torch.rand(columns.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
         heard = torch.zeros(columns.shape[0], self.d.user_words.shape[1] + 1).scatter_(1, columns, confidence)[:, :-1]
-        self.d.user_words = torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
+        # a refused act leaves the last words (rare with a masked policy: skip the (B, C + V) where then)
+        self.d.user_words = heard if bool(accepted.all()) else torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
         utterance = torch.where(utterance == silence, -1, utterance)
         self.d.last_sys = torch.where(accepted, act_type + 1, self.d.last_sys)
         self.d.last_user = torch.where(accepted, user_act + 1, self.d.last_user)
@@ -473,6 +497,15 @@ class _Dialogues:
     mask: torch.Tensor  # (B, A) action_mask
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
+    observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)
+    winning_actions: torch.Tensor  # (B, A) the winning actions of the last output
+
+
+def _paste_rows(values: torch.Tensor, index: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
+    """A copy of ``values`` (B, F) with ``row`` (F,) in the rows ``index``: 3-4x faster than a broadcast ``where``."""
+    pasted = values.clone()
+    pasted[index] = row
+    return pasted
 
 
 def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:

@@ -87,3 +87,24 @@ def test_ultimate_lookahead_on_active_rows_only_matches_all_rows(free_move: str)
         checked += int(rows.sum())
         engine.play(state, uniform_choice(legal, generator), 1 + move % 2, can_move)
     assert checked > 10_000
+
+
+@pytest.mark.parametrize("game", ["standard", "ultimate"])
+def test_partial_reset_output_equals_full_recompute(game: str) -> None:
+    """A partial reset pastes the fresh observation / winning rows into the last ones: == computing them anew."""
+    env = make_env(game, batch_size=(32,), seed=2, temporal=True, starts="alternate")
+    td = env.reset()
+    partial = 0
+    for _ in range(60 if game == "standard" else 150):
+        td = step_mdp(env.step(env.rand_action(td)))
+        done = td["done"].reshape(-1)
+        if not bool(done.any()) or bool(done.all()):
+            continue
+        fast = env._reset(td.select().set("_reset", td["done"].clone()))
+        full = env._output()  # the plain path on the same (already reset) state
+        for key in full.keys():
+            assert torch.equal(fast[key], full[key]), key
+        assert not bool(fast["done"].any())
+        partial += 1
+        td = fast
+    assert partial > 0, "no partial reset happened: the test did not exercise the fast path"
