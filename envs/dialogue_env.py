@@ -249,7 +249,7 @@ class DialogueGameEnv(EnvBase):
     def _observation(self) -> torch.Tensor:
         boards = self.boards
         commands_and_words = torch.maximum(self._system_features.index_select(0, self.d.last_sys), self.d.user_words)
-        parts = [boards.board == ROBOT, boards.board == USER, commands_and_words]  # torch.cat promotes to float
+        parts = [self.engine.mark_features(boards), commands_and_words]
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)

@@ -142,6 +142,10 @@ class _Engine:
         """(B, cells) bool: squares the player to move may take; all False once the game is over."""
         raise NotImplementedError
 
+    def mark_features(self, state: Boards) -> torch.Tensor:
+        """(B, 2 * cells) float32: 1 where player 1 has a mark, then 1 where player 2 has one (the board features)."""
+        return torch.cat([state.board == 1, state.board == 2], dim=1).float()
+
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         """In place: ``player`` (int or (B,)) takes ``cells`` (B,) in the ``active`` rows (default all).
 
@@ -198,7 +202,20 @@ class StandardEngine(_Engine):
         return torch.where(tables.has_line[1], 1, torch.where(tables.has_line[2], 2, torch.where(tables.full, DRAWN, 0)))
 
     def legal(self, state: Boards) -> torch.Tensor:
-        return (state.board == 0) & (state.outcome == 0).unsqueeze(1)
+        # one row gather instead of 4 whole-batch ops: the code holds the board, and so the outcome
+        return self._code_tables()[0].index_select(0, state.codes[:, 0])
+
+    def mark_features(self, state: Boards) -> torch.Tensor:
+        return self._code_tables()[1].index_select(0, state.codes[:, 0])
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _code_tables() -> tuple[torch.Tensor, torch.Tensor]:
+        """Per 3x3 code: (3^9, 9) bool legal squares (none once decided) and (3^9, 18) float32 mark features."""
+        digits = torch.arange(3**9).unsqueeze(1) // (3 ** torch.arange(9)) % 3
+        open_game = StandardEngine._outcome_table() == 0
+        legal = (digits == 0) & open_game.unsqueeze(1)
+        return legal.contiguous(), torch.cat([digits == 1, digits == 2], dim=1).float().contiguous()
 
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         if active is None:
