@@ -14,6 +14,28 @@ from modules.loss import CompetitiveDQNLoss, make_target_updater
 from pipelines.config import RunConfig
 
 
+def penalise_losses(transitions, loss_reward: float):
+    """Outcome rewards with a heavier price on lost games (loss.loss_reward): the +5/+1/-5 scale makes a
+    return-maximiser accept a small risk of losing for a likelier win; task success 1.000 needs loss aversion.
+
+    TODO(lead): belongs in modules.rewards.outcome_rewards as a parameter (file owned by another helper).
+    """
+    from modules.rewards import OUTCOME_HUMAN_WON, OUTCOME_NONE
+
+    lost = (transitions.get("outcome") == OUTCOME_NONE) & (transitions.get(("next", "outcome")) == OUTCOME_HUMAN_WON)
+    reward = transitions.get(("next", "reward"))
+    transitions.set(("next", "reward"), torch.where(lost.reshape(reward.shape), torch.as_tensor(loss_reward), reward))
+    return transitions
+
+
+def scheduled_lr(config: RunConfig, frames: int) -> float:
+    """Linear decay from optim.lr to schedule.lr_end over collector.total_frames (constant lr when lr_end is None)."""
+    if config.schedule.lr_end is None:
+        return config.optim.lr
+    progress = min(1.0, max(0.0, frames / max(1, config.collector.total_frames)))
+    return config.optim.lr + progress * (config.schedule.lr_end - config.optim.lr)
+
+
 @dataclass
 class Learner:
     loss_module: CompetitiveDQNLoss
@@ -30,6 +52,11 @@ class Learner:
         optimizer = torch.optim.Adam(loss_module.parameters(), lr=config.optim.lr,
                                      weight_decay=config.optim.weight_decay, fused=True)
         return cls(loss_module, updater, optimizer, config.optim.max_grad_norm)
+
+    def set_lr(self, lr: float) -> None:
+        """Schedule hook: the train loop decays the step size so Q stops jittering between near-tied moves."""
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
 
     def update(self, batch) -> float:
         """One gradient step on a sampled batch, then a target-network step; returns the loss."""

@@ -71,7 +71,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
     from pipelines.evaluate import evaluate_agent
-    from pipelines.learner import Learner
+    from pipelines.learner import Learner, penalise_losses, scheduled_lr
     from pipelines.plots import plot_learning_curve
     from pipelines.run_env import make_run_env
 
@@ -168,7 +168,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            buffer.extend(learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward))
+            transitions = learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward)
+            if config.loss.reward == "outcome":
+                transitions = penalise_losses(transitions, config.loss.loss_reward)
+            buffer.extend(transitions)
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
@@ -178,6 +181,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
             # --- learning: several updates per collected batch once the burn-in is in the buffer ----------------
             if len(buffer) >= config.collector.init_random_frames:
+                if config.schedule.lr_end is not None:
+                    learner.set_lr(scheduled_lr(config, counters["frames"]))
                 step_losses = [learner.update(buffer.sample()) for _ in range(config.optim.updates_per_batch)]
                 counters["updates"] += len(step_losses)
                 losses.append(float(torch.stack(step_losses).mean()))
