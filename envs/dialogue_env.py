@@ -442,10 +442,13 @@ class DialogueGameEnv(EnvBase):
         return self._output(reward)
 
     def _user_cells(self, rows: torch.Tensor) -> torch.Tensor:
-        """(B,) the user's square in ``rows`` (others 0): uniform among legal ones, or the opponent's choice."""
-        legal = self.engine.legal(self.boards) & rows.unsqueeze(1)
+        """(B,) the user's square in ``rows`` (other rows: meaningless): uniform among legal ones, or the opponent's choice."""
+        legal = self.engine.legal(self.boards)
         if self.opponent is None:
+            # picks outside ``rows`` are discarded by the caller; each row draws one number either way, so
+            # leaving the other rows unmasked changes neither the moves nor the random stream (one op less)
             return uniform_choice(legal, self._rng)
+        legal = legal & rows.unsqueeze(1)
         index = rows.nonzero().squeeze(1)
         boards = self.boards
         kwargs: dict[str, Any] = {"rows": index} if "rows" in self._opponent_params else {}
