@@ -15,25 +15,29 @@ OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW = 0, 1, 2, 3
 REWARD_MODES = ("paper", "outcome")
 
 
-def outcome_rewards(transitions: TensorDictBase) -> torch.Tensor:
-    """Reward of each transition from the game outcome it caused (shape like ("next", "reward"))."""
+def outcome_rewards(transitions: TensorDictBase, loss_reward: float = -5.0) -> torch.Tensor:
+    """Reward of each transition from the game outcome it caused (shape like ("next", "reward")).
+
+    `loss_reward` prices a lost game: at -5 (the paper's scale) a return-maximiser accepts a small risk of losing
+    for a likelier win; a heavier price (e.g. -20) makes losing nothing part of the optimum."""
     before = transitions.get("outcome").long()
     after = transitions.get(("next", "outcome")).long()
     ended = (before == OUTCOME_NONE) & (after != OUTCOME_NONE)
     reward = torch.zeros(after.shape, dtype=torch.float32)
     reward = torch.where(ended & (after == OUTCOME_ROBOT_WON), 5.0, reward)
     reward = torch.where(ended & (after == OUTCOME_DRAW), 1.0, reward)
-    reward = torch.where(ended & (after == OUTCOME_HUMAN_WON), -5.0, reward)
+    reward = torch.where(ended & (after == OUTCOME_HUMAN_WON), float(loss_reward), reward)
     action = transitions.get("action").unsqueeze(-1)
     refused = ~torch.gather(transitions.get("action_mask"), -1, action)
     return torch.where(refused, -5.0, reward).reshape(transitions.get(("next", "reward")).shape)
 
 
-def learning_rewards(transitions: TensorDictBase, mode: str) -> TensorDictBase:
-    """Set ("next", "reward") to the rewards the learner trains on (`paper` leaves the env's rewards)."""
+def learning_rewards(transitions: TensorDictBase, mode: str, loss_reward: float = -5.0) -> TensorDictBase:
+    """Set ("next", "reward") to the rewards the learner trains on (`paper` leaves the env's rewards;
+    `loss_reward` applies to `outcome` only)."""
     if mode == "paper":
         return transitions
     if mode == "outcome":
-        transitions.set(("next", "reward"), outcome_rewards(transitions))
+        transitions.set(("next", "reward"), outcome_rewards(transitions, loss_reward))
         return transitions
     raise ValueError(f"unknown reward mode {mode!r}; expected one of {', '.join(REWARD_MODES)}")

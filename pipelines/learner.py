@@ -14,20 +14,6 @@ from modules.loss import CompetitiveDQNLoss, make_target_updater
 from pipelines.config import RunConfig
 
 
-def penalise_losses(transitions, loss_reward: float):
-    """Outcome rewards with a heavier price on lost games (loss.loss_reward): the +5/+1/-5 scale makes a
-    return-maximiser accept a small risk of losing for a likelier win; task success 1.000 needs loss aversion.
-
-    TODO(lead): belongs in modules.rewards.outcome_rewards as a parameter (file owned by another helper).
-    """
-    from modules.rewards import OUTCOME_HUMAN_WON, OUTCOME_NONE
-
-    lost = (transitions.get("outcome") == OUTCOME_NONE) & (transitions.get(("next", "outcome")) == OUTCOME_HUMAN_WON)
-    reward = transitions.get(("next", "reward"))
-    transitions.set(("next", "reward"), torch.where(lost.reshape(reward.shape), torch.as_tensor(loss_reward), reward))
-    return transitions
-
-
 def scheduled_lr(config: RunConfig, frames: int) -> float:
     """Linear decay from optim.lr to schedule.lr_end over collector.total_frames (constant lr when lr_end is None)."""
     if config.schedule.lr_end is None:

@@ -71,7 +71,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
     from pipelines.evaluate import evaluate_agent
-    from pipelines.learner import Learner, penalise_losses, scheduled_lr
+    from pipelines.learner import Learner, scheduled_lr
     from pipelines.plots import plot_learning_curve
     from pipelines.run_env import make_run_env
 
@@ -168,9 +168,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            transitions = learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward)
-            if config.loss.reward == "outcome":
-                transitions = penalise_losses(transitions, config.loss.loss_reward)
+            transitions = learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward,
+                                           loss_reward=config.loss.loss_reward)
             buffer.extend(transitions)
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,

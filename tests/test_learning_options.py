@@ -59,12 +59,11 @@ def _transitions(before: list[int], after: list[int], mask_ok: list[bool]) -> "T
 
 def test_loss_reward_prices_only_lost_games() -> None:
     from modules.rewards import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, learning_rewards
-    from pipelines.learner import penalise_losses
 
     none, won, lost, draw = OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW
     batch = _transitions([none, none, none, none, lost, none], [won, lost, draw, none, lost, none],
                          [True, True, True, True, True, False])
-    rewards = penalise_losses(learning_rewards(batch, "outcome"), -20.0).get(("next", "reward")).flatten()
+    rewards = learning_rewards(batch, "outcome", loss_reward=-20.0).get(("next", "reward")).flatten()
     # win, loss (re-priced), draw, game goes on, already over, act outside the mask (keeps -5)
     assert rewards.tolist() == [5.0, -20.0, 1.0, 0.0, 0.0, -5.0]
 
