@@ -86,7 +86,7 @@ def play_script(env, robot_cells: list[int], user_cells: list[int]) -> list[floa
     """Robot moves ``robot_cells``; the user answers each with the next of ``user_cells`` (if any)."""
     rewards = []
     users = list(user_cells)
-    if not env.reset_robot_first():
+    if env.starts == "human":
         act(env, "Request(userGameMove)", users.pop(0))
     for cell in robot_cells:
         td = act(env, cell, users.pop(0) if users else None)
@@ -94,20 +94,20 @@ def play_script(env, robot_cells: list[int], user_cells: list[int]) -> list[floa
     return rewards
 
 
-@pytest.fixture
-def robot_first_env():
-    env = scripted("robot")
-    env.reset_robot_first = lambda: True
+def started(starts: str):
+    env = scripted(starts)
     start_game(env)
     return env
+
+
+@pytest.fixture
+def robot_first_env():
+    return started("robot")
 
 
 @pytest.fixture
 def human_first_env():
-    env = scripted("human")
-    env.reset_robot_first = lambda: False
-    start_game(env)
-    return env
+    return started("human")
 
 
 def test_win_reward(robot_first_env) -> None:
