@@ -16,11 +16,15 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import torch
 from tensordict import TensorDict
 from tqdm import tqdm
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tree's envs, not an installed copy
 
 
 def steps_per_second(env, reset_td, seconds: float, label: str) -> tuple[float, float]:
