@@ -63,6 +63,8 @@ def eval_command(
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
     mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
     search: Optional[int] = typer.Option(None, "--search", help="Game moves by MCTS guided by the Q-network, N simulations."),
+    exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
+    dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
     import torch
@@ -71,6 +73,9 @@ def eval_command(
     from pipelines.ladder import register_agent_opponent
 
     torch.set_num_threads(1)
+    if exhaustive:
+        _exhaustive_eval(checkpoint, seat, seed, dialogue_seeds, as_json)
+        return
     register_agent_opponent()  # --opponent agent:CKPT / qmcts:N:CKPT
     result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap,
                                  search=search)
@@ -79,6 +84,28 @@ def eval_command(
     else:
         typer.echo(_results_header())
         typer.echo(_results_row(result.to_dict(), seat))
+
+
+def _exhaustive_eval(checkpoint: str, seat: str, seed: int, dialogue_seeds: int, as_json: bool) -> None:
+    """`ncbot eval --exhaustive`: exact win/draw/loss per seat and the lost games, if any."""
+    from pipelines.exact_eval import exact_checkpoint
+
+    results = exact_checkpoint(checkpoint, seat=seat, seed=seed, dialogue_seeds=dialogue_seeds)
+    if as_json:
+        typer.echo(json.dumps({result.seat: result.to_dict() for result in results}))
+        return
+    typer.echo(f"exact over every game branch of the random user, under {dialogue_seeds} dialogue draw(s) "
+               f"(env seeds {seed}..{seed + dialogue_seeds - 1})")
+    typer.echo("| seat | branches | win | draw | loss | task success | worst loss over draws | lost games |\n"
+               "|---|---|---|---|---|---|---|---|")
+    for result in results:
+        typer.echo(f"| {result.seat} | {result.branches} | {result.win:.4f} | {result.draw:.4f} | {result.loss:.4f} | "
+                   f"{result.task_success:.4f} | {result.worst_loss:.4f} | {len(result.losing_lines)} |")
+    for result in results:
+        for line in result.losing_lines[:10]:
+            typer.echo(f"lost ({result.seat}): {line}")
+        if len(result.losing_lines) > 10:
+            typer.echo(f"... and {len(result.losing_lines) - 10} more lost games ({result.seat}); --json lists all")
 
 
 def ablate_command(
