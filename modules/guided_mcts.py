@@ -233,9 +233,11 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
     in_keys = ["observation", "action_mask", "board"]
     out_keys = ["action"]
 
-    def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0) -> None:
+    def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0, prune=None) -> None:
+        """``prune``: an optional k-step rule (``modules.deep_lookahead.KStepLookahead``); the root then skips the
+        moves it proves lost by force, so the simulations are spent on moves that can still be saved."""
         super().__init__()
-        self.greedy, self.search = greedy, search
+        self.greedy, self.search, self.prune = greedy, search, prune
         self.generator = torch.Generator().manual_seed(int(seed))
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -250,6 +252,10 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
         action = tensordict.get("action").clone()
         seeds = torch.randint(0, 2**62, (len(rows),), generator=self.generator).tolist()
         board_rows = boards.tolist()
+        if self.prune is not None:
+            lost = self.prune.forced_losses(tensordict, tensordict.get("action_mask"))[:, :cells]
+            survivors = moves & ~lost
+            moves = torch.where(survivors.any(-1, keepdim=True), survivors, moves)
         for row, seed in zip(rows, seeds):
             owners = owners_from_order(board_rows[row], order[row].tolist()) if order is not None else None
             pos = self.search.engine.from_board(board_rows[row], 1, -1, owners)

@@ -5,6 +5,8 @@ from typing import Optional
 
 import typer
 
+from pipelines.ladder import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
+
 
 def play_command(
     game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate (default: the checkpoint's, else standard)."),
@@ -48,18 +50,27 @@ def ladder_command(
                                       "(default: beside the checkpoint)."),
     baseline: bool = typer.Option(False, "--baseline", help="Also play the agent's look-ahead masks alone (random "
                                   "inside them) on the same games: what did learning add?"),
+    search: Optional[int] = typer.Option(None, "--search", help="The robot picks game moves by MCTS guided by its "
+                                         "Q-network with N simulations (as ncbot eval --search); default: greedy Q."),
+    lookahead: Optional[str] = typer.Option(None, "--lookahead", help="Replace the checkpoint's masks: none | "
+                                            "one_step (the paper's) | k1..k5 (forced-loss search of k plies)."),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
 
     if games < 1:
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
+    if search is not None and search < 1:
+        raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    if lookahead is not None and lookahead not in LOOKAHEAD_CHOICES:
+        raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {lookahead!r}")
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
     from pipelines.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents else None
-    result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline)
+    result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline,
+                        search=search, lookahead=lookahead)
     typer.echo(result["markdown"])
     typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
 

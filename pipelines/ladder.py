@@ -16,25 +16,78 @@ DEFAULT_LADDERS = {
     "ultimate": ["random", "rule", "mcts:10", "mcts:100", "mcts:300"],
 }
 SEATS = ("first", "second")
+LOOKAHEAD_CHOICES = ("none", "one_step", "k1", "k2", "k3", "k4", "k5")
+
+
+def resolve_lookahead(name: str, free_move: str) -> str:
+    """A `--lookahead` choice -> the mask rule name for this game's rule variant (`k3` -> `k3_open` on
+    `open_subgrids`); ValueError naming the allowed choices otherwise."""
+    from modules.masks import LOOKAHEAD_RULES
+
+    rule = name.strip()
+    if free_move == "open_subgrids" and rule.startswith("k") and not rule.endswith("_open"):
+        rule = f"{rule}_open"
+    if rule not in LOOKAHEAD_RULES or rule == "variant":
+        raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {name!r}")
+    return rule
+
+
+def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | None = None, seed: int = 0):
+    """(config, policy, description) of the robot as the ladder plays it.
+
+    How the robot decides is part of what a ladder measures, so it is chosen here and named in the table:
+    ``lookahead`` replaces the checkpoint's masks (``none``, ``one_step`` = the paper's, ``k1``..``k5``);
+    ``search`` > 0 picks every game move by MCTS guided by the Q-network with that many simulations (dialogue
+    acts stay greedy); with both, the search's root skips the moves the k-step rule proves lost (when some
+    move survives).
+    """
+    from modules.masks import lookahead_rule
+    from modules.policy import make_policies
+    from pipelines.evaluate import load_agent
+
+    if search is not None and search < 1:
+        raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    config, greedy = load_agent(checkpoint)
+    if lookahead is not None:
+        config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
+        from torchrl.data import Categorical
+
+        from pipelines.checkpoint import load_checkpoint
+
+        qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
+        n_actions = int(load_checkpoint(checkpoint)["n_actions"])
+        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead).greedy
+    description = f"greedy Q, masks {config.lookahead}"
+    if not search:
+        return config, greedy, description
+    from modules.guided_mcts import GuidedMCTSPolicy
+
+    _, mcts = load_guided_search(checkpoint, search)
+    rule = lookahead_rule(config.lookahead)
+    prune = rule if hasattr(rule, "forced_losses") and getattr(rule, "plies", 0) >= 3 else None
+    policy = GuidedMCTSPolicy(greedy, mcts, seed, prune=prune)
+    return config, policy, f"Q-guided MCTS {search} sims, masks {config.lookahead}"
 
 
 def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
-               out_dir: str | None = None, progress: bool = True, baseline: bool = False) -> dict[str, Any]:
+               out_dir: str | None = None, progress: bool = True, baseline: bool = False,
+               search: int | None = None, lookahead: str | None = None) -> dict[str, Any]:
     """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths.
 
     ``baseline`` also plays the agent's look-ahead masks alone (random choice inside them) on the same games,
-    so the table shows what learning added beyond the masks.
+    so the table shows what learning added beyond the masks. ``search`` / ``lookahead``: how the robot decides
+    (``load_robot``); the table header says which.
     """
     import torch
 
     from envs.opponents import make_opponent
-    from pipelines.evaluate import evaluate_agent, load_agent
+    from pipelines.evaluate import evaluate_agent
 
     if games < 1:
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
     torch.set_num_threads(1)
     register_agent_opponent()
-    config, policy = load_agent(checkpoint)
+    config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed)
     game = config.env.game
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
     for name in names:  # fail fast, with the registry's message, before any game is played
@@ -67,13 +120,14 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         bar.close()
     goals = check_goals(game, rows)
     out = Path(out_dir) if out_dir else _default_out(checkpoint)
-    markdown = ladder_markdown(checkpoint, game, config.agent.name, rows, goals)
+    markdown = ladder_markdown(checkpoint, game, config.agent.name, rows, goals, robot=robot)
     files = {
         "markdown": _write_text(out / "ladder.md", markdown),
         "json": _write_text(out / "ladder.json", json.dumps({"checkpoint": str(checkpoint), "game": game,
-                                                              "agent": config.agent.name, "seed": seed,
-                                                              "rows": rows, "goals": goals}, indent=2)),
-        "png": draw_ladder(rows, out / "ladder.png", title=f"{config.agent.name} on {game}: score vs opponents"),
+                                                              "agent": config.agent.name, "robot": robot,
+                                                              "search": search or 0, "lookahead": config.lookahead,
+                                                              "seed": seed, "rows": rows, "goals": goals}, indent=2)),
+        "png": draw_ladder(rows, out / "ladder.png", title=f"{config.agent.name} on {game} ({robot}): score vs opponents"),
     }
     return {"rows": rows, "goals": goals, "markdown": markdown, "files": {k: str(v) for k, v in files.items()}}
 
@@ -97,8 +151,9 @@ def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return goals
 
 
-def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str, Any]], goals: list[dict[str, Any]]) -> str:
-    lines = [f"# Ladder: {agent} ({game}) from `{checkpoint}`", "",
+def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str, Any]], goals: list[dict[str, Any]],
+                    robot: str = "greedy Q, the checkpoint's masks") -> str:
+    lines = [f"# Ladder: {agent} ({game}) from `{checkpoint}`", "", f"Robot decides by: {robot}.", "",
              "| robot policy | opponent | robot seat | games | win | draw | loss | score | task success (95% CI) | actions/game |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -134,3 +134,52 @@ def test_match_command_plays_two_opponents() -> None:
     cells = [c.strip() for c in row.strip("|").split("|")]
     first_wins, draws, second_wins = int(cells[3]), int(cells[4]), int(cells[5])
     assert first_wins == 0 and draws + second_wins == 30  # nobody beats minimax
+
+
+def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
+    """`--lookahead k5`: the same (untrained) Q-network behind deeper masks loses less to minimax, and the table
+    says which masks played; a name for the other Ultimate variant is mapped, a bad name is one line."""
+    from pipelines.ladder import resolve_lookahead
+
+    checkpoint = _checkpoint(tmp_path)
+    losses = {}
+    for rule in ("none", "k5"):
+        result = run_ladder(str(checkpoint), games=20, opponents=["minimax"], seed=3, lookahead=rule,
+                            out_dir=str(tmp_path / rule), progress=False)
+        assert f"Robot decides by: greedy Q, masks {rule}." in result["markdown"]
+        assert json.loads(open(result["files"]["json"]).read())["lookahead"] == rule
+        losses[rule] = sum(r["loss"] for r in result["rows"])
+    assert losses["k5"] < losses["none"]
+    assert resolve_lookahead("k3", "open_subgrids") == "k3_open" and resolve_lookahead("k3", "anywhere") == "k3"
+    with pytest.raises(ValueError, match="--lookahead must be one of"):
+        resolve_lookahead("k9", "anywhere")
+    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--lookahead", "deep"],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and "--lookahead must be one of" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
+    """`--search N --lookahead k5`: the Q-guided search never plays a move the k-step rule proves lost while
+    another move survives (a 3-simulation search alone would, often), in real dialogues of the env."""
+    from envs import make_env
+    from pipelines.ladder import load_robot
+
+    checkpoint = _checkpoint(tmp_path)
+    config, policy, robot = load_robot(str(checkpoint), search=3, lookahead="k5", seed=0)
+    assert robot == "Q-guided MCTS 3 sims, masks k5" and policy.prune is not None
+    env = make_env("standard", batch_size=(16,), seed=0, starts="alternate")
+    td, pruned = env.reset(), 0
+    for _ in range(60):
+        td = policy(td)
+        moves = td.get("action_mask")[:, :9]
+        survivors = moves & ~policy.prune.forced_losses(td, td.get("action_mask"))[:, :9]
+        action = td.get("action")
+        for row in (survivors.any(-1) & (survivors != moves).any(-1)).nonzero().flatten().tolist():
+            pruned += 1
+            assert int(action[row]) >= 9 or bool(survivors[row, int(action[row])])
+        _, td = env.step_and_maybe_reset(td)
+    assert pruned >= 10  # the check above really met positions with moves lost by force
+    result = run_ladder(str(checkpoint), games=4, opponents=["rule"], seed=0, search=3, out_dir=str(tmp_path / "s"),
+                        progress=False)
+    assert "Robot decides by: Q-guided MCTS 3 sims, masks one_step." in result["markdown"]
+    assert json.loads(open(result["files"]["json"]).read())["search"] == 3
