@@ -96,6 +96,9 @@ class LossConfig:
     target_update: Literal["hard", "soft"] = "hard"  # paper: hard copy every C updates
     target_period: int = 50  # C, in gradient updates (hard)
     tau: float = 0.005  # soft update rate
+    # n-step returns (modules/nstep.py): the target sums n discounted rewards before bootstrapping with gamma**n;
+    # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
+    n_step: int = 1
 
 
 @dataclass
@@ -262,6 +265,7 @@ def _check_values(config: RunConfig) -> None:
         "buffer.batch_size": config.buffer.batch_size,
         "optim.updates_per_batch": config.optim.updates_per_batch,
         "loss.target_period": config.loss.target_period,
+        "loss.n_step": config.loss.n_step,
         "train.eval_every_frames": config.train.eval_every_frames,
         "train.num_threads": config.train.num_threads,
         "eval.games": config.eval.games,
