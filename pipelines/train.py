@@ -103,6 +103,12 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     learner = Learner.from_config(qnet, config)
+    nstep = None
+    if config.loss.n_step > 1:  # opt-in n-step returns (modules/nstep.py): the loss then bootstraps with gamma**n
+        from modules.nstep import NStepTransitions
+
+        nstep = NStepTransitions(config.loss.n_step, config.loss.gamma)
+        learner.loss_module.make_value_estimator(gamma=nstep.bootstrap_gamma)
     buffer = TensorDictReplayBuffer(
         storage=LazyTensorStorage(config.buffer.size), batch_size=config.buffer.batch_size
     )
@@ -170,6 +176,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             counters["episodes"] += episodes_ended
             transitions = learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward,
                                            loss_reward=config.loss.loss_reward)
+            if nstep is not None:
+                transitions = nstep(transitions.reshape(batch.shape))
             buffer.extend(transitions)
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
