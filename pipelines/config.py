@@ -72,6 +72,9 @@ class OptimConfig:
     updates_per_batch: int = 8  # gradient updates per collected batch
     max_grad_norm: float = 10.0
     weight_decay: float = 0.0
+    # matrix products of the learner's forward/backward: fp32, or bf16 (CPU autocast, float32 weights, gradients and
+    # loss kept); bf16 changes the numbers of a seed, hence off by default (docs/learner-speed.md)
+    precision: Literal["fp32", "bf16"] = "fp32"
 
 
 @dataclass
