@@ -22,12 +22,17 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from envs import dialogue as dlg
-from envs.engine import FREE_MOVE_CHOICES, make_engine
+from envs.engine import FREE_MOVE_CHOICES, make_engine, uniform_choice
 
 GAME_CHOICES = ("standard", "ultimate")
 STARTS_CHOICES = ("robot", "human", "alternate", "random")
 ILLEGAL_ACT_REWARD = -5.0  # the paper's penalty for a repeated move, applied to every refused act (ours)
 ROBOT, USER = 1, 2
+# Dialogue flags, kept multiplied by 8 so that ``engine.status`` (outcome * 2 + marks % 2, 0..7) + flags is the
+# game's "stage" (0..63): all the phase depends on, one integer per game, and the index of the phase table.
+ROBOT_FIRST, AGREED, CLOSED = 8, 16, 32
+N_STAGES = 64
+N_USER = 1 + len(dlg.USER_ACTS)  # values of the last user act: 0 none, else user act + 1
 
 
 class DialogueGameEnv(EnvBase):
@@ -121,9 +126,37 @@ class DialogueGameEnv(EnvBase):
         # maximum with the robot's last act's commands + words row gives the whole tail of the observation
         n_commands = model.template_commands.shape[1]
         self._utterance_word_columns = torch.where(present, order + n_commands, n_commands + len(model.words))
-        self._system_features = torch.cat([model.template_commands, model.template_words], dim=1)
+        # the commands + words of each said act type (row 0: nothing said), plus the spare column the padding hits
+        system_features = torch.cat([model.template_commands, model.template_words], dim=1)
+        self._said_features = torch.cat([system_features, torch.zeros(len(system_features), 1)], dim=1)
+        self._utterance_out = torch.cat([torch.arange(n_utt), torch.tensor([-1])])  # silence is reported as -1
+        self._utterance_is_move = torch.cat([model.utterance_acts == dlg.USER_MOVE, torch.tensor([False])])
+        self._asr_scaled = (self.asr_low, self.asr_high) != (0.0, 1.0)  # else confidences are the uniforms themselves
+        # phase of every stage (see ROBOT_FIRST); the filter by (talk = last system act * N_USER + last user act,
+        # stage): one row gather per step instead of ~12 ops that build the phase and the context
+        stage = torch.arange(N_STAGES)
+        self._stage_phase = torch.tensor([
+            dlg.phase_of(bool(flags & AGREED), bool(flags & CLOSED), status // 2, (status % 2 == 0) == bool(flags & ROBOT_FIRST))
+            for status, flags in zip((stage % 8).tolist(), (stage // 8 * 8).tolist())
+        ])
         allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
-        self._filter_table = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1).contiguous()
+        by_phase = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1)
+        n_talk = (1 + len(dlg.SYSTEM_TYPES)) * N_USER
+        rows = (torch.arange(n_talk).unsqueeze(1) * len(dlg.PHASES) + self._stage_phase.unsqueeze(0)).reshape(-1)
+        self._filter_table = by_phase.index_select(0, rows).contiguous()  # row talk * N_STAGES + stage
+        # flags an accepted act sets (by act type + 1), and those a (system act, user reply) pair sets (by talk)
+        self._said_flags = torch.zeros(1 + len(dlg.SYSTEM_TYPES), dtype=torch.int64)
+        self._said_flags[dlg.REPLY_YES + 1], self._said_flags[dlg.CLOSING + 1] = AGREED, CLOSED
+        self._talk_flags = torch.zeros(n_talk, dtype=torch.int64)
+        self._talk_flags[(dlg.REQUEST_PLAY + 1) * N_USER + dlg.USER_YES + 1] = AGREED
+        # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
+        self._user_turn = (self._asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1)
+        self._code_legal = self._code_rewards = None
+        if self.game == "standard":  # 3x3: legal squares and look-ahead rewards are one row per board code
+            legal, rewards = self.engine.rows_by_code(ROBOT)
+            talk_acts = self.n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
+            self._code_legal = torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous()
+            self._code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model
@@ -175,17 +208,15 @@ class DialogueGameEnv(EnvBase):
     def _init_state(self, batch: int) -> None:
         self.boards = self.engine.new(batch)
         self.d = _Dialogues()
-        self.d.agreed = torch.zeros(batch, dtype=torch.bool)
-        self.d.closed = torch.zeros(batch, dtype=torch.bool)
-        self.d.last_sys = torch.zeros(batch, dtype=torch.int64)
-        self.d.last_user = torch.zeros(batch, dtype=torch.int64)
+        self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
+        self.d.talk = torch.zeros(batch, dtype=torch.int64)
         self.d.robot_first = torch.ones(batch, dtype=torch.bool)
         self.d.episodes = torch.zeros(batch, dtype=torch.int64)
         self.d.turn = torch.zeros(batch, dtype=torch.int64)
         self.d.user_act = torch.full((batch,), -1, dtype=torch.int64)
         self.d.user_move = torch.full((batch,), -1, dtype=torch.int64)
         self.d.user_utterance = torch.full((batch,), -1, dtype=torch.int64)
-        self.d.user_words = torch.zeros(batch, self._system_features.shape[1])
+        self.d.words = torch.zeros(batch, self._said_features.shape[1])
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone())
@@ -218,23 +249,21 @@ class DialogueGameEnv(EnvBase):
         return action
 
     # ------------------------------------------------------------------ dynamics
-    def _phase(self) -> torch.Tensor:
-        boards = self.boards
-        robot_to_move = (boards.n_marks % 2 == 0) == self.d.robot_first
-        phase = torch.where(robot_to_move, dlg.ROBOT_TO_MOVE, dlg.USER_TO_MOVE)
-        phase = torch.where(self.d.agreed, phase, dlg.PRE_GAME)
-        phase = torch.where(boards.outcome > 0, boards.outcome + (dlg.ROBOT_WON - 1), phase)
-        return torch.where(self.d.closed, dlg.CLOSED, phase)
-
-    def _context(self) -> torch.Tensor:
-        """(B,) flat index of (last system act, last user act, phase) into the filter table."""
-        phase = self._phase()
-        return (self.d.last_sys * (1 + len(dlg.USER_ACTS)) + self.d.last_user) * len(dlg.PHASES) + phase
+    def _stage(self, flags: torch.Tensor) -> torch.Tensor:
+        """(B,) the stage (board status + dialogue ``flags``): ``_stage_phase`` gives the game phase."""
+        return self.engine.status(self.boards) + flags
 
     def _refresh(self) -> None:
         """Recompute the mask and look-ahead of the current state (after a step)."""
         cells = self.cells
-        dialogue_mask = self._filter_table.index_select(0, self._context())  # (B, A): moves = "GameMove allowed"
+        context = self.d.talk * N_STAGES + self._stage(self.d.flags)
+        dialogue_mask = self._filter_table.index_select(0, context)  # (B, A): moves = "GameMove allowed"
+        if self._code_legal is not None:
+            code = self.boards.codes[:, 0]
+            mask = dialogue_mask & self._code_legal.index_select(0, code)
+            lookahead = torch.where(mask, self._code_rewards.index_select(0, code), ILLEGAL_ACT_REWARD)
+            self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
+            return
         legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
         mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
         can_move = legal.any(1)
@@ -248,8 +277,7 @@ class DialogueGameEnv(EnvBase):
 
     def _observation(self) -> torch.Tensor:
         boards = self.boards
-        commands_and_words = torch.maximum(self._system_features.index_select(0, self.d.last_sys), self.d.user_words)
-        parts = [self.engine.mark_features(boards), commands_and_words]
+        parts = [self.engine.mark_features(boards), self.d.words[:, :-1]]
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)
@@ -269,7 +297,7 @@ class DialogueGameEnv(EnvBase):
             observation = _paste_rows(self.d.observation, reset_rows, fresh_observation)
             winning = _paste_rows(self.d.winning_actions, reset_rows, fresh_winning)
         self.d.observation, self.d.winning_actions = observation, winning
-        terminated = self.d.closed.unsqueeze(1)
+        terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
         truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
         extra = {} if reward is None else {"reward": reward}
         # _new_unsafe skips per-key validation: every tensor here is built by the env with the right batch
@@ -355,29 +383,26 @@ class DialogueGameEnv(EnvBase):
         for grid in (boards.board, boards.codes, boards.owners, boards.move_order, boards.n_marks, boards.outcome):
             grid.index_fill_(0, index, 0)
         boards.last_move.index_fill_(0, index, -1)
-        self.d.user_words.index_fill_(0, index, 0.0)  # never handed out: the observation is built from it
-        rows = torch.zeros(self.batch_size[0], dtype=torch.bool).index_fill_(0, index, True)
-        kept = ~rows
-        # the (B,) dialogue tensors are handed out (as views) in outputs: replaced, never changed in place
-        self.d.agreed = self.d.agreed & kept
-        self.d.closed = self.d.closed & kept
-        self.d.last_sys = self.d.last_sys.masked_fill(rows, 0)
-        self.d.last_user = self.d.last_user.masked_fill(rows, 0)
-        self.d.turn = self.d.turn.masked_fill(rows, 0)
-        self.d.user_act = self.d.user_act.masked_fill(rows, -1)
-        self.d.user_move = self.d.user_move.masked_fill(rows, -1)
-        self.d.user_utterance = self.d.user_utterance.masked_fill(rows, -1)
-        if self.starts == "robot":
-            self.d.robot_first = self.d.robot_first | rows
-        elif self.starts == "human":
-            self.d.robot_first = self.d.robot_first & kept
+        # never handed out (outputs are built from them): changed in place
+        self.d.words.index_fill_(0, index, 0.0)
+        self.d.talk.index_fill_(0, index, 0)
+        # the (B,) dialogue tensors below are handed out (as views) in outputs: replaced, never changed in place
+        self.d.turn = self.d.turn.index_fill(0, index, 0)
+        self.d.user_act = self.d.user_act.index_fill(0, index, -1)
+        self.d.user_move = self.d.user_move.index_fill(0, index, -1)
+        self.d.user_utterance = self.d.user_utterance.index_fill(0, index, -1)
+        if self.starts in ("robot", "human"):
+            robot = self.starts == "robot"
+            self.d.robot_first = self.d.robot_first.index_fill(0, index, robot)
+            self.d.flags.index_fill_(0, index, ROBOT_FIRST if robot else 0)
         else:
             if self.starts == "alternate":
-                first = self.d.episodes % 2 == 0
-            else:
-                first = torch.rand(rows.shape, generator=self._rng) < 0.5
-            self.d.robot_first = torch.where(rows, first, self.d.robot_first)
-        self.d.episodes = self.d.episodes + rows.long()
+                first = self.d.episodes.index_select(0, index) % 2 == 0
+            else:  # one draw per game, reset or not (the random stream does not depend on which games reset)
+                first = (torch.rand(self.batch_size, generator=self._rng) < 0.5).index_select(0, index)
+            self.d.robot_first = self.d.robot_first.index_copy(0, index, first)
+            self.d.flags.index_copy_(0, index, first.long() * ROBOT_FIRST)
+        self.d.episodes.index_add_(0, index, torch.ones_like(index))
         mask, dialogue_mask, lookahead = self._fresh_rows
         self.d.mask = _paste_rows(self.d.mask, index, mask)
         self.d.dialogue_mask = _paste_rows(self.d.dialogue_mask, index, dialogue_mask)
@@ -396,17 +421,16 @@ class DialogueGameEnv(EnvBase):
         index = action.unsqueeze(1)
         accepted = self.d.mask.gather(1, index).squeeze(1)
         reward = self.d.lookahead.gather(1, index)
-        done_type = torch.where(accepted, act_type, -1)  # the act type where the act was accepted, else -1
+        said = (act_type + 1) * accepted  # the accepted act's type + 1, 0 if refused: the new "last system act"
 
-        robot_moves = done_type == dlg.MOVE
+        robot_moves = said == dlg.MOVE + 1
         if bool(robot_moves.any()):
             self.engine.play(self.boards, action, ROBOT, robot_moves)
-        self.d.agreed = self.d.agreed | (done_type == dlg.REPLY_YES)
-        self.d.closed = self.d.closed | (done_type == dlg.CLOSING)
+        flags = self.d.flags | self._said_flags.index_select(0, said)
 
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
         silence = self._silence
-        phase = self._phase()
+        phase = self._stage_phase.index_select(0, self._stage(flags))
         # read through self.model each step: `ncbot play` swaps in tables that make the user say what a person typed
         options, counts_table = self.model.reply_options, self.model.reply_counts
         context = act_type * len(dlg.PHASES) + phase
@@ -414,28 +438,31 @@ class DialogueGameEnv(EnvBase):
         pick = (torch.rand(counts.shape, generator=self._rng) * counts).long().clamp(max=options.shape[-1] - 1)
         utterance = options.reshape(-1).index_select(0, context * options.shape[-1] + pick)
         utterance = torch.where(accepted & (counts > 0), utterance, silence)
-        user_act = self._utterance_acts.index_select(0, utterance)
-        user_moves = accepted & (phase == dlg.USER_TO_MOVE) & self._asks_move.index_select(0, act_type)
+        user_moves = accepted & self._user_turn.index_select(0, context)
         user_move = torch.full_like(action, -1)
         if bool(user_moves.any()):
             cells_taken = self._user_cells(user_moves)
             self.engine.play(self.boards, cells_taken, USER, user_moves)
             user_move = torch.where(user_moves, cells_taken, -1)
         # a move utterance without a move (an act the data never shows) is silence
-        silent = (user_act == dlg.USER_MOVE) & ~user_moves
-        utterance = torch.where(silent, silence, utterance)
-        user_act = torch.where(silent, -1, user_act)
-        self.d.agreed = self.d.agreed | ((done_type == dlg.REQUEST_PLAY) & (user_act == dlg.USER_YES))
+        utterance = torch.where(self._utterance_is_move.index_select(0, utterance) & ~user_moves, silence, utterance)
+        user_act = self._utterance_acts.index_select(0, utterance)
+        talk = said * N_USER + (user_act + 1)  # 0 for a refused act (silence)
+        flags = flags | self._talk_flags.index_select(0, talk)
 
+        # the commands and words of the robot's act, with the user's words at their ASR confidence (the larger
+        # of the two where both said a word); refused acts leave the last ones (rare with a masked policy)
         columns = self._utterance_word_columns.index_select(0, utterance)
-        confidence = torch.rand(columns.shape, generator=self._rng) * (self.asr_high - self.asr_low) + self.asr_low
-        heard = torch.zeros(columns.shape[0], self.d.user_words.shape[1] + 1).scatter_(1, columns, confidence)[:, :-1]
-        # a refused act leaves the last words (rare with a masked policy: skip the (B, C + V) where then)
-        self.d.user_words = heard if bool(accepted.all()) else torch.where(accepted.unsqueeze(1), heard, self.d.user_words)
-        utterance = torch.where(utterance == silence, -1, utterance)
-        self.d.last_sys = torch.where(accepted, act_type + 1, self.d.last_sys)
-        self.d.last_user = torch.where(accepted, user_act + 1, self.d.last_user)
-        self.d.user_act, self.d.user_move, self.d.user_utterance = user_act, user_move, utterance
+        confidence = torch.rand(columns.shape, generator=self._rng)
+        if self._asr_scaled:
+            confidence = confidence * (self.asr_high - self.asr_low) + self.asr_low
+        words = self._said_features.index_select(0, said).scatter_reduce_(1, columns, confidence, "amax")
+        if not bool(accepted.all()):
+            words = torch.where(accepted.unsqueeze(1), words, self.d.words)
+            talk = torch.where(accepted, talk, self.d.talk)
+        self.d.words, self.d.talk, self.d.flags = words, talk, flags
+        self.d.user_act, self.d.user_move = user_act, user_move
+        self.d.user_utterance = self._utterance_out.index_select(0, utterance)
         self.d.turn = self.d.turn + 1
         self._refresh()
 
@@ -443,12 +470,11 @@ class DialogueGameEnv(EnvBase):
 
     def _user_cells(self, rows: torch.Tensor) -> torch.Tensor:
         """(B,) the user's square in ``rows`` (other rows: meaningless): uniform among legal ones, or the opponent's choice."""
-        legal = self.engine.legal(self.boards)
         if self.opponent is None:
             # picks outside ``rows`` are discarded by the caller; each row draws one number either way, so
             # leaving the other rows unmasked changes neither the moves nor the random stream (one op less)
-            return uniform_choice(legal, self._rng)
-        legal = legal & rows.unsqueeze(1)
+            return self.engine.random_legal(self.boards, self._rng)
+        legal = self.engine.legal(self.boards) & rows.unsqueeze(1)
         index = rows.nonzero().squeeze(1)
         boards = self.boards
         kwargs: dict[str, Any] = {"rows": index} if "rows" in self._opponent_params else {}
@@ -486,17 +512,15 @@ class _Dialogues:
     ~20 µs, and the step replaces these tensors every call.
     """
 
-    agreed: torch.Tensor  # (B,) the user agreed to play
-    closed: torch.Tensor  # (B,) the robot said goodbye
-    last_sys: torch.Tensor  # (B,) last accepted system act type + 1 (0: none)
-    last_user: torch.Tensor  # (B,) last user act + 1 (0: none / silence)
+    flags: torch.Tensor  # (B,) ROBOT_FIRST | AGREED (the user agreed to play) | CLOSED (the robot said goodbye)
+    talk: torch.Tensor  # (B,) last accepted system act type + 1 (0: none), times N_USER, + last user act + 1 (0: none / silence)
     robot_first: torch.Tensor  # (B,) bool
     episodes: torch.Tensor  # (B,) dialogues started (for starts="alternate")
     turn: torch.Tensor  # (B,) actions taken in this dialogue
     user_act: torch.Tensor  # (B,) the user's act in the last step (-1 none)
     user_move: torch.Tensor  # (B,) the user's square in the last step (-1 none)
     user_utterance: torch.Tensor  # (B,) id of the user's utterance in the last step (-1 none)
-    user_words: torch.Tensor  # (B, C + V) ASR confidence of each word of that utterance (columns C..; 0 for the C commands)
+    words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
     mask: torch.Tensor  # (B, A) action_mask
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
@@ -509,19 +533,6 @@ def _paste_rows(values: torch.Tensor, index: torch.Tensor, row: torch.Tensor) ->
     pasted = values.clone()
     pasted[index] = row
     return pasted
-
-
-def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """(B,) a uniformly random True column of each row of ``mask`` (B, n) (0 for an all-False row).
-
-    Why not ``(rand(B, n) + mask).argmax``: torch.rand costs ~10 ns per number, so one number per row
-    and the k-th True column (k = floor(u * count), via a cumulative sum) is several times faster.
-    """
-    counts = mask.cumsum(1, dtype=torch.int32)  # non-decreasing rows: searchsorted finds the k-th True
-    total = counts[:, -1:]
-    k = (torch.rand(total.shape, generator=generator) * total).to(torch.int32)
-    k = torch.minimum(k, total - 1)  # u * count may round up to count in float32
-    return torch.searchsorted(counts, k, right=True).squeeze(1)
 
 
 def _check_batch(batch_size: Any) -> int:

@@ -79,6 +79,19 @@ def lookup_rows(table: torch.Tensor, player: torch.Tensor, index: torch.Tensor) 
     return lookup(table.reshape(-1), player * table.shape[1] + index)
 
 
+def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) a uniformly random True column of each row of ``mask`` (B, n) (0 for an all-False row).
+
+    Why not ``(rand(B, n) + mask).argmax``: torch.rand costs ~10 ns per number, so one number per row
+    and the k-th True column (k = floor(u * count), via a cumulative sum) is several times faster.
+    """
+    counts = mask.cumsum(1, dtype=torch.int32)  # non-decreasing rows: searchsorted finds the k-th True
+    total = counts[:, -1:]
+    k = (torch.rand(total.shape, generator=generator) * total).to(torch.int32)
+    k = torch.minimum(k, total - 1)  # u * count may round up to count in float32
+    return torch.searchsorted(counts, k, right=True).squeeze(1)
+
+
 @dataclass
 class Boards:
     """The batched game state; every field has the batch as its first dimension.
@@ -141,6 +154,15 @@ class _Engine:
     def legal(self, state: Boards) -> torch.Tensor:
         """(B, cells) bool: squares the player to move may take; all False once the game is over."""
         raise NotImplementedError
+
+    def status(self, state: Boards) -> torch.Tensor:
+        """(B,) int64 ``outcome * 2 + n_marks % 2`` (0..7): all the env's dialogue phase needs from the board."""
+        return state.outcome * 2 + (state.n_marks & 1)
+
+    def random_legal(self, state: Boards, generator: torch.Generator) -> torch.Tensor:
+        """(B,) a uniformly random legal square per game (meaningless where none): ``uniform_choice(legal)``,
+        same numbers from the same generator (one uniform per game)."""
+        return uniform_choice(self.legal(state), generator)
 
     def mark_features(self, state: Boards) -> torch.Tensor:
         """(B, 2 * cells) float32: 1 where player 1 has a mark, then 1 where player 2 has one (the board features)."""
@@ -207,6 +229,43 @@ class StandardEngine(_Engine):
 
     def mark_features(self, state: Boards) -> torch.Tensor:
         return self._code_tables()[1].index_select(0, state.codes[:, 0])
+
+    def status(self, state: Boards) -> torch.Tensor:
+        return self._status_table().index_select(0, state.codes[:, 0])
+
+    def random_legal(self, state: Boards, generator: torch.Generator) -> torch.Tensor:
+        # uniform_choice's arithmetic (u * count truncated, the k-th legal square) with the count and the k-th
+        # square read from tables: no cumulative sum or binary search over the batch
+        code = state.codes[:, 0]
+        count, nth = self._pick_tables()
+        total = count.index_select(0, code)
+        k = (torch.rand(total.shape, generator=generator) * total).to(torch.int64)
+        return nth.index_select(0, code * 10 + k)
+
+    def rows_by_code(self, player: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """(3^9, 9) bool legal squares and (3^9, 9) float32 move rewards of ``player``, row = board code: what a
+        caller needs to answer "legal" and "look-ahead" for a whole batch with one row gather each."""
+        return self._code_tables()[0], self._move_reward_rows(player)
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _status_table() -> torch.Tensor:
+        """(3^9,) int64 ``outcome * 2 + marks % 2`` of every board code."""
+        digits = torch.arange(3**9).unsqueeze(1) // (3 ** torch.arange(9)) % 3
+        return StandardEngine._outcome_table() * 2 + (digits != 0).sum(1) % 2
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _pick_tables() -> tuple[torch.Tensor, torch.Tensor]:
+        """(3^9,) int32 number of legal squares; (3^9 * 10,) int64 the k-th legal square at code * 10 + k, the
+        last one repeated up to k = 9 (u * count may round up to count in float32; uniform_choice clamps)."""
+        legal = StandardEngine._code_tables()[0]
+        running = legal.cumsum(1, dtype=torch.int32)
+        count = running[:, -1].contiguous()
+        k = torch.minimum(torch.arange(10, dtype=torch.int32).unsqueeze(0), (count - 1).clamp(min=0).unsqueeze(1))
+        nth = torch.searchsorted(running, k.contiguous(), right=True)
+        nth[count == 0] = 0  # as uniform_choice gives for a row without legal squares
+        return count, nth.reshape(-1).contiguous()
 
     @staticmethod
     @lru_cache(maxsize=1)
