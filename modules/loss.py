@@ -5,17 +5,24 @@ Target: y = r on terminal steps, else r + gamma * max over the AVAILABLE actions
 error term is a typo). Optional double DQN: the online network picks a' among the available actions, the target
 network scores it. The target network is a TorchRL target-parameter copy, refreshed by `HardUpdate` (every C
 updates, the paper) or `SoftUpdate`.
+
+Speed (docs/learner-speed.md): the update is dominated by the MLP's matrix products, so the loss runs on plain
+tensors (`td_loss`) and, when asked (`precision="bf16"`), runs the Q-network's products in bfloat16 under CPU
+autocast while weights, gradients and the loss stay float32.
 """
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import torch
+from torch import nn
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimators
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
+from torchrl.objectives.value.functional import td0_return_estimate
 
 from modules.argmax import MaskedArgmax
 from modules.masks import AVAILABLE_KEY
@@ -23,6 +30,23 @@ from modules.qnet import ACTION_VALUE_KEY
 
 MAX_AVAILABLE_VALUE_KEY = "max_available_value"
 LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
+PRECISIONS = ("fp32", "bf16")
+
+
+def _linear_layer_keys(module: nn.Module) -> list[tuple[nn.Module, tuple[str, ...] | None]] | None:
+    """(layer, key of its weights in the functional params) for a Sequential of Linear and stateless layers, else
+    None: such a network runs on the target weights with one `F.linear` per layer, no module re-parametrisation."""
+    if not isinstance(module, nn.Sequential):
+        return None
+    layers: list[tuple[nn.Module, tuple[str, ...] | None]] = []
+    for index, layer in enumerate(module):
+        if isinstance(layer, nn.Linear):
+            layers.append((layer, ("module", "0", "module", str(index))))
+        elif isinstance(layer, (nn.ReLU, nn.Tanh, nn.ELU, nn.LeakyReLU, nn.Identity)):
+            layers.append((layer, None))
+        else:
+            return None
+    return layers
 
 
 class CompetitiveDQNLoss(LossModule):
@@ -55,12 +79,16 @@ class CompetitiveDQNLoss(LossModule):
         loss_function: str = "l2",
         double_dqn: bool = False,
         delay_value: bool = True,
+        precision: str = "fp32",
     ) -> None:
         super().__init__()
         if loss_function not in LOSS_FUNCTIONS:
             raise ValueError(f"unknown loss_function {loss_function!r}; expected one of {sorted(LOSS_FUNCTIONS)}")
+        if precision not in PRECISIONS:
+            raise ValueError(f"unknown precision {precision!r}; expected one of {list(PRECISIONS)}")
         self.loss_function = LOSS_FUNCTIONS[loss_function]
         self.double_dqn = double_dqn
+        self.precision = precision
         self.delay_value = delay_value
         # Q-network followed by a masked max: reading `observation` and `action_mask` of a state, it writes the
         # greedy available action and max_{a available} Q(s, a): the bootstrap value when run on s'.
@@ -71,6 +99,7 @@ class CompetitiveDQNLoss(LossModule):
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
         self._qnet_tensor_module = qnet.module  # the bare nn.Module inside the TensorDict wrapper
         self._qnet_param_names = [name for name, _ in qnet.module.named_parameters()]
+        self._qnet_layers = _linear_layer_keys(qnet.module)
 
     def make_value_estimator(self, value_type: ValueEstimators | None = None, **hyperparams) -> None:
         """Build the TD(0) estimator (the only one that matches the paper's one-step target), e.g. gamma=0.7."""
@@ -94,23 +123,44 @@ class CompetitiveDQNLoss(LossModule):
                 terminated=self.tensor_keys.terminated,
             )
 
+    def _matmul_precision(self):
+        """bf16: CPU autocast runs the Linear layers' products in bfloat16 (AVX512_BF16 / AMX do them ~2x faster
+        than float32); parameters, their gradients and everything after the Q-values stay float32."""
+        if self.precision == "bf16":
+            return torch.autocast("cpu", dtype=torch.bfloat16)
+        return nullcontext()
+
     def _q_values(self, observation: torch.Tensor, params: TensorDictBase) -> torch.Tensor:
-        """Q(s, .) under `params` (online or target), on plain tensors.
+        """Q(s, .) under `params` (online or target), on plain tensors, as float32.
 
         Why not a full TensorDict module call: its plumbing costs more than the tiny MLP itself, and updates/s is
         what a learner is judged on. The online parameters ARE the Q-network's own (TorchRL's functional
-        conversion keeps the same tensors), so the online pass is a plain call; the target pass swaps in the
-        target tensors with `torch.func.functional_call`.
+        conversion keeps the same tensors), so the online pass is a plain call; the target pass runs the layers
+        with `F.linear` on the target tensors (the same ops as `nn.Linear`), or `torch.func.functional_call` for
+        other architectures.
         """
-        if params is self.value_network_params:
-            return self._qnet_tensor_module(observation)
-        swapped = {name: params.get(("module", "0", "module", *name.split("."))) for name in self._qnet_param_names}
-        return torch.func.functional_call(self._qnet_tensor_module, swapped, (observation,))
+        with self._matmul_precision():
+            if params is self.value_network_params:
+                q_values = self._qnet_tensor_module(observation)
+            elif self._qnet_layers is not None:
+                q_values = observation
+                for layer, key in self._qnet_layers:
+                    if key is None:
+                        q_values = layer(q_values)
+                    else:
+                        q_values = nn.functional.linear(q_values, params.get((*key, "weight")),
+                                                        params.get((*key, "bias")))
+            else:
+                swapped = {name: params.get(("module", "0", "module", *name.split(".")))
+                           for name in self._qnet_param_names}
+                q_values = torch.func.functional_call(self._qnet_tensor_module, swapped, (observation,))
+        return q_values.float()
 
-    def _bootstrap_value(self, tensordict: TensorDictBase) -> torch.Tensor:
-        """max over available a' of Q_target(s', a'); with double DQN, Q_target(s', argmax_available Q_online)."""
-        next_observation = tensordict.get(("next", "observation"))
-        available = tensordict.get(("next", self.tensor_keys.action_mask))
+    def _bootstrap_value(self, next_observation: torch.Tensor, available: torch.Tensor) -> torch.Tensor:
+        """max over available a' of Q_target(s', a'); with double DQN, Q_target(s', argmax_available Q_online).
+
+        Without double DQN the online network never sees s': one target forward, no extra online forward.
+        """
         target_q = self._q_values(next_observation, self.target_value_network_params)
         fill = torch.finfo(target_q.dtype).min
         if not self.double_dqn:
@@ -119,17 +169,39 @@ class CompetitiveDQNLoss(LossModule):
         best = online_q.masked_fill(~available, fill).argmax(-1, keepdim=True)
         return torch.gather(target_q, -1, best)
 
-    def forward(self, tensordict: TensorDictBase) -> TensorDict:
-        """Loss on Q(s, a) against the masked one-step target; writes `td_error` for prioritised replay."""
-        q_values = self._q_values(tensordict.get("observation"), self.value_network_params)
-        action = tensordict.get(self.tensor_keys.action)
+    def td_loss(
+        self,
+        observation: torch.Tensor,
+        action: torch.Tensor,
+        reward: torch.Tensor,
+        terminated: torch.Tensor,
+        next_observation: torch.Tensor,
+        next_available: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(loss, Q(s, a), target y) on plain tensors: observation (B, F), action (B,), reward and terminated (B, 1),
+        next_observation (B, F), next_available (B, A). The whole loss; `forward` is this plus TensorDict I/O."""
+        q_values = self._q_values(observation, self.value_network_params)
         predicted = torch.gather(q_values, -1, action.unsqueeze(-1)).squeeze(-1)
         with torch.no_grad():
-            next_value = self._bootstrap_value(tensordict)
-            # TorchRL's TD(0) estimator: y = r + gamma * (1 - terminated) * next_value
-            target = self.value_estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
-            tensordict.set(self.tensor_keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
+            next_value = self._bootstrap_value(next_observation, next_available)
+            # TorchRL's TD(0) return, with the gamma held by the value estimator: y = r + gamma * (1 - term) * V(s')
+            target = td0_return_estimate(gamma=self.value_estimator.gamma, next_state_value=next_value,
+                                         reward=reward, terminated=terminated).squeeze(-1)
         loss = distance_loss(predicted, target, self.loss_function).mean()
+        return loss, predicted, target
+
+    def td_loss_inputs(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, ...]:
+        """The tensors `td_loss` reads, taken from a batch of transitions (the replay buffer's layout)."""
+        keys = self.tensor_keys
+        return (tensordict.get("observation"), tensordict.get(keys.action), tensordict.get(("next", keys.reward)),
+                tensordict.get(("next", keys.terminated)), tensordict.get(("next", "observation")),
+                tensordict.get(("next", keys.action_mask)))
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        """Loss on Q(s, a) against the masked one-step target; writes `td_error` for prioritised replay."""
+        loss, predicted, target = self.td_loss(*self.td_loss_inputs(tensordict))
+        with torch.no_grad():
+            tensordict.set(self.tensor_keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
         return TensorDict(
             {"loss": loss, "q_mean": predicted.detach().mean(), "target_mean": target.mean()}, batch_size=[]
         )

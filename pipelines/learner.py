@@ -1,14 +1,17 @@
-"""The learner of a run: competitive DQN loss + target updater + optimiser, built from the config in one place.
+"""The learner of a run: replay buffer, competitive DQN loss, target updater and optimiser, built from the config
+in one place.
 
 `train.py` and `bench/learner_throughput.py` both step this object, so the benchmark measures exactly the
-update the training loop runs.
+update the training loop runs. Why each speed choice was made, with figures: docs/learner-speed.md.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import torch
+from tensordict import TensorDictBase, is_tensor_collection
 from tensordict.nn import TensorDictModule
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
 from modules.loss import CompetitiveDQNLoss, make_target_updater
 from pipelines.config import RunConfig
@@ -22,6 +25,27 @@ def scheduled_lr(config: RunConfig, frames: int) -> float:
     return config.optim.lr + progress * (config.schedule.lr_end - config.optim.lr)
 
 
+class GatherStorage(LazyTensorStorage):
+    """`LazyTensorStorage` whose batch reads gather each stored tensor with `index_select`.
+
+    Why: TensorDict fancy indexing of the 11 transition keys costs ~1 ms per 1024-sample batch, a sixth of a whole
+    gradient update; `index_select` reads the same rows (bit-identical batches, same sampler and RNG) several times
+    faster. Anything but a 1-D tensor of indices goes through the parent class unchanged.
+    """
+
+    def get(self, index):
+        storage = self._storage
+        if not (isinstance(index, torch.Tensor) and index.ndim == 1 and index.dtype == torch.long
+                and self.initialized and is_tensor_collection(storage)):
+            return super().get(index)
+        return storage.apply(lambda stored: stored.index_select(0, index), batch_size=index.shape)
+
+
+def make_replay_buffer(size: int, batch_size: int) -> TensorDictReplayBuffer:
+    """The run's uniform replay buffer: TorchRL's TensorDictReplayBuffer + RandomSampler over a GatherStorage."""
+    return TensorDictReplayBuffer(storage=GatherStorage(size), batch_size=batch_size)
+
+
 @dataclass
 class Learner:
     loss_module: CompetitiveDQNLoss
@@ -31,7 +55,8 @@ class Learner:
 
     @classmethod
     def from_config(cls, qnet: TensorDictModule, config: RunConfig) -> "Learner":
-        loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn)
+        loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn,
+                                         precision=config.optim.precision)
         loss_module.make_value_estimator(gamma=config.loss.gamma)
         updater = make_target_updater(loss_module, config.loss.target_update, config.loss.target_period, config.loss.tau)
         # fused Adam: one kernel for all parameters instead of a loop of small ops (CPU supports it in torch >= 2.4)
@@ -44,9 +69,13 @@ class Learner:
         for group in self.optimizer.param_groups:
             group["lr"] = lr
 
-    def update(self, batch) -> float:
-        """One gradient step on a sampled batch, then a target-network step; returns the loss."""
-        loss = self.loss_module(batch)["loss"]
+    def update(self, batch: TensorDictBase) -> torch.Tensor:
+        """One gradient step on a sampled batch, then a target-network step; returns the loss (a 0-d tensor, no sync).
+
+        Calls the loss on plain tensors (`td_loss`): the same computation as `loss_module(batch)`, without building
+        the metrics TensorDict and the `td_error` key nobody reads with uniform replay.
+        """
+        loss, _, _ = self.loss_module.td_loss(*self.loss_module.td_loss_inputs(batch))
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(self.loss_module.parameters(), self.max_grad_norm, foreach=True)

@@ -158,3 +158,148 @@ def test_bad_target_updater_settings_are_clear_errors() -> None:
 def test_unknown_loss_function_is_a_clear_error() -> None:
     with pytest.raises(ValueError, match="loss_function"):
         CompetitiveDQNLoss(make_qnet(3, N_ACTIONS, [4]), loss_function="l3")
+
+
+# --- speed paths: the same numbers as the plain TorchRL calls, and bf16 as an opt-in ---------------------------------
+
+def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDict:
+    generator = torch.Generator().manual_seed(seed)
+    next_mask = torch.rand(batch, N_ACTIONS, generator=generator) < 0.5
+    next_mask[:, 0] = True
+    terminated = torch.rand(batch, 1, generator=generator) < 0.3
+    return TensorDict({
+        "observation": torch.rand(batch, n_features, generator=generator),
+        "action": torch.randint(0, N_ACTIONS, (batch,), generator=generator),
+        "next": {"observation": torch.rand(batch, n_features, generator=generator), "action_mask": next_mask,
+                 "reward": torch.randn(batch, 1, generator=generator), "terminated": terminated,
+                 "done": terminated.clone()},
+    }, batch_size=[batch])
+
+
+def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
+    from modules.qnet import seeded_init
+
+    qnet = make_qnet(6, N_ACTIONS, [16, 16])
+    seeded_init(qnet, 0)
+    loss = CompetitiveDQNLoss(qnet, double_dqn=double_dqn, precision=precision)
+    loss.make_value_estimator(gamma=0.9)
+    return loss
+
+
+@pytest.mark.parametrize("double_dqn", [False, True])
+def test_plain_tensor_loss_is_the_tensordict_loss_bit_for_bit(double_dqn: bool) -> None:
+    loss = mlp_loss(double_dqn=double_dqn)
+    td = mlp_transitions(64)
+    via_tensordict = loss(td.clone())["loss"]
+    via_tensors, predicted, target = loss.td_loss(*loss.td_loss_inputs(td))
+    assert torch.equal(via_tensors, via_tensordict)
+    # and the target is TorchRL's own TD(0) estimate from the same next value
+    next_value = loss._bootstrap_value(td["next", "observation"], td["next", "action_mask"])
+    expected = loss.value_estimator.value_estimate(td.clone(), next_value=next_value).squeeze(-1)
+    assert torch.equal(target, expected)
+
+
+def test_target_pass_by_layers_equals_functional_call_and_follows_hard_updates() -> None:
+    loss = mlp_loss()
+    updater = make_target_updater(loss, "hard", period=1)
+    observation = mlp_transitions(32)["observation"]
+    target_params = loss.target_value_network_params
+    with torch.no_grad():
+        for p in loss.value_network_params.values(True, True):
+            p.add_(0.1)
+    swapped = {name: target_params.get(("module", "0", "module", *name.split("."))) for name in loss._qnet_param_names}
+    reference = torch.func.functional_call(loss._qnet_tensor_module, swapped, (observation,))
+    by_layers = loss._q_values(observation, target_params)
+    assert torch.equal(by_layers, reference)
+    online = loss._q_values(observation, loss.value_network_params)
+    assert not torch.allclose(by_layers, online)  # the target still holds the old weights
+    updater.step()
+    assert torch.equal(loss._q_values(observation, target_params), online)
+
+
+def test_bf16_runs_the_products_in_bfloat16_with_float32_weights_and_gradients() -> None:
+    exact, fast = mlp_loss("fp32"), mlp_loss("bf16")
+    td = mlp_transitions(256)
+    loss_exact, predicted_exact, _ = exact.td_loss(*exact.td_loss_inputs(td))
+    loss_fast, predicted_fast, _ = fast.td_loss(*fast.td_loss_inputs(td))
+    assert predicted_fast.dtype == torch.float32 and loss_fast.dtype == torch.float32
+    assert not torch.equal(predicted_fast, predicted_exact)  # really computed in bfloat16 ...
+    assert torch.allclose(predicted_fast, predicted_exact, rtol=0.02, atol=0.02)  # ... to bfloat16 accuracy
+    assert loss_fast.item() == pytest.approx(loss_exact.item(), rel=0.02)
+    loss_fast.backward()
+    for p in fast.value_network_params.values(True, True):
+        assert p.dtype == torch.float32 and p.grad is not None and p.grad.dtype == torch.float32
+    assert all(p.grad is None for p in fast.target_value_network_params.values(True, True))
+
+
+def test_unknown_precision_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="precision 'fp16'.*'fp32', 'bf16'"):
+        CompetitiveDQNLoss(make_qnet(3, N_ACTIONS, [4]), precision="fp16")
+
+
+def _filled_buffers(size: int = 300, batch: int = 48):
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    from pipelines.learner import make_replay_buffer
+
+    fast = make_replay_buffer(size, batch)
+    plain = TensorDictReplayBuffer(storage=LazyTensorStorage(size), batch_size=batch)
+    for seed in range(3):  # 3 x 128 rows into 300 slots: the ring wraps
+        rows = mlp_transitions(128, seed=seed)
+        fast.extend(rows.clone())
+        plain.extend(rows.clone())
+    return fast, plain
+
+
+def test_gather_storage_samples_the_same_batches_as_lazy_tensor_storage() -> None:
+    fast, plain = _filled_buffers()
+    for _ in range(3):
+        torch.manual_seed(7)
+        ours = fast.sample()
+        torch.manual_seed(7)
+        theirs = plain.sample()
+        assert set(ours.keys(True, True)) == set(theirs.keys(True, True))
+        assert (ours == theirs).all()
+    assert (fast[10:20] == plain[10:20]).all()  # slices and other reads go through TorchRL unchanged
+
+
+def test_gather_storage_state_round_trips_for_resume() -> None:
+    from pipelines.learner import make_replay_buffer
+
+    fast, _ = _filled_buffers()
+    restored = make_replay_buffer(300, 48)
+    restored.load_state_dict(fast.state_dict())
+    assert len(restored) == len(fast)
+    torch.manual_seed(3)
+    ours = fast.sample()
+    torch.manual_seed(3)
+    assert (restored.sample() == ours).all()
+
+
+def test_learner_update_matches_the_plain_torchrl_update_bit_for_bit() -> None:
+    """Learner.update (plain tensors) and the TorchRL calls it replaced give the same weights after several updates."""
+    from modules.qnet import seeded_init
+    from pipelines.config import RunConfig
+    from pipelines.learner import Learner
+
+    config = RunConfig()
+    config.loss.target_period = 2
+
+    def learner() -> Learner:
+        qnet = make_qnet(6, N_ACTIONS, [16, 16])
+        seeded_init(qnet, 0)
+        return Learner.from_config(qnet, config)
+
+    fast, plain = learner(), learner()
+    for step in range(5):
+        batch = mlp_transitions(64, seed=step)
+        fast.update(batch.clone())
+        loss = plain.loss_module(batch.clone())["loss"]
+        plain.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(plain.loss_module.parameters(), plain.max_grad_norm, foreach=True)
+        plain.optimizer.step()
+        plain.target_updater.step()
+    for a, b in zip(fast.loss_module.parameters(), plain.loss_module.parameters()):
+        assert torch.equal(a, b)
+    assert (fast.loss_module.target_value_network_params == plain.loss_module.target_value_network_params).all()
