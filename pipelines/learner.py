@@ -12,8 +12,9 @@ import torch
 from tensordict import TensorDictBase, is_tensor_collection
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.objectives import HardUpdate
 
-from modules.loss import CompetitiveDQNLoss, make_target_updater
+from modules.loss import CompetitiveDQNLoss, TargetValueCache, make_target_updater
 from pipelines.config import RunConfig
 
 
@@ -25,20 +26,47 @@ def scheduled_lr(config: RunConfig, frames: int) -> float:
     return config.optim.lr + progress * (config.schedule.lr_end - config.optim.lr)
 
 
+WRITE_STAMP_KEY = "write_stamp"
+
+
 class GatherStorage(LazyTensorStorage):
-    """`LazyTensorStorage` whose batch reads gather each stored tensor with `index_select`.
+    """`LazyTensorStorage` whose batch reads gather each stored tensor with `index_select`, and which stamps every
+    write so a cache of per-slot values (`TargetValueCache`) can tell a rewritten slot from a revisited one.
 
     Why: TensorDict fancy indexing of the 11 transition keys costs ~1 ms per 1024-sample batch, a sixth of a whole
     gradient update; `index_select` reads the same rows (bit-identical batches, same sampler and RNG) several times
-    faster. Anything but a 1-D tensor of indices goes through the parent class unchanged.
+    faster. Sampled batches carry one extra key, `write_stamp` (B,): the stamp of the write that filled each row's
+    slot. Anything but a 1-D tensor of indices goes through the parent class unchanged.
     """
+
+    def __init__(self, max_size: int, **kwargs) -> None:
+        super().__init__(max_size, **kwargs)
+        self._write_stamps = torch.full((max_size,), -1, dtype=torch.long)
+        self._next_stamp = 0
+
+    def _stamp(self, cursor) -> None:
+        if isinstance(cursor, (list, tuple)):
+            cursor = torch.as_tensor(cursor, dtype=torch.long)
+        self._write_stamps[cursor] = self._next_stamp
+        self._next_stamp += 1
+
+    def set(self, cursor, data, *, set_cursor: bool = True):
+        result = super().set(cursor, data, set_cursor=set_cursor)
+        self._stamp(cursor)
+        return result
+
+    def load_state_dict(self, state_dict) -> None:
+        super().load_state_dict(state_dict)
+        self._stamp(slice(None))  # every slot holds new data now
 
     def get(self, index):
         storage = self._storage
         if not (isinstance(index, torch.Tensor) and index.ndim == 1 and index.dtype == torch.long
                 and self.initialized and is_tensor_collection(storage)):
             return super().get(index)
-        return storage.apply(lambda stored: stored.index_select(0, index), batch_size=index.shape)
+        batch = storage.apply(lambda stored: stored.index_select(0, index), batch_size=index.shape)
+        batch.set(WRITE_STAMP_KEY, self._write_stamps.index_select(0, index))
+        return batch
 
 
 def make_replay_buffer(size: int, batch_size: int) -> TensorDictReplayBuffer:
@@ -52,6 +80,7 @@ class Learner:
     target_updater: object
     optimizer: torch.optim.Optimizer
     max_grad_norm: float
+    target_cache: TargetValueCache | None = None  # hard target updates without double DQN: bootstrap values per slot
 
     @classmethod
     def from_config(cls, qnet: TensorDictModule, config: RunConfig) -> "Learner":
@@ -62,7 +91,10 @@ class Learner:
         # fused Adam: one kernel for all parameters instead of a loop of small ops (CPU supports it in torch >= 2.4)
         optimizer = torch.optim.Adam(loss_module.parameters(), lr=config.optim.lr,
                                      weight_decay=config.optim.weight_decay, fused=True)
-        return cls(loss_module, updater, optimizer, config.optim.max_grad_norm)
+        cache = None
+        if isinstance(updater, HardUpdate) and not config.loss.double_dqn:
+            cache = TargetValueCache(loss_module)
+        return cls(loss_module, updater, optimizer, config.optim.max_grad_norm, cache)
 
     def set_lr(self, lr: float) -> None:
         """Schedule hook: the train loop decays the step size so Q stops jittering between near-tied moves."""
@@ -73,14 +105,23 @@ class Learner:
         """One gradient step on a sampled batch, then a target-network step; returns the loss (a 0-d tensor, no sync).
 
         Calls the loss on plain tensors (`td_loss`): the same computation as `loss_module(batch)`, without building
-        the metrics TensorDict and the `td_error` key nobody reads with uniform replay.
+        the metrics TensorDict and the `td_error` key nobody reads with uniform replay. Batches from a GatherStorage
+        (slot index + write stamp) take their bootstrap values from the target cache when it has them.
         """
-        loss, _, _ = self.loss_module.td_loss(*self.loss_module.td_loss_inputs(batch))
+        inputs = self.loss_module.td_loss_inputs(batch)
+        next_value = None
+        if self.target_cache is not None:
+            slots, stamps = batch.get("index", None), batch.get(WRITE_STAMP_KEY, None)
+            if slots is not None and stamps is not None:
+                next_value = self.target_cache.lookup(slots, stamps, inputs[4], inputs[5])
+        loss, _, _ = self.loss_module.td_loss(*inputs, next_value=next_value)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(self.loss_module.parameters(), self.max_grad_norm, foreach=True)
         self.optimizer.step()
         self.target_updater.step()
+        if self.target_cache is not None and self.target_updater.counter == 0:  # HardUpdate just copied the weights
+            self.target_cache.clear()
         return loss.detach()
 
     def state_dict(self) -> dict:
@@ -92,3 +133,5 @@ class Learner:
         self.optimizer.load_state_dict(state["optimizer"])
         if hasattr(self.target_updater, "counter"):
             self.target_updater.counter = state.get("target_counter", 0)
+        if self.target_cache is not None:
+            self.target_cache.clear()

@@ -194,7 +194,7 @@ def test_plain_tensor_loss_is_the_tensordict_loss_bit_for_bit(double_dqn: bool) 
     via_tensors, predicted, target = loss.td_loss(*loss.td_loss_inputs(td))
     assert torch.equal(via_tensors, via_tensordict)
     # and the target is TorchRL's own TD(0) estimate from the same next value
-    next_value = loss._bootstrap_value(td["next", "observation"], td["next", "action_mask"])
+    next_value = loss.bootstrap_value(td["next", "observation"], td["next", "action_mask"])
     expected = loss.value_estimator.value_estimate(td.clone(), next_value=next_value).squeeze(-1)
     assert torch.equal(target, expected)
 
@@ -251,6 +251,12 @@ def _filled_buffers(size: int = 300, batch: int = 48):
     return fast, plain
 
 
+def _without_stamps(batch: TensorDict) -> TensorDict:
+    from pipelines.learner import WRITE_STAMP_KEY
+
+    return batch.exclude(WRITE_STAMP_KEY)
+
+
 def test_gather_storage_samples_the_same_batches_as_lazy_tensor_storage() -> None:
     fast, plain = _filled_buffers()
     for _ in range(3):
@@ -258,9 +264,20 @@ def test_gather_storage_samples_the_same_batches_as_lazy_tensor_storage() -> Non
         ours = fast.sample()
         torch.manual_seed(7)
         theirs = plain.sample()
-        assert set(ours.keys(True, True)) == set(theirs.keys(True, True))
-        assert (ours == theirs).all()
+        assert set(_without_stamps(ours).keys(True, True)) == set(theirs.keys(True, True))
+        assert (_without_stamps(ours) == theirs).all()
     assert (fast[10:20] == plain[10:20]).all()  # slices and other reads go through TorchRL unchanged
+
+
+def test_gather_storage_stamps_each_write_so_rewritten_slots_are_told_apart() -> None:
+    from pipelines.learner import WRITE_STAMP_KEY
+
+    fast, _ = _filled_buffers(size=300)  # writes of 128 rows: slots 0-127, 128-255, 256-299 + 0-83 (wrapped)
+    stamps = fast.storage._write_stamps
+    assert len(set(stamps[:84].tolist())) == 1 and len(set(stamps[84:128].tolist())) == 1
+    assert stamps[0] != stamps[100] and stamps[0] != stamps[200]
+    batch = fast.sample()
+    assert torch.equal(batch[WRITE_STAMP_KEY], stamps[batch["index"]])
 
 
 def test_gather_storage_state_round_trips_for_resume() -> None:
@@ -273,33 +290,71 @@ def test_gather_storage_state_round_trips_for_resume() -> None:
     torch.manual_seed(3)
     ours = fast.sample()
     torch.manual_seed(3)
-    assert (restored.sample() == ours).all()
+    assert (_without_stamps(restored.sample()) == _without_stamps(ours)).all()
 
 
-def test_learner_update_matches_the_plain_torchrl_update_bit_for_bit() -> None:
-    """Learner.update (plain tensors) and the TorchRL calls it replaced give the same weights after several updates."""
+def _learner(**loss_settings):
     from modules.qnet import seeded_init
     from pipelines.config import RunConfig
     from pipelines.learner import Learner
 
     config = RunConfig()
-    config.loss.target_period = 2
+    for key, value in loss_settings.items():
+        setattr(config.loss, key, value)
+    qnet = make_qnet(6, N_ACTIONS, [16, 16])
+    seeded_init(qnet, 0)
+    return Learner.from_config(qnet, config)
 
-    def learner() -> Learner:
-        qnet = make_qnet(6, N_ACTIONS, [16, 16])
-        seeded_init(qnet, 0)
-        return Learner.from_config(qnet, config)
 
-    fast, plain = learner(), learner()
-    for step in range(5):
-        batch = mlp_transitions(64, seed=step)
-        fast.update(batch.clone())
-        loss = plain.loss_module(batch.clone())["loss"]
-        plain.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(plain.loss_module.parameters(), plain.max_grad_norm, foreach=True)
-        plain.optimizer.step()
-        plain.target_updater.step()
-    for a, b in zip(fast.loss_module.parameters(), plain.loss_module.parameters()):
-        assert torch.equal(a, b)
-    assert (fast.loss_module.target_value_network_params == plain.loss_module.target_value_network_params).all()
+def _plain_torchrl_update(learner, batch: TensorDict) -> None:
+    """The update as TorchRL's calls spell it: loss_module(batch), backward, clip, Adam, target updater."""
+    loss = learner.loss_module(batch)["loss"]
+    learner.optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(learner.loss_module.parameters(), learner.max_grad_norm, foreach=True)
+    learner.optimizer.step()
+    learner.target_updater.step()
+
+
+@pytest.mark.parametrize("target_update", ["hard", "soft"])
+def test_learner_update_with_target_cache_matches_the_plain_torchrl_update_bit_for_bit(target_update: str) -> None:
+    """Learner.update on GatherStorage batches (plain tensors, cached bootstrap values across hard updates and slot
+    rewrites) and the TorchRL calls on LazyTensorStorage batches give the same weights, update after update."""
+    fast, plain = _learner(target_period=3, target_update=target_update), _learner(target_period=3,
+                                                                                   target_update=target_update)
+    assert (fast.target_cache is not None) == (target_update == "hard")
+    fast_buffer, plain_buffer = _filled_buffers(size=300, batch=64)
+    for step in range(12):
+        if step % 4 == 3:  # new experience overwrites slots the cache has seen
+            rows = mlp_transitions(100, seed=100 + step)
+            fast_buffer.extend(rows.clone())
+            plain_buffer.extend(rows.clone())
+        torch.manual_seed(step)
+        fast.update(fast_buffer.sample())
+        torch.manual_seed(step)
+        _plain_torchrl_update(plain, plain_buffer.sample())
+        for a, b in zip(fast.loss_module.parameters(), plain.loss_module.parameters()):
+            assert torch.equal(a, b), f"update {step}"
+    if fast.target_cache is not None:  # the cache did skip target rows (64 samples over 300 slots revisit some)
+        assert 0 < fast.target_cache.computed < fast.target_cache.looked_up == 12 * 64
+
+
+def test_target_cache_is_cleared_by_a_hard_update_and_by_loading_a_state() -> None:
+    learner = _learner(target_period=2)
+    buffer, _ = _filled_buffers(size=300, batch=64)
+    cache = learner.target_cache
+    learner.update(buffer.sample())
+    assert (cache.stamps >= 0).any()
+    learner.update(buffer.sample())  # the second step copies the online weights into the target
+    assert (cache.stamps == -1).all()
+    learner.update(buffer.sample())
+    learner.load_state_dict(learner.state_dict())
+    assert (cache.stamps == -1).all()
+
+
+def test_target_cache_refuses_double_dqn() -> None:
+    with pytest.raises(ValueError, match="double_dqn"):
+        from modules.loss import TargetValueCache
+
+        TargetValueCache(mlp_loss(double_dqn=True))
+    assert _learner(double_dqn=True).target_cache is None
