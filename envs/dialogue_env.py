@@ -79,6 +79,7 @@ class DialogueGameEnv(EnvBase):
         self._rng = torch.Generator().manual_seed(int(seed))
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
         self._make_tables()
+        self._all_games = torch.arange(batch)
         self._init_state(batch)
         self.set_seed(int(seed))
 
@@ -151,12 +152,13 @@ class DialogueGameEnv(EnvBase):
         self._talk_flags[(dlg.REQUEST_PLAY + 1) * N_USER + dlg.USER_YES + 1] = AGREED
         # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
         self._user_turn = (self._asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1)
-        self._code_legal = self._code_rewards = None
+        self._code_legal = self._code_rewards = self._code_wins = None
         if self.game == "standard":  # 3x3: legal squares and look-ahead rewards are one row per board code
             legal, rewards = self.engine.rows_by_code(ROBOT)
             talk_acts = self.n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
             self._code_legal = torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous()
             self._code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
+            self._code_wins = (self._code_rewards == 5.0).contiguous()  # winning_actions = mask & this row
 
     def _describe(self) -> None:
         cells, model = self.cells, self.model
@@ -291,7 +293,11 @@ class DialogueGameEnv(EnvBase):
         """
         mask = self.d.mask
         if reset_rows is None:
-            observation, winning = self._observation(), mask & (self.d.lookahead == 5.0)
+            if self._code_wins is not None:  # 3x3: the moves worth +5 are one row per board code
+                winning = mask & self._code_wins.index_select(0, self.boards.codes[:, 0])
+            else:
+                winning = mask & (self.d.lookahead == 5.0)
+            observation = self._observation()
         else:
             fresh_observation, fresh_winning = self._fresh_features
             observation = _paste_rows(self.d.observation, reset_rows, fresh_observation)
@@ -325,19 +331,28 @@ class DialogueGameEnv(EnvBase):
         )
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDict:
-        rows = None
-        if tensordict is not None and "_reset" in tensordict.keys():
-            rows = tensordict.get("_reset").reshape(-1).bool()
-        if rows is None:
-            rows = torch.ones(self.batch_size[0], dtype=torch.bool)
-        if bool(rows.all()):
-            self._reset_rows(rows.nonzero().squeeze(1))
+        if tensordict is None or "_reset" not in tensordict.keys():
+            self._reset_rows(self._all_games)
             return self._output()
-        if bool(rows.any()):
-            index = rows.nonzero().squeeze(1)
+        index = tensordict.get("_reset").reshape(-1).nonzero().squeeze(1)  # one sync answers "all / some / none"
+        if index.shape[0] == self.batch_size[0]:
+            self._reset_rows(index)
+            return self._output()
+        if index.shape[0]:
             self._reset_rows(index)
             return self._output(reset_rows=index)
         return self._output()
+
+    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        """Skip TorchRL's per-key completion of the step output when it has nothing to do.
+
+        Why exact: ``_step`` always emits ``reward`` (B, 1) and the three done keys in their spec shapes, so
+        the generic pass (reshape the reward to its spec, add missing done keys) changes nothing; only the
+        optional type checks (``run_type_checks``) go through it. ``tests/test_env_speed.py`` compares both.
+        """
+        if self.run_type_checks:
+            return super()._step_proc_data(next_tensordict)
+        return next_tensordict
 
     def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
         """Merge the reset output into the input TensorDict with one update instead of a per-key ``where``.

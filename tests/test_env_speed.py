@@ -108,3 +108,71 @@ def test_partial_reset_output_equals_full_recompute(game: str) -> None:
         partial += 1
         td = fast
     assert partial > 0, "no partial reset happened: the test did not exercise the fast path"
+
+
+@pytest.mark.parametrize("game", ["standard", "ultimate"])
+def test_step_output_needs_no_torchrl_completion(game: str) -> None:
+    """The env skips TorchRL's ``_step_proc_data``: the generic pass must leave every step output unchanged."""
+    env = make_env(game, batch_size=(8,), seed=4)
+    td = env.reset()
+    for _ in range(30):
+        td = env.rand_action(td)
+        out = env._step(td)
+        generic = EnvBase._step_proc_data(env, out.clone())
+        assert set(generic.keys()) == set(out.keys())
+        for key in generic.keys():
+            assert torch.equal(generic[key], out[key]) and generic[key].shape == out[key].shape, key
+        td = step_mdp(td.set("next", out))
+        if bool(td["done"].any()):
+            td = env.reset(td.set("_reset", td["done"].clone()))
+
+
+def test_standard_random_legal_by_table_equals_uniform_choice() -> None:
+    """The 3x3 user's pick read from tables == uniform_choice over the legal squares, for every board code."""
+    engine = make_engine("standard")
+    state = engine.new(3**9)
+    state.codes[:, 0] = torch.arange(3**9)
+    legal = engine.legal(state)
+    has_move = legal.any(1)
+    for seed in range(4):
+        by_table = engine.random_legal(state, torch.Generator().manual_seed(seed))
+        plain = uniform_choice(legal, torch.Generator().manual_seed(seed))
+        assert torch.equal(by_table[has_move], plain[has_move])
+    assert int(has_move.sum()) > 5000
+
+
+def test_stage_table_equals_phase_rules() -> None:
+    """Every stage (board status + dialogue flags) maps to the phase ``dialogue.phase_of`` gives."""
+    from envs import dialogue as dlg
+    from envs.dialogue_env import AGREED, CLOSED, ROBOT_FIRST
+
+    env = make_env("standard", batch_size=(1,))
+    for outcome in range(4):
+        for marks in range(2):
+            for robot_first in (False, True):
+                for agreed in (False, True):
+                    for closed in (False, True):
+                        stage = outcome * 2 + marks + ROBOT_FIRST * robot_first + AGREED * agreed + CLOSED * closed
+                        expected = dlg.phase_of(agreed, closed, outcome, (marks == 0) == robot_first)
+                        assert int(env._stage_phase[stage]) == expected
+
+
+def test_standard_mask_and_lookahead_by_code_equal_engine_path() -> None:
+    """3x3 mask / look-ahead / winning actions read as board-code rows == the engine's legal squares and
+    move rewards combined with the act filter, over random rollouts (both seats)."""
+    env = make_env("standard", batch_size=(64,), seed=6, starts="alternate")
+    td = env.reset()
+    cells, checked = env.cells, 0
+    for _ in range(200):
+        td = env.rand_action(td)
+        _, td = env.step_and_maybe_reset(td)
+        dialogue_mask = td["dialogue_mask"]
+        legal = env.engine.legal(env.boards) & dialogue_mask[:, :cells]
+        mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
+        rewards = torch.nn.functional.pad(env.engine.move_rewards(env.boards, 1), (0, env.n_actions - cells))
+        lookahead = torch.where(mask, rewards, -5.0)
+        assert torch.equal(td["action_mask"], mask)
+        assert torch.equal(td["lookahead_reward"], lookahead)
+        assert torch.equal(td["winning_actions"], mask & (lookahead == 5.0))
+        checked += int(legal.any(1).sum())
+    assert checked > 1000
