@@ -102,6 +102,9 @@ class LossConfig:
     # n-step returns (modules/nstep.py): the target sums n discounted rewards before bootstrapping with gamma**n;
     # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
     n_step: int = 1
+    # which next actions the TD target maximises over (modules/bootstrap.py): every available one (the paper) or
+    # only the agent's greedy set, the actions it can actually play; untrained actions outside it inflate targets
+    bootstrap: Literal["available", "greedy"] = "available"
 
 
 @dataclass
