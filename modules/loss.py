@@ -31,6 +31,7 @@ from modules.qnet import ACTION_VALUE_KEY
 MAX_AVAILABLE_VALUE_KEY = "max_available_value"
 LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
 PRECISIONS = ("fp32", "bf16")
+MIN_CACHE_ROWS = 16  # smallest product the target-value cache runs (see TargetValueCache)
 
 
 def _linear_layer_keys(module: nn.Module) -> list[tuple[nn.Module, tuple[str, ...] | None]] | None:
@@ -218,8 +219,9 @@ class TargetValueCache:
     is computed once per target copy instead of at every visit: a quarter of the update's multiply-adds are the
     target pass, and most of them go. A slot is identified by its index and the write stamp the storage gave it,
     so a rewritten slot is recomputed. Missing rows run through the same ops as a full batch; the row results of
-    the matrix products do not depend on how many rows share them (except single-row products, which take a
-    matrix-vector path: one row is computed in a pair), so the numbers are unchanged (tested bit for bit).
+    the matrix products do not depend on how many rows share them (MKL checked for 4 to 1500 rows and several layer
+    sizes; fewer rows take another path with other bits, so a product always gets at least MIN_CACHE_ROWS rows,
+    padded with a repeated row), so the numbers are unchanged (tested bit for bit).
     The owner must `clear()` it whenever the target weights change.
     """
 
@@ -249,7 +251,9 @@ class TargetValueCache:
         self._grow(int(slots.max()) + 1)
         missing = (self.stamps.index_select(0, slots) != stamps).nonzero().squeeze(-1)
         if len(missing):
-            rows = missing if len(missing) > 1 else missing.expand(2)  # never a single-row (matrix-vector) product
+            # never fewer than MIN_CACHE_ROWS rows in a product: MKL takes another path for 1-3 rows (other bits)
+            rows = missing if len(missing) >= MIN_CACHE_ROWS else torch.cat(
+                (missing, missing[:1].expand(MIN_CACHE_ROWS - len(missing))))
             with torch.no_grad():
                 values = self.loss.bootstrap_value(next_observation.index_select(0, rows),
                                                    available.index_select(0, rows))

@@ -358,3 +358,25 @@ def test_target_cache_refuses_double_dqn() -> None:
 
         TargetValueCache(mlp_loss(double_dqn=True))
     assert _learner(double_dqn=True).target_cache is None
+
+
+@pytest.mark.parametrize("stale_rows", [1, 2, 3, 5])
+def test_target_cache_recomputes_a_few_stale_rows_with_the_bits_of_a_full_batch(stale_rows: int) -> None:
+    """A handful of rewritten slots are recomputed alone; their values must equal those of the whole batch (MKL's
+    products of 1-3 rows take another path, hence the padding)."""
+    from modules.loss import TargetValueCache
+
+    loss = mlp_loss()
+    cache = TargetValueCache(loss)
+    batch = mlp_transitions(64, seed=1)
+    slots, stamps = torch.arange(64), torch.zeros(64, dtype=torch.long)
+    next_observation, available = batch["next", "observation"], batch["next", "action_mask"]
+    cache.lookup(slots, stamps, next_observation, available)
+    rewritten = mlp_transitions(64, seed=2)
+    next_observation = next_observation.clone()
+    next_observation[:stale_rows] = rewritten["next", "observation"][:stale_rows]
+    stamps[:stale_rows] = 1
+    before = cache.computed
+    cached = cache.lookup(slots, stamps, next_observation, available)
+    assert cache.computed - before == stale_rows
+    assert torch.equal(cached, loss.bootstrap_value(next_observation, available))
