@@ -214,7 +214,7 @@ class StandardEngine(_Engine):
         return state
 
     def _update_outcome(self, state: Boards) -> None:
-        state.outcome = lookup(self._outcome_table(), state.codes[:, 0])
+        state.outcome = self._outcome_table().index_select(0, state.codes[:, 0])
 
     @staticmethod
     @lru_cache(maxsize=1)
@@ -281,7 +281,7 @@ class StandardEngine(_Engine):
             active = torch.ones_like(cells, dtype=torch.bool)
         mark = active * player  # (B,) int64: the player's mark in the active rows, 0 elsewhere
         cells = self._place(state, cells, mark, active)
-        state.codes[:, 0] += mark * self.pow3.index_select(0, cells)
+        state.codes.select(1, 0).add_(mark * self.pow3.index_select(0, cells))  # (`codes[:, 0] +=` adds a copy back)
         self._update_outcome(state)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:

@@ -176,3 +176,28 @@ def test_standard_mask_and_lookahead_by_code_equal_engine_path() -> None:
         assert torch.equal(td["winning_actions"], mask & (lookahead == 5.0))
         checked += int(legal.any(1).sum())
     assert checked > 1000
+
+
+def test_reply_tables_equal_model_tables_and_follow_edits() -> None:
+    """The user's reply tables == reading ``reply_options`` with min(pick, K - 1) and silence where a context has
+    no reply; a swapped-in model or an in-place edit of its tables (what ``ncbot play`` does) is picked up."""
+    import dataclasses
+
+    env = make_env("standard", batch_size=(4,))
+    env.model = dataclasses.replace(env.model, reply_options=env.model.reply_options.clone(),
+                                    reply_counts=env.model.reply_counts.clone())
+    options, model_counts = env.model.reply_options, env.model.reply_counts
+    width = options.shape[-1]
+    for _ in range(2):
+        counts, replies = env._reply_tables()
+        flat, flat_counts = options.reshape(-1, width), model_counts.reshape(-1)
+        assert torch.equal(counts, flat_counts)
+        for context in range(len(flat_counts)):
+            if int(flat_counts[context]) == 0:  # pick = floor(u * 0) = 0 only
+                assert int(replies[context * (width + 1)]) == env._silence
+                continue
+            for pick in range(width + 1):
+                assert int(replies[context * (width + 1) + pick]) == int(flat[context, min(pick, width - 1)])
+        model_counts[1] = 0  # edit in place: the next read must see it
+        options[2, :, 0] = 0
+    assert int(env._reply_tables()[0].reshape(model_counts.shape)[1].sum()) == 0
