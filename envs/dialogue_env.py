@@ -299,13 +299,17 @@ class DialogueGameEnv(EnvBase):
             else:
                 winning = mask & (self.d.lookahead == 5.0)
             observation = self._observation()
+            terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
+            truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
+            done = terminated | truncated
         else:
             fresh_observation, fresh_winning = self._fresh_features
             observation = _paste_rows(self.d.observation, reset_rows, fresh_observation)
             winning = _paste_rows(self.d.winning_actions, reset_rows, fresh_winning)
+            # a new dialogue is neither over nor cut short; the other games are as in the last output
+            terminated, truncated, done = (flag.index_fill(0, reset_rows, False) for flag in self.d.done_flags)
         self.d.observation, self.d.winning_actions = observation, winning
-        terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
-        truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
+        self.d.done_flags = (terminated, truncated, done)
         extra = {} if reward is None else {"reward": reward}
         # _new_unsafe skips per-key validation: every tensor here is built by the env with the right batch
         return TensorDict._new_unsafe(
@@ -325,7 +329,7 @@ class DialogueGameEnv(EnvBase):
                 "user_utterance": self.d.user_utterance.unsqueeze(1),
                 "terminated": terminated,
                 "truncated": truncated,
-                "done": terminated | truncated,
+                "done": done,
             },
             batch_size=self.batch_size,
             device=self.device,  # without it EnvBase.step_and_maybe_reset moves (copies) the TensorDict to the env's device every call
@@ -563,6 +567,7 @@ class _Dialogues:
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
     observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)
     winning_actions: torch.Tensor  # (B, A) the winning actions of the last output
+    done_flags: tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # (B, 1) terminated, truncated, done of the last output
 
 
 def _paste_rows(values: torch.Tensor, index: torch.Tensor, row: torch.Tensor) -> torch.Tensor:

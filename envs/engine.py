@@ -144,12 +144,16 @@ class _Engine:
         clamped cell index (B,). Adds rather than overwrites (the squares are empty: moves are legal), which
         spares reading the old values: inactive rows add 0 to their square 0."""
         cells = torch.where(active, cells, 0)
-        index = cells.unsqueeze(1)
-        state.board.scatter_add_(1, index, mark.to(torch.int8).unsqueeze(1))
-        state.n_marks += active
-        state.move_order.scatter_add_(1, index, (state.n_marks * active).unsqueeze(1))
-        state.last_move = torch.where(active, cells, state.last_move)
+        state.board.scatter_add_(1, cells.unsqueeze(1), mark.to(torch.int8).unsqueeze(1))
+        _Engine._count_move(state, cells, active)
         return cells
+
+    @staticmethod
+    def _count_move(state: Boards, cells: torch.Tensor, active: torch.Tensor) -> None:
+        """Number the move on ``cells`` (B,) (valid indices) in the ``active`` rows: marks, move order, last move."""
+        state.n_marks += active
+        state.move_order.scatter_add_(1, cells.unsqueeze(1), (state.n_marks * active).unsqueeze(1))
+        state.last_move = torch.where(active, cells, state.last_move)
 
     def legal(self, state: Boards) -> torch.Tensor:
         """(B, cells) bool: squares the player to move may take; all False once the game is over."""
@@ -269,20 +273,25 @@ class StandardEngine(_Engine):
 
     @staticmethod
     @lru_cache(maxsize=1)
-    def _code_tables() -> tuple[torch.Tensor, torch.Tensor]:
-        """Per 3x3 code: (3^9, 9) bool legal squares (none once decided) and (3^9, 18) float32 mark features."""
+    def _code_tables() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per 3x3 code: (3^9, 9) bool legal squares (none once decided), (3^9, 18) float32 mark features and
+        (3^9, 9) int8 the board itself."""
         digits = torch.arange(3**9).unsqueeze(1) // (3 ** torch.arange(9)) % 3
         open_game = StandardEngine._outcome_table() == 0
         legal = (digits == 0) & open_game.unsqueeze(1)
-        return legal.contiguous(), torch.cat([digits == 1, digits == 2], dim=1).float().contiguous()
+        marks = torch.cat([digits == 1, digits == 2], dim=1).float().contiguous()
+        return legal.contiguous(), marks, digits.to(torch.int8).contiguous()
 
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         if active is None:
             active = torch.ones_like(cells, dtype=torch.bool)
         mark = active * player  # (B,) int64: the player's mark in the active rows, 0 elsewhere
-        cells = self._place(state, cells, mark, active)
-        state.codes.select(1, 0).add_(mark * self.pow3.index_select(0, cells))  # (`codes[:, 0] +=` adds a copy back)
-        self._update_outcome(state)
+        cells = torch.where(active, cells, 0)
+        code = state.codes.select(1, 0).add_(mark * self.pow3.index_select(0, cells))  # (`codes[:, 0] +=` adds a copy back)
+        # the board and the outcome are functions of the code: one row gather each instead of a scatter
+        state.board = self._code_tables()[2].index_select(0, code)
+        self._count_move(state, cells, active)
+        state.outcome = self._outcome_table().index_select(0, code)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
         return self._move_reward_rows(player).index_select(0, state.codes[:, 0])
