@@ -123,15 +123,21 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
 def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
              what: str = typer.Option("paper,cells,reading,recogniser", help="Comma list of: paper, cells, reading, recogniser."),
              frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading'."),
+             sequences: int = typer.Option(120, min=1, help="'recogniser': 3x3 drawing sequences per mark style set."),
+             sequences9: int = typer.Option(40, min=1, help="'recogniser': 9x9 drawing sequences per mark style set."),
+             seed_set: str = typer.Option("heldout", help="'recogniser': heldout (never tuned on) or tuning sequences."),
              weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
              loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
-    """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading."""
+    """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading
+    and the move recogniser (Algorithm 1 on drawing sequences with a hand over the sheet)."""
     from vision import experiments as ex
 
     parts = [p.strip() for p in what.split(",") if p.strip()]
     unknown = set(parts) - {"paper", "cells", "reading", "recogniser"}
     if unknown or not parts:
         raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser; got {what!r}")
+    if seed_set not in ("heldout", "tuning"):
+        raise ValueError(f"--seed-set must be heldout or tuning; got {seed_set!r}")
     _setup_threads()
     written = []
     if "paper" in parts:
@@ -149,13 +155,14 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         written += ex.write_report(results, out, "reading")
         typer.echo(ex.markdown(results))
     if "recogniser" in parts:
-        rows = [ex.recogniser_sequences(grid, n, classifier=classifier, progress=True) for grid, n in ((3, frames), (9, max(1, frames // 4)))]
-        path = out / "recogniser.json"
-        out.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(rows, indent=1))
-        written.append(path)
-        for row in rows:
-            typer.echo(json.dumps(row))
+        from vision import recogniser_eval as rx
+
+        base = rx.HELDOUT_SEED if seed_set == "heldout" else rx.TUNING_SEED
+        sets = [rx.evaluate_sequences(grid, n, base + offset, styles, classifier, progress=True)
+                for grid, n in ((3, sequences), (9, sequences9))
+                for offset, styles in ((0, ("pen",)), (100_000, ("sketch", "hershey")))]
+        written += rx.write_report(sets, out, "recogniser" if seed_set == "heldout" else "recogniser_tuning")
+        typer.echo(rx.markdown(sets))
     typer.echo("wrote " + ", ".join(str(p) for p in written))
 
 

@@ -17,6 +17,8 @@ def _run(rec: MoveRecogniser, seq):
     for frame, hand in zip(seq.frames, seq.hand):
         result = rec.update(frame, seq.known_board)
         statuses.append(result.status)
+        if hand:  # a frame showing the hand is never read into the vote (skipped, or too few frames yet)
+            assert result.status in ("moving", "occluded", "no_page") or result.cells is None, statuses
         if result.status == "move":
             assert not hand, "a move was reported from a frame showing the hand"
             return result, statuses
@@ -32,6 +34,40 @@ def test_move_reported_within_three_clean_frames_never_with_the_hand(grid, seed,
     first_clean_after = max(i for i, h in enumerate(seq.hand) if h) + 1
     assert len(statuses) - first_clean_after <= 3, statuses
     assert "moving" in statuses or "occluded" in statuses
+
+
+# Scenes that once defeated the hand test, each now judged against the page's own paper colour:
+# a lavender light clipped to white along one side; a mint sticky note touching a 9x9 sheet (merged into
+# the page, it bent the corners); bold filled "0" glyphs (blobs as wide as a palm's opening); a 9x9 sheet
+# under a dark vignette with a corner that jitters (the motion test warps all three frames alike).
+@pytest.mark.parametrize("grid, seed, still, styles", [
+    (3, TEST_SEED + 80_013, 1, ("pen",)),
+    (9, TEST_SEED + 180_011, 2, ("sketch", "hershey")),
+    (3, TEST_SEED + 180_053, 2, ("sketch", "hershey")),
+    (9, TEST_SEED + 80_005, 2, ("pen",)),
+])
+def test_scenes_that_fooled_the_hand_test(grid, seed, still, styles) -> None:
+    seq = make_move_sequence(grid, seed, before=3, drawing=4, after=5, still_hand=still, styles=styles)
+    result, statuses = _run(MoveRecogniser(grid), seq)
+    assert result is not None, statuses
+    assert (result.move, result.label) == (seq.move, seq.symbol)
+    first_clean_after = max(i for i, h in enumerate(seq.hand) if h) + 1
+    assert len(statuses) - first_clean_after <= 3, statuses
+    assert "occluded" not in statuses[:3], statuses  # nothing on the sheet before the hand came
+
+
+def test_sequence_evaluation_reports(tmp_path) -> None:
+    from vision.recogniser_eval import TUNING_SEED, evaluate_sequences, write_report
+
+    result = evaluate_sequences(3, 2, TUNING_SEED)
+    summary = result.summary()
+    assert summary["sequences"] == 2 and summary["on_target"] == 2 and summary["reported_from_hand_frame"] == 0
+    assert sum(result.hand_frame_status.values()) == 2 * 4 + 1  # 4 drawing frames each, + 1 still-hand frame
+    paths = write_report([result], tmp_path, "rec")
+    assert [p.name for p in paths] == ["rec.md", "rec.json", "rec.png"] and all(p.stat().st_size > 0 for p in paths)
+    assert "**2/2**" in paths[0].read_text()
+    with pytest.raises(ValueError, match="at least one"):
+        evaluate_sequences(3, 0)
 
 
 def test_no_move_while_the_board_is_unchanged() -> None:

@@ -123,37 +123,6 @@ def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellC
     return result
 
 
-def recogniser_sequences(grid: int, n: int, seed: int = TEST_SEED + 80_000, classifier: CellClassifier | None = None,
-                         progress: bool = False) -> dict:
-    """Algorithm 1 on n drawing sequences (hand over the sheet, sometimes resting still after drawing):
-    right moves, moves reported from a hand frame, and clean frames needed after the hand left."""
-    from vision.data.sequences import make_move_sequence
-    from vision.recogniser import MoveRecogniser
-
-    rec = MoveRecogniser(grid, classifier=classifier or load_classifier())
-    right = wrong = from_hand = missed = 0
-    delays = []
-    for i in tqdm(range(n), desc=f"recognise {grid}x{grid}", unit="sequence", disable=not progress, leave=False):
-        seq = make_move_sequence(grid, seed + i, before=3, drawing=4, after=5, still_hand=i % 3)
-        rec.reset()
-        last_hand = max(j for j, h in enumerate(seq.hand) if h)
-        for j, (frame, hand) in enumerate(zip(seq.frames, seq.hand)):
-            result = rec.update(frame, seq.known_board)
-            if result.status == "move":
-                from_hand += hand
-                ok = (result.move, result.label) == (seq.move, seq.symbol)
-                right += ok
-                wrong += not ok
-                delays.append(j - last_hand)
-                break
-        else:
-            missed += 1
-    return {"grid": grid, "sequences": n, "right": right, "wrong": wrong, "missed": missed,
-            "reported_from_hand_frame": from_hand,
-            "max_clean_frames_needed": max(delays) if delays else None,
-            "mean_clean_frames_needed": float(np.mean(delays)) if delays else None}
-
-
 def markdown(results: list[Result]) -> str:
     """A table of accuracies and one confusion matrix per result (row-normalised percentages)."""
     lines = ["| experiment | n | accuracy | extra |", "|---|---|---|---|"]

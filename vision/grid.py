@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from vision.classifier.inference import CellClassifier, load_classifier
+from vision.illumination import non_paper
 from vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
 from vision.page import check_frame, locate_page
 from vision.sheet import check_grid
@@ -22,8 +23,9 @@ PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)
 CELL_INSET = 0.07              # fraction of a cell trimmed on each side (grid-line remnants)
 FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
-CHROMA_DISTANCE = 12.0         # Lab a/b distance from the page's median colour that counts as "not paper"
 OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
+RIM_OPEN = 5                   # pixels (of the 160 px warp): thinner non-paper at the rim is ink, not an arm
+MARK_EXTENT = 0.85             # blobs narrower and shorter than this many cells are marks (bold ink), not hands
 
 
 @dataclass
@@ -122,29 +124,33 @@ def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
     return out
 
 
-def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int) -> tuple[np.ndarray, float]:
+def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_step: float) -> tuple[np.ndarray, float]:
     """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin.
 
-    Non-paper = outside the paper mask, or off the page's own median colour in Lab chroma: pale skin in
-    bright light is nearly as white as paper but never as grey (the light's tint shifts paper and skin alike).
+    Non-paper is judged against the local paper colour (vision.illumination): a tinted light, a dark
+    vignette or a clipped bright strip changes the paper smoothly, a hand does not. A blob that fits inside
+    one cell (cell_step pixels of this warp) is a mark, however bold: a hand with its wrist spans more.
     """
     side = paper_mask_page.shape[0]
-    lab = cv2.cvtColor(page_bgr, cv2.COLOR_BGR2LAB).astype(np.float32)
-    chroma = lab[:, :, 1:] - np.median(lab[:, :, 1:].reshape(-1, 2), axis=0)
-    coloured = np.hypot(chroma[:, :, 0], chroma[:, :, 1]) > CHROMA_DISTANCE
-    paper_mask_page = np.where(coloured, 0, paper_mask_page)
-    # a hand reaching over the sheet's edge: non-paper along the page's rim, even if too thin to open
-    rim = np.ones_like(paper_mask_page, bool)
+    not_paper = non_paper(page_bgr, paper_mask_page)
+    # a hand reaching over the sheet's edge: non-paper along the page's rim, even if too thin for the
+    # palm-sized opening below; but wider than a grid line, which may run to the rim of a cropped page
+    rim = np.ones_like(not_paper)
     rim[8:-8, 8:-8] = False
     rim[:2], rim[-2:], rim[:, :2], rim[:, -2:] = False, False, False, False
-    edge_fraction = float((paper_mask_page[rim] < 128).mean())
+    wide = cv2.morphologyEx(not_paper.astype(np.uint8), cv2.MORPH_OPEN, np.ones((RIM_OPEN, RIM_OPEN), np.uint8))
+    edge_fraction = float(wide[rim].mean())
     # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
     # robot sees it from closer, so the hand looks bigger on it)
     k = max(5, side // (16 if grid == 3 else 9)) | 1
-    foreign = cv2.morphologyEx((paper_mask_page < 128).astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    foreign = cv2.morphologyEx(not_paper.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     foreign = cv2.morphologyEx(foreign, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))  # pale skin is speckled
     border = max(2, side // 50)  # the warped page's own edge is not a hand
     foreign[:border], foreign[-border:], foreign[:, :border], foreign[:, -border:] = 0, 0, 0, 0
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(foreign, connectivity=8)
+    if count > 1:
+        mark_sized = (stats[1:, cv2.CC_STAT_WIDTH] < MARK_EXTENT * cell_step) & (stats[1:, cv2.CC_STAT_HEIGHT] < MARK_EXTENT * cell_step)
+        foreign = np.r_[False, ~mark_sized][labels].astype(np.uint8)
     return foreign, edge_fraction
 
 
@@ -173,15 +179,17 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     to_page = cv2.getPerspectiveTransform(corners, square)
     page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
                              cv2.COLOR_BGR2GRAY)
-    # hands are big: look for them on a small warp of the paper mask (cheap), boundaries scaled to it
-    to_small = np.diag([FOREIGN_SIDE / page_side, FOREIGN_SIDE / page_side, 1.0]) @ to_page
-    small = (FOREIGN_SIDE, FOREIGN_SIDE)
-    foreign, edge_fraction = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
-                       cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid)
     bounds = locate_grid(page_gray, grid)
     if bounds is None:
         raise ValueError(f"no {grid}x{grid} grid found on the sheet (expected dark grid lines across the page)")
     xs, ys = bounds
+    # hands are big: look for them on a small warp of the page (cheap), boundaries scaled to it
+    scale = FOREIGN_SIDE / page_side
+    to_small = np.diag([scale, scale, 1.0]) @ to_page
+    small = (FOREIGN_SIDE, FOREIGN_SIDE)
+    foreign, edge_fraction = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
+                                      cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid,
+                                      cell_step=scale * min(xs[-1] - xs[0], ys[-1] - ys[0]) / grid)
     grid_page = np.array([[xs[0], ys[0]], [xs[-1], ys[0]], [xs[-1], ys[-1]], [xs[0], ys[-1]]], np.float32)
     grid_frame = cv2.perspectiveTransform(grid_page[None], np.linalg.inv(to_page))[0]
     side = grid * rho
@@ -200,7 +208,6 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
             y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
             crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
             cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
-    scale = FOREIGN_SIDE / page_side
     return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
                      edge_fraction, corners, grid_frame, gray)
 

@@ -9,11 +9,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from vision.illumination import shade_and_hue
+
 MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
 MAX_PAGE_FRACTION = 0.92  # a "page" filling the whole frame is a uniform image (its corners are not seen)
 FILLED_FRACTION = 0.6    # paper over this much of a frame without a page outline: the frame is the page
 MIN_WHITENESS = 90        # value - 1.5 x saturation of paper: darker than this is not a white sheet
 PAPER_RATIO = 0.66        # paper is at least this fraction of the median paper whiteness (uneven light)
+PAGE_HUE_RATIO = 0.1      # against the fitted paper colour, a channel off grey by more: not the page (pastel clutter) ...
+PAGE_BRIGHT_RATIO = 0.8   # ... if also about as bright as the paper (ink blurred into paper is darker)
 
 
 def check_frame(frame: np.ndarray) -> np.ndarray:
@@ -64,12 +68,49 @@ def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     # off thin bright things touching it (a white pen) that would pull the page's hull out of shape
     body = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
     body = cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
-    corners = _page_quad(body, frame.shape[0] * frame.shape[1])
+    without_clutter = _paper_coloured(frame, body)
+    corners = _page_quad(without_clutter, frame.shape[0] * frame.shape[1])
+    if corners is None and without_clutter is not body:
+        corners = _page_quad(body, frame.shape[0] * frame.shape[1])
     if corners is None and cv2.countNonZero(body) > FILLED_FRACTION * body.size:
         # a scan or a close-up: the sheet fills the picture, so the picture is the page
         h, w = mask.shape
         corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], np.float32)
     return corners, mask
+
+
+def _paper_coloured(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """The page body without pale clutter of another hue touching it (vision.illumination).
+
+    The global whiteness test merges a mint sticky note or a pastel cup touching the sheet into the page,
+    which bends the page's corners (and the hand test then sees "not paper" along the warped page's rim).
+    Judged against a smooth fit of the paper's own colour under this light, such clutter is off-hue while
+    paper dimmed by a vignette or whitened by clipping is not. Judged at a quarter resolution (it only has
+    to cut clutter off; the page's straight edges still come from the full-resolution mask).
+    """
+    contours, _ = cv2.findContours(body, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return body
+    x, y, w, h = cv2.boundingRect(max(contours, key=cv2.contourArea))
+    pad = max(w, h) // 10
+    x0, y0 = max(0, x - pad), max(0, y - pad)
+    x1, y1 = min(frame.shape[1], x + w + pad), min(frame.shape[0], y + h + pad)
+    if min(x1 - x0, y1 - y0) < 32:
+        return body
+    small = (max(8, (x1 - x0) // 2), max(8, (y1 - y0) // 2))
+    crop = cv2.resize(frame[y0:y1, x0:x1], small, interpolation=cv2.INTER_AREA)
+    crop_body = cv2.resize(body[y0:y1, x0:x1], small, interpolation=cv2.INTER_NEAREST)
+    # only what the whiteness test took for page; opened, so neither noise, thin ink nor the slivers of
+    # table that a quarter resolution mixes into the page's edge count
+    brightness, off_hue = shade_and_hue(crop, crop_body)
+    clutter = (off_hue > PAGE_HUE_RATIO) & (brightness > PAGE_BRIGHT_RATIO) & (crop_body > 0)
+    clutter = cv2.morphologyEx(clutter.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
+    if not clutter.any():
+        return body
+    clutter = cv2.resize(clutter, (x1 - x0, y1 - y0), interpolation=cv2.INTER_NEAREST)
+    out = body.copy()
+    out[y0:y1, x0:x1][clutter > 0] = 0
+    return cv2.morphologyEx(out, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
 
 
 def _page_quad(mask: np.ndarray, frame_area: int) -> np.ndarray | None:

@@ -83,16 +83,23 @@ class MoveRecogniser:
 
     def reset(self) -> None:
         """Forget past frames (call when the recogniser becomes active for a new turn)."""
-        self._pages: deque[np.ndarray] = deque(maxlen=3)
+        self._grays: deque[np.ndarray] = deque(maxlen=3)  # the last frames, gray, for the motion test
         self._probs: deque[np.ndarray] = deque(maxlen=self.window)
 
     def _forget(self) -> None:
         self._probs.clear()
 
-    def _motion(self) -> float | None:
-        if len(self._pages) < 3:
+    def _motion(self, corners: np.ndarray) -> float | None:
+        """dist(P_t, P_t-1) + dist(P_t-1, P_t-2), the last three frames all warped with this frame's page
+        corners: a dim or cluttered page corner found a few pixels elsewhere in each frame then does not
+        count as motion, while a hand (or the page itself moving) does."""
+        if len(self._grays) < 3:
             return None
-        p = list(self._pages)
+        pages = []
+        for gray in self._grays:
+            page = cv2.resize(warp(gray, corners, MOTION_SIDE * 2), (MOTION_SIDE, MOTION_SIDE), interpolation=cv2.INTER_AREA)
+            pages.append(cv2.GaussianBlur(page, (0, 0), 1.5).astype(np.float32))
+        p = pages
         return float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2)))
 
     def update(self, frame: np.ndarray, known_board: Sequence) -> Recognition:
@@ -101,13 +108,11 @@ class MoveRecogniser:
         empty = _empty_cells(known_board, self.grid ** 2)
         corners = find_page(frame)
         if corners is None:
-            self._pages.clear()
+            self._grays.clear()
             self._forget()
             return Recognition("no_page", detail="no paper sheet found in the frame")
-        page = cv2.cvtColor(warp(frame, corners, MOTION_SIDE * 2), cv2.COLOR_BGR2GRAY)
-        page = cv2.GaussianBlur(cv2.resize(page, (MOTION_SIDE, MOTION_SIDE), interpolation=cv2.INTER_AREA), (0, 0), 1.5)
-        self._pages.append(page.astype(np.float32))
-        motion = self._motion()
+        self._grays.append(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+        motion = self._motion(corners)
         if motion is None:
             self._forget()
             return Recognition("waiting", detail="collecting frames to judge motion")
