@@ -31,7 +31,7 @@ from modules.qnet import ACTION_VALUE_KEY
 MAX_AVAILABLE_VALUE_KEY = "max_available_value"
 LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
 PRECISIONS = ("fp32", "bf16")
-MIN_CACHE_ROWS = 16  # smallest product the target-value cache runs (see TargetValueCache)
+CACHE_ROW_BLOCK = 64  # the target-value cache runs products of a multiple of this many rows (TargetValueCache)
 
 
 def _linear_layer_keys(module: nn.Module) -> list[tuple[nn.Module, tuple[str, ...] | None]] | None:
@@ -220,8 +220,8 @@ class TargetValueCache:
     target pass, and most of them go. A slot is identified by its index and the write stamp the storage gave it,
     so a rewritten slot is recomputed. Missing rows run through the same ops as a full batch; the row results of
     the matrix products do not depend on how many rows share them (MKL checked for 4 to 1500 rows and several layer
-    sizes; fewer rows take another path with other bits, so a product always gets at least MIN_CACHE_ROWS rows,
-    padded with a repeated row), so the numbers are unchanged (tested bit for bit).
+    sizes; fewer rows take another path with other bits, so products are padded to a multiple of CACHE_ROW_BLOCK
+    rows), so the numbers are unchanged (tested bit for bit).
     The owner must `clear()` it whenever the target weights change.
     """
 
@@ -251,9 +251,11 @@ class TargetValueCache:
         self._grow(int(slots.max()) + 1)
         missing = (self.stamps.index_select(0, slots) != stamps).nonzero().squeeze(-1)
         if len(missing):
-            # never fewer than MIN_CACHE_ROWS rows in a product: MKL takes another path for 1-3 rows (other bits)
-            rows = missing if len(missing) >= MIN_CACHE_ROWS else torch.cat(
-                (missing, missing[:1].expand(MIN_CACHE_ROWS - len(missing))))
+            # products of a multiple of CACHE_ROW_BLOCK rows, padded with a repeated row: MKL takes another path for
+            # 1-3 rows (other bits), and oneDNN (bf16) builds a kernel per new shape, so few distinct shapes
+            padded = -(-len(missing) // CACHE_ROW_BLOCK) * CACHE_ROW_BLOCK
+            rows = missing if padded == len(missing) else torch.cat(
+                (missing, missing[:1].expand(padded - len(missing))))
             with torch.no_grad():
                 values = self.loss.bootstrap_value(next_observation.index_select(0, rows),
                                                    available.index_select(0, rows))
