@@ -77,3 +77,14 @@ def test_episodes_budget_stops_after_that_many_training_games(tmp_path: Path) ->
     state = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
     assert 120 <= report["episodes"] == state["episodes"]
     assert report["frames"] > TINY["collector"]["total_frames"]  # the frame budget did not stop it
+
+
+def test_bf16_precision_reaches_the_learner_and_is_reproducible(tmp_path: Path) -> None:
+    """optim.precision=bf16 trains through the same pipeline: same seed, same numbers; other numbers than fp32."""
+    path = write_tiny_config(tmp_path)
+    fast = train(load_config(path, ["optim.precision=bf16"]), tmp_path / "bf16")
+    again = train(load_config(path, ["optim.precision=bf16"]), tmp_path / "bf16_again")
+    assert _numbers(fast) == _numbers(again)
+    exact = train(load_config(path), tmp_path / "fp32")
+    assert [h["train_loss"] for h in fast["history"]] != [h["train_loss"] for h in exact["history"]]
+    assert load_config(tmp_path / "bf16" / "config.yaml").optim.precision == "bf16"
