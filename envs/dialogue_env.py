@@ -213,12 +213,13 @@ class DialogueGameEnv(EnvBase):
         self.d = _Dialogues()
         self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
         self.d.talk = torch.zeros(batch, dtype=torch.int64)
-        self.d.robot_first = torch.ones(batch, dtype=torch.bool)
+        # the tensors handed out as (B, 1) keys are kept as columns (no unsqueeze per output)
+        self.d.robot_first = torch.ones(batch, 1, dtype=torch.bool)
         self.d.episodes = torch.zeros(batch, dtype=torch.int64)
-        self.d.turn = torch.zeros(batch, dtype=torch.int64)
-        self.d.user_act = torch.full((batch,), -1, dtype=torch.int64)
-        self.d.user_move = torch.full((batch,), -1, dtype=torch.int64)
-        self.d.user_utterance = torch.full((batch,), -1, dtype=torch.int64)
+        self.d.turn = torch.zeros(batch, 1, dtype=torch.int64)
+        self.d.user_act = torch.full((batch, 1), -1, dtype=torch.int64)
+        self.d.user_move = torch.full((batch, 1), -1, dtype=torch.int64)
+        self.d.user_utterance = torch.full((batch, 1), -1, dtype=torch.int64)
         self.d.words = torch.zeros(batch, self._said_features.shape[1])
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
@@ -300,7 +301,7 @@ class DialogueGameEnv(EnvBase):
                 winning = mask & (self.d.lookahead == 5.0)
             observation = self._observation()
             terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
-            truncated = (self.d.turn >= self.max_actions).unsqueeze(1) & ~terminated
+            truncated = (self.d.turn >= self.max_actions) & ~terminated
             done = terminated | truncated
         else:
             fresh_observation, fresh_winning = self._fresh_features
@@ -322,11 +323,11 @@ class DialogueGameEnv(EnvBase):
                 "winning_actions": winning,
                 "board": self.boards.board.clone(),  # the engine updates boards in place
                 "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
-                "robot_first": self.d.robot_first.unsqueeze(1),
-                "turn": self.d.turn.unsqueeze(1),
-                "user_act": self.d.user_act.unsqueeze(1),
-                "user_move": self.d.user_move.unsqueeze(1),
-                "user_utterance": self.d.user_utterance.unsqueeze(1),
+                "robot_first": self.d.robot_first,
+                "turn": self.d.turn,
+                "user_act": self.d.user_act,
+                "user_move": self.d.user_move,
+                "user_utterance": self.d.user_utterance,
                 "terminated": terminated,
                 "truncated": truncated,
                 "done": done,
@@ -424,7 +425,7 @@ class DialogueGameEnv(EnvBase):
                 self.d.episodes.index_add_(0, index, torch.ones_like(index))
             else:  # one draw per game, reset or not (the random stream does not depend on which games reset)
                 first = (torch.rand(self.batch_size, generator=self._rng) < 0.5).index_select(0, index)
-            self.d.robot_first = self.d.robot_first.index_copy(0, index, first)
+            self.d.robot_first = self.d.robot_first.index_copy(0, index, first.unsqueeze(1))
             self.d.flags.index_copy_(0, index, first.long() * ROBOT_FIRST)
         mask, dialogue_mask, lookahead = self._fresh_rows
         self.d.mask = _paste_rows(self.d.mask, index, mask)
@@ -484,8 +485,8 @@ class DialogueGameEnv(EnvBase):
             words = torch.where(accepted.unsqueeze(1), words, self.d.words)
             talk = torch.where(accepted, talk, self.d.talk)
         self.d.words, self.d.talk, self.d.flags = words, talk, flags
-        self.d.user_act, self.d.user_move = user_act, user_move
-        self.d.user_utterance = self._utterance_out.index_select(0, utterance)
+        self.d.user_act, self.d.user_move = user_act.unsqueeze(1), user_move.unsqueeze(1)
+        self.d.user_utterance = self._utterance_out.index_select(0, utterance).unsqueeze(1)
         self.d.turn = self.d.turn + 1
         self._refresh()
 
@@ -555,12 +556,12 @@ class _Dialogues:
 
     flags: torch.Tensor  # (B,) ROBOT_FIRST | AGREED (the user agreed to play) | CLOSED (the robot said goodbye)
     talk: torch.Tensor  # (B,) last accepted system act type + 1 (0: none), times N_USER, + last user act + 1 (0: none / silence)
-    robot_first: torch.Tensor  # (B,) bool
+    robot_first: torch.Tensor  # (B, 1) bool
     episodes: torch.Tensor  # (B,) dialogues started (counted for starts="alternate" only)
-    turn: torch.Tensor  # (B,) actions taken in this dialogue
-    user_act: torch.Tensor  # (B,) the user's act in the last step (-1 none)
-    user_move: torch.Tensor  # (B,) the user's square in the last step (-1 none)
-    user_utterance: torch.Tensor  # (B,) id of the user's utterance in the last step (-1 none)
+    turn: torch.Tensor  # (B, 1) actions taken in this dialogue
+    user_act: torch.Tensor  # (B, 1) the user's act in the last step (-1 none)
+    user_move: torch.Tensor  # (B, 1) the user's square in the last step (-1 none)
+    user_utterance: torch.Tensor  # (B, 1) id of the user's utterance in the last step (-1 none)
     words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
     mask: torch.Tensor  # (B, A) action_mask
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
