@@ -6,10 +6,14 @@ cell, keep a window of the last `window` frames' per-cell label probabilities, a
 in the known game history pick the one whose summed nought/cross probability is largest; if its summed
 label is not "nothing", that is the person's move.
 
-Two additions over the paper, both from its field-trial lesson that hand detection mattered: a frame in
-which a large skin/sleeve-coloured blob covers any cell is skipped too (a hand resting still on the sheet
-passes the motion test), and the window is emptied whenever a frame is skipped, so probabilities seen
-before or during the drawing never vote after it.
+Additions over the paper, all from its field-trial lesson that hand detection mattered: a frame in which
+a large non-paper blob (hand, arm, sleeve; judged against the page's own paper colour, vision.illumination)
+covers any cell or the sheet's rim is skipped too (a hand resting still passes the motion test); the
+window is emptied whenever a frame is skipped, so probabilities seen before or during the drawing never
+vote after it. The motion test warps the last three frames with this frame's page corners (a corner that
+jitters under a dim vignette is not motion), so an arm that cuts a piece off the page is caught by the
+page's area instead: it changing between frames is "moving", it staying below the area of earlier clean
+frames is "occluded".
 """
 from __future__ import annotations
 
@@ -30,6 +34,7 @@ from vision.sheet import check_grid
 STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
 EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge
 HAND_FRACTION = 0.006  # of the page area under large non-paper blobs: a hand (or its shadow) is there
+AREA_CHANGE = 0.04     # the page's area in the frame changing more between frames: its outline is occluded or it moved
 MOTION_SIDE = 48  # the warped page is compared at this size, blurred: pen strokes barely count, a hand does
 
 
@@ -84,6 +89,8 @@ class MoveRecogniser:
     def reset(self) -> None:
         """Forget past frames (call when the recogniser becomes active for a new turn)."""
         self._grays: deque[np.ndarray] = deque(maxlen=3)  # the last frames, gray, for the motion test
+        self._areas: deque[float] = deque(maxlen=3)       # their page areas (frame pixels)
+        self._clean_area: float | None = None             # largest page area of a frame that passed every test
         self._probs: deque[np.ndarray] = deque(maxlen=self.window)
 
     def _forget(self) -> None:
@@ -109,9 +116,11 @@ class MoveRecogniser:
         corners = find_page(frame)
         if corners is None:
             self._grays.clear()
+            self._areas.clear()
             self._forget()
             return Recognition("no_page", detail="no paper sheet found in the frame")
         self._grays.append(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+        self._areas.append(float(cv2.contourArea(corners)))
         motion = self._motion(corners)
         if motion is None:
             self._forget()
@@ -119,6 +128,13 @@ class MoveRecogniser:
         if motion > self.tau:
             self._forget()
             return Recognition("moving", motion=motion)
+        areas = list(self._areas)
+        change = max(abs(b - a) / max(a, 1.0) for a, b in zip(areas, areas[1:]))
+        if change > AREA_CHANGE:
+            # an arm across the sheet's edge cuts a piece off the page; warped with this frame's corners
+            # the three frames then look alike although the hand is there
+            self._forget()
+            return Recognition("moving", motion=motion, detail=f"the page's outline changed by {100 * change:.0f}%")
         try:
             reading = read_page(frame, self.grid, self.classifier, self.rho)
         except ValueError as error:
@@ -128,6 +144,13 @@ class MoveRecogniser:
             self._forget()
             return Recognition("occluded", cells=reading.cells, motion=motion,
                                detail=f"hand over cells {np.flatnonzero(reading.occluded).tolist()}")
+        area = self._areas[-1]
+        if self._clean_area is not None and area < (1 - AREA_CHANGE) * self._clean_area:
+            # an arm resting across the sheet's edge keeps a piece of the page hidden: still not clean
+            self._forget()
+            return Recognition("occluded", cells=reading.cells, motion=motion,
+                               detail=f"part of the sheet is hidden (page area {100 * area / self._clean_area:.0f}% of before)")
+        self._clean_area = max(area, self._clean_area or 0.0)
         self._probs.append(reading.probabilities)
         summed = np.sum(self._probs, axis=0)
         mean = summed / len(self._probs)
