@@ -140,12 +140,12 @@ def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactRes
             return make_run_env(config.env, batch_size=batch_size, seed=seed, first=seat_to_first(seat), opponent=user)
 
         outcomes, _, length = play_games(make_env, policy, user.branches, logger=recorder)
+        lost_games = (outcomes != OUTCOME_ROBOT_WON) & (outcomes != OUTCOME_DRAW)  # unfinished games count as lost
         wins.append(float((outcomes == OUTCOME_ROBOT_WON).double().mean()))
         draws.append(float((outcomes == OUTCOME_DRAW).double().mean()))
-        losses.append(1.0 - wins[-1] - draws[-1])
+        losses.append(float(lost_games.double().mean()))
         lengths.append(float(length.double().mean()))
-        lost = ((outcomes != OUTCOME_ROBOT_WON) & (outcomes != OUTCOME_DRAW)).nonzero().squeeze(1).tolist()
-        losing.extend(recorder.line(row) for row in lost)
+        losing.extend(recorder.line(row) for row in lost_games.nonzero().squeeze(1).tolist())
     mean = lambda values: sum(values) / len(values)  # noqa: E731
     return ExactResult(seat=seat, branches=math.prod(USER_CHOICES[seat]), dialogue_seeds=list(dialogue_seeds),
                        win=mean(wins), draw=mean(draws), loss=mean(losses), task_success=mean(wins) + mean(draws),
