@@ -67,6 +67,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
     from tqdm import tqdm
 
+    from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
@@ -109,6 +110,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
         nstep = NStepTransitions(config.loss.n_step, config.loss.gamma)
         learner.loss_module.make_value_estimator(gamma=nstep.bootstrap_gamma)
+    extra_keys = bootstrap_keys(config.loss.bootstrap)  # what the TD max's mask is built from (loss.bootstrap)
     buffer = TensorDictReplayBuffer(
         storage=LazyTensorStorage(config.buffer.size), batch_size=config.buffer.batch_size
     )
@@ -174,8 +176,9 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            transitions = learning_rewards(batch.select(*TRANSITION_KEYS).reshape(-1), config.loss.reward,
+            transitions = learning_rewards(batch.select(*TRANSITION_KEYS, *extra_keys).reshape(-1), config.loss.reward,
                                            loss_reward=config.loss.loss_reward)
+            transitions = set_bootstrap_mask(transitions, config.loss.bootstrap, config.lookahead)
             if nstep is not None:
                 transitions = nstep(transitions.reshape(batch.shape))
             buffer.extend(transitions)
