@@ -468,8 +468,6 @@ class DialogueGameEnv(EnvBase):
             user_move = torch.where(user_moves, cells_taken, -1)
         else:
             user_move = torch.full_like(action, -1)
-        # a move utterance without a move (an act the data never shows) is silence
-        utterance = torch.where(self._utterance_is_move.index_select(0, utterance) & ~user_moves, silence, utterance)
         user_act = self._utterance_acts.index_select(0, utterance)
         talk = said * N_USER + (user_act + 1)  # 0 for a refused act (silence)
         flags = flags | self._talk_flags.index_select(0, talk)
@@ -499,14 +497,19 @@ class DialogueGameEnv(EnvBase):
 
         Column 0 of a context without replies holds silence, and column K repeats column K - 1, so the pick
         ``floor(u * count)`` needs neither the ``count > 0`` test nor a clamp: same utterances as reading
-        ``reply_options`` with ``min(pick, K - 1)`` and silencing contexts without replies.
+        ``reply_options`` with ``min(pick, K - 1)`` and silencing contexts without replies. A move utterance in
+        a context where the user does not move (an act the data never shows; ``ncbot play`` can set one) is
+        silence too, as the user says nothing it cannot do.
         """
         options, counts = self.model.reply_options, self.model.reply_counts
-        key = (id(options), options._version, id(counts), counts._version)
-        if key != self._reply_key:
+        key = (options, counts, options._version, counts._version)  # holds the tensors: identity checks stay valid
+        last = self._reply_key
+        if last is None or last[0] is not options or last[1] is not counts or last[2:] != key[2:]:
             flat = options.reshape(-1, options.shape[-1])
             replies = torch.cat([flat, flat[:, -1:]], dim=1)
             replies[counts.reshape(-1) == 0, 0] = self._silence
+            moves_without_move = self._utterance_is_move[replies] & ~self._user_turn.unsqueeze(1)
+            replies[moves_without_move] = self._silence
             self._reply_key, self._replies = key, (counts.reshape(-1).clone(), replies.reshape(-1).contiguous())
         return self._replies
 

@@ -180,8 +180,11 @@ def test_standard_mask_and_lookahead_by_code_equal_engine_path() -> None:
 
 def test_reply_tables_equal_model_tables_and_follow_edits() -> None:
     """The user's reply tables == reading ``reply_options`` with min(pick, K - 1) and silence where a context has
-    no reply; a swapped-in model or an in-place edit of its tables (what ``ncbot play`` does) is picked up."""
+    no reply (or a move reply where the user does not move); a swapped-in model or an in-place edit of its
+    tables (what ``ncbot play`` does) is picked up."""
     import dataclasses
+
+    from envs import dialogue as dlg
 
     env = make_env("standard", batch_size=(4,))
     env.model = dataclasses.replace(env.model, reply_options=env.model.reply_options.clone(),
@@ -197,7 +200,10 @@ def test_reply_tables_equal_model_tables_and_follow_edits() -> None:
                 assert int(replies[context * (width + 1)]) == env._silence
                 continue
             for pick in range(width + 1):
-                assert int(replies[context * (width + 1) + pick]) == int(flat[context, min(pick, width - 1)])
+                expected = int(flat[context, min(pick, width - 1)])
+                if int(env.model.utterance_acts[expected]) == dlg.USER_MOVE and not bool(env._user_turn[context]):
+                    expected = env._silence  # a move utterance where the user does not move
+                assert int(replies[context * (width + 1) + pick]) == expected
         model_counts[1] = 0  # edit in place: the next read must see it
-        options[2, :, 0] = 0
+        options[2, :, 0] = int(torch.nonzero(env.model.utterance_acts == dlg.USER_MOVE)[0])  # a move reply everywhere
     assert int(env._reply_tables()[0].reshape(model_counts.shape)[1].sum()) == 0
