@@ -40,8 +40,10 @@ def test_move_reported_within_three_clean_frames_never_with_the_hand(grid, seed,
 # a lavender light clipped to white along one side; a mint sticky note touching a 9x9 sheet (merged into
 # the page, it bent the corners); bold filled "0" glyphs (blobs as wide as a palm's opening); a 9x9 sheet
 # under a dark vignette with a corner that jitters (the motion test warps all three frames alike); an arm
-# across a 9x9 sheet's edge that cuts a piece off the page (the hand then lies outside the found page).
+# across a 9x9 sheet's edge that cuts a piece off the page (the hand then lies outside the found page);
+# a hand drawing at the sheet's edge with only its pen over the page (changed pixels around the page).
 @pytest.mark.parametrize("grid, seed, still, styles", [
+    (9, TEST_SEED + 400_003, 0, ("pen",)),
     (9, TEST_SEED + 180_012, 0, ("sketch", "hershey")),
     (3, TEST_SEED + 80_013, 1, ("pen",)),
     (9, TEST_SEED + 180_011, 2, ("sketch", "hershey")),

@@ -4,9 +4,9 @@ Light on a table is uneven and tinted: a gradient, a dark vignette, a colour cas
 the camera clips the tint away (the paper turns pure white there). One global threshold or one median
 colour then calls a whole dim corner or a clipped strip "not paper", which the hand test reads as a hand
 that never leaves. So the paper's colour is modelled as a smooth field over the page (a quadratic surface
-per channel, fitted robustly: ink, hands and shadows are outliers; a channel the camera clipped is
-not judged), every pixel is divided by it (white
-balance against the local paper), and only then judged: darker than the paper around it, or of another hue.
+per channel, fitted robustly: ink, hands and shadows are outliers), every pixel is divided by it (white
+balance against the local paper), and only then judged: darker than the paper around it, or of another
+hue. A channel the camera clipped is not judged: there the true colour is unknown.
 """
 from __future__ import annotations
 

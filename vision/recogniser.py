@@ -35,6 +35,9 @@ STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
 EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge
 HAND_FRACTION = 0.006  # of the page area under large non-paper blobs: a hand (or its shadow) is there
 AREA_CHANGE = 0.04     # the page's area in the frame changing more between frames: its outline is occluded or it moved
+MOTION_MARGIN = 0.3    # the wider motion warp reaches this fraction of the page beyond each side
+LOCAL_CHANGE = 20.0    # gray levels: a blurred pixel of the motion warp changing more has something new on it
+LOCAL_AREA = 0.004     # ... and more than this fraction of such pixels is a hand, however small (tau is an average)
 MOTION_SIDE = 48  # the warped page is compared at this size, blurred: pen strokes barely count, a hand does
 
 
@@ -91,6 +94,7 @@ class MoveRecogniser:
         self._grays: deque[np.ndarray] = deque(maxlen=3)  # the last frames, gray, for the motion test
         self._areas: deque[float] = deque(maxlen=3)       # their page areas (frame pixels)
         self._clean_area: float | None = None             # largest page area of a frame that passed every test
+        self._local = 0.0                                  # see _motion
         self._probs: deque[np.ndarray] = deque(maxlen=self.window)
 
     def _forget(self) -> None:
@@ -99,15 +103,24 @@ class MoveRecogniser:
     def _motion(self, corners: np.ndarray) -> float | None:
         """dist(P_t, P_t-1) + dist(P_t-1, P_t-2), the last three frames all warped with this frame's page
         corners: a dim or cluttered page corner found a few pixels elsewhere in each frame then does not
-        count as motion, while a hand (or the page itself moving) does."""
+        count as motion, while a hand (or the page itself moving) does. The same is measured on a wider
+        warp reaching MOTION_MARGIN beyond the page on every side, and the larger of the two counts: a hand
+        drawing near the sheet's edge may have only its pen over the page, its palm just outside."""
+        self._local = 0.0  # fraction of the warp's pixels that changed by more than LOCAL_CHANGE
         if len(self._grays) < 3:
             return None
-        pages = []
-        for gray in self._grays:
-            page = cv2.resize(warp(gray, corners, MOTION_SIDE * 2), (MOTION_SIDE, MOTION_SIDE), interpolation=cv2.INTER_AREA)
-            pages.append(cv2.GaussianBlur(page, (0, 0), 1.5).astype(np.float32))
-        p = pages
-        return float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2)))
+        centre = corners.mean(axis=0, keepdims=True)
+        wider = centre + (corners - centre) * (1 + 2 * MOTION_MARGIN)
+        motions = []
+        for quad in (corners, wider):
+            p = [cv2.GaussianBlur(cv2.resize(warp(gray, quad, MOTION_SIDE * 2), (MOTION_SIDE, MOTION_SIDE),
+                                             interpolation=cv2.INTER_AREA), (0, 0), 1.5).astype(np.float32)
+                 for gray in self._grays]
+            motions.append(float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2))))
+            # an RMS over the whole warp dilutes a hand mostly outside the page: count changed pixels too
+            changed = (np.abs(p[2] - p[1]) > LOCAL_CHANGE) | (np.abs(p[1] - p[0]) > LOCAL_CHANGE)
+            self._local = max(self._local, float(changed.mean()))
+        return max(motions)
 
     def update(self, frame: np.ndarray, known_board: Sequence) -> Recognition:
         """Process one BGR frame given the board as known from the game history."""
@@ -125,9 +138,10 @@ class MoveRecogniser:
         if motion is None:
             self._forget()
             return Recognition("waiting", detail="collecting frames to judge motion")
-        if motion > self.tau:
+        if motion > self.tau or self._local > LOCAL_AREA:
             self._forget()
-            return Recognition("moving", motion=motion)
+            return Recognition("moving", motion=motion,
+                               detail="" if motion > self.tau else f"{100 * self._local:.1f}% of the page and its surround changed")
         areas = list(self._areas)
         change = max(abs(b - a) / max(a, 1.0) for a, b in zip(areas, areas[1:]))
         if change > AREA_CHANGE:

@@ -20,7 +20,9 @@ from vision.classifier.inference import CellClassifier, load_classifier
 from vision.data import TEST_SEED
 
 TUNING_SEED = TEST_SEED + 80_000     # sequences looked at while the hand test was tuned
-HELDOUT_SEED = TEST_SEED + 400_000   # sequences only ever evaluated, never tuned on
+# +400_000 was the first held-out set; its failures were then looked at (hands mostly outside the page),
+# so it became tuning data too and the figures come from a fresh set
+HELDOUT_SEED = TEST_SEED + 600_000   # sequences only ever evaluated, never tuned on
 MAX_CLEAN_FRAMES = 3                 # the target: a move reported by the 3rd clean frame after the hand left
 
 
