@@ -3,6 +3,7 @@ on tic_tac_toe measured in the same run (same network, same batch size, same sin
 
     python bench/learner_throughput.py [--config pipelines/configs/default.yaml] [--seconds 3] [--rounds 3]
     python bench/learner_throughput.py --levers [--compile]    # speed levers tried on a bare update, one at a time
+    python bench/learner_throughput.py --ops                   # aten ops one Learner.update issues, per precision
 
 Every figure is measured per CPU second of this process (`time.process_time`), which survives a machine shared
 with other jobs far better than wall time; the learners take turns over `--rounds` rounds and the median round is
@@ -259,6 +260,28 @@ def levers(config_path: str, seconds: float, rounds: int, compile_too: bool) -> 
         print(f"| {name} | {statistics.median(values):.2f} ms | {reference / statistics.median(values):.2f}x |")
 
 
+def op_counts(config_path: str) -> None:
+    """How many aten ops one `Learner.update` issues at each precision (torch.profiler): what bf16 adds besides
+    faster products (the dtype casts)."""
+    from torch.profiler import ProfilerActivity, profile
+
+    from pipelines.learner import WRITE_STAMP_KEY
+
+    ours = Ours(config_path)
+    batch = ours.buffer.sample().exclude(WRITE_STAMP_KEY)  # the whole update, target pass included (no cache)
+    for precision, learner in ours.learners.items():
+        for _ in range(3):
+            learner.update(batch)
+        with profile(activities=[ProfilerActivity.CPU]) as profiler:
+            learner.update(batch)
+        counts = {event.key: event.count for event in profiler.key_averages() if event.key.startswith("aten::")}
+        casts = counts.get("aten::_to_copy", 0)
+        products = sum(counts.get(name, 0) for name in ("aten::addmm", "aten::mm"))
+        print(f"{precision}: {sum(counts.values())} aten ops per update, {products} matrix products, {casts} dtype "
+              f"casts (aten::_to_copy)")
+    ours.close()
+
+
 def _median(rounds: list[dict[str, float]]) -> dict[str, float]:
     return {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
 
@@ -270,11 +293,15 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3, help="alternating rounds; the median is reported")
     parser.add_argument("--levers", action="store_true", help="time the speed levers on a bare update instead")
     parser.add_argument("--compile", action="store_true", help="with --levers: also torch.compile (slow to compile)")
+    parser.add_argument("--ops", action="store_true", help="count the aten ops of one update per precision instead")
     args = parser.parse_args()
     torch.set_num_threads(1)
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     if args.levers:
         levers(args.config, args.seconds, args.rounds, args.compile)
+        return
+    if args.ops:
+        op_counts(args.config)
         return
     ours = Ours(args.config)
     hidden, batch = ours.config.agent.hidden, ours.config.buffer.batch_size
