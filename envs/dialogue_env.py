@@ -22,7 +22,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from envs import dialogue as dlg
-from envs.engine import FREE_MOVE_CHOICES, make_engine, uniform_choice
+from envs.engine import FREE_MOVE_CHOICES, make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
 
 GAME_CHOICES = ("standard", "ultimate")
 STARTS_CHOICES = ("robot", "human", "alternate", "random")
@@ -321,7 +321,7 @@ class DialogueGameEnv(EnvBase):
                 "dialogue_mask": self.d.dialogue_mask,
                 "lookahead_reward": self.d.lookahead,
                 "winning_actions": winning,
-                "board": self.boards.board.clone(),  # the engine updates boards in place
+                "board": self.boards.board.clone(),  # resets (and the Ultimate engine) change boards in place
                 "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
                 "robot_first": self.d.robot_first,
                 "turn": self.d.turn,
@@ -410,7 +410,7 @@ class DialogueGameEnv(EnvBase):
         # never handed out (outputs are built from them): changed in place
         self.d.words.index_fill_(0, index, 0.0)
         self.d.talk.index_fill_(0, index, 0)
-        # the (B,) dialogue tensors below are handed out (as views) in outputs: replaced, never changed in place
+        # the (B, 1) dialogue columns below are handed out in outputs: replaced, never changed in place
         self.d.turn = self.d.turn.index_fill(0, index, 0)
         self.d.user_act = self.d.user_act.index_fill(0, index, -1)
         self.d.user_move = self.d.user_move.index_fill(0, index, -1)
@@ -491,9 +491,9 @@ class DialogueGameEnv(EnvBase):
         return self._output(reward)
 
     def _reply_tables(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """(contexts,) reply counts and the flat (contexts * (K + 1)) utterance ids of the simulated user, context = act type
-        * phases + phase, from ``self.model`` (read each step: ``ncbot play`` swaps in or edits the tables to make
-        the user say what a person typed; rebuilt when the tables or their contents change).
+        """(contexts,) reply counts and the flat (contexts * (K + 1)) utterance ids of the simulated user, where
+        context = act type * phases + phase, derived from ``self.model`` (read each step: ``ncbot play`` swaps
+        in or edits its tables to make the user say what a person typed; rebuilt when they change).
 
         Column 0 of a context without replies holds silence, and column K repeats column K - 1, so the pick
         ``floor(u * count)`` needs neither the ``count > 0`` test nor a clamp: same utterances as reading
