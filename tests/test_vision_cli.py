@@ -56,3 +56,15 @@ def test_generate_writes_labelled_images(tmp_path) -> None:
     assert len(records) == 4 and all((tmp_path / r["image"]).is_file() for r in records)
     bad = _ncbot("generate", "pictures", "--out", str(tmp_path))
     assert bad.returncode == 2 and "kind must be" in bad.stderr
+
+
+def test_recogniser_evaluation_command(tmp_path) -> None:
+    out = _ncbot("eval", "--what", "recogniser", "--sequences", "1", "--sequences9", "1", "--seed-set", "tuning",
+                 "--out", str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    rows = json.loads((tmp_path / "recogniser_tuning.json").read_text())
+    assert [(r["grid"], r["styles"], r["sequences"]) for r in rows] == [
+        (3, "pen", 1), (3, "sketch+hershey", 1), (9, "pen", 1), (9, "sketch+hershey", 1)]
+    assert all(r["reported_from_hand_frame"] == 0 for r in rows) and (tmp_path / "recogniser_tuning.png").is_file()
+    bad = _ncbot("eval", "--what", "recogniser", "--seed-set", "mine", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--seed-set" in bad.stderr and "Traceback" not in bad.stderr
