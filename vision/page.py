@@ -68,7 +68,7 @@ def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     # off thin bright things touching it (a white pen) that would pull the page's hull out of shape
     body = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
     body = cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
-    without_clutter = _paper_coloured(frame, body)
+    without_clutter = _cut_pastel_clutter(frame, body)
     corners = _page_quad(without_clutter, frame.shape[0] * frame.shape[1])
     if corners is None and without_clutter is not body:
         corners = _page_quad(body, frame.shape[0] * frame.shape[1])
@@ -79,14 +79,14 @@ def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     return corners, mask
 
 
-def _paper_coloured(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
+def _cut_pastel_clutter(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
     """The page body without pale clutter of another hue touching it (vision.illumination).
 
     The global whiteness test merges a mint sticky note or a pastel cup touching the sheet into the page,
     which bends the page's corners (and the hand test then sees "not paper" along the warped page's rim).
     Judged against a smooth fit of the paper's own colour under this light, such clutter is off-hue while
-    paper dimmed by a vignette or whitened by clipping is not. Judged at a quarter resolution (it only has
-    to cut clutter off; the page's straight edges still come from the full-resolution mask).
+    paper dimmed by a vignette or whitened by clipping is not. Judged at half resolution (it only has to
+    cut clutter off; the page's straight edges still come from the full-resolution mask).
     """
     contours, _ = cv2.findContours(body, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
@@ -101,7 +101,7 @@ def _paper_coloured(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
     crop = cv2.resize(frame[y0:y1, x0:x1], small, interpolation=cv2.INTER_AREA)
     crop_body = cv2.resize(body[y0:y1, x0:x1], small, interpolation=cv2.INTER_NEAREST)
     # only what the whiteness test took for page; opened, so neither noise, thin ink nor the slivers of
-    # table that a quarter resolution mixes into the page's edge count
+    # table that half resolution mixes into the page's edge count
     brightness, off_hue = shade_and_hue(crop, crop_body)
     clutter = (off_hue > PAGE_HUE_RATIO) & (brightness > PAGE_BRIGHT_RATIO) & (crop_body > 0)
     clutter = cv2.morphologyEx(clutter.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))

@@ -11,7 +11,8 @@ a large non-paper blob (hand, arm, sleeve; judged against the page's own paper c
 covers any cell or the sheet's rim is skipped too (a hand resting still passes the motion test); the
 window is emptied whenever a frame is skipped, so probabilities seen before or during the drawing never
 vote after it. The motion test warps the last three frames with this frame's page corners (a corner that
-jitters under a dim vignette is not motion), so an arm that cuts a piece off the page is caught by the
+jitters under a dim vignette is not motion), also counts changed pixels, and looks 30% beyond the page
+(a hand drawing at the sheet's edge may have only its pen over it). An arm that cuts a piece off the page is caught by the
 page's area instead: it changing between frames is "moving", it staying below the area of earlier clean
 frames is "occluded".
 """
@@ -94,33 +95,31 @@ class MoveRecogniser:
         self._grays: deque[np.ndarray] = deque(maxlen=3)  # the last frames, gray, for the motion test
         self._areas: deque[float] = deque(maxlen=3)       # their page areas (frame pixels)
         self._clean_area: float | None = None             # largest page area of a frame that passed every test
-        self._local = 0.0                                  # see _motion
         self._probs: deque[np.ndarray] = deque(maxlen=self.window)
 
     def _forget(self) -> None:
         self._probs.clear()
 
-    def _motion(self, corners: np.ndarray) -> float | None:
-        """dist(P_t, P_t-1) + dist(P_t-1, P_t-2), the last three frames all warped with this frame's page
-        corners: a dim or cluttered page corner found a few pixels elsewhere in each frame then does not
-        count as motion, while a hand (or the page itself moving) does. The same is measured on a wider
-        warp reaching MOTION_MARGIN beyond the page on every side, and the larger of the two counts: a hand
-        drawing near the sheet's edge may have only its pen over the page, its palm just outside."""
-        self._local = 0.0  # fraction of the warp's pixels that changed by more than LOCAL_CHANGE
+    def _motion(self, corners: np.ndarray) -> tuple[float, float] | None:
+        """(dist(P_t, P_t-1) + dist(P_t-1, P_t-2), fraction of pixels that changed by > LOCAL_CHANGE), the
+        last three frames all warped with this frame's page corners: a dim or cluttered page corner found a
+        few pixels elsewhere in each frame then does not count as motion, while a hand (or the page itself
+        moving) does. Also measured on a wider warp reaching MOTION_MARGIN beyond the page on every side,
+        the larger of the two counting: a hand drawing near the sheet's edge may have only its pen over
+        the page, its palm just outside, and an RMS over the whole warp dilutes it (hence the count)."""
         if len(self._grays) < 3:
             return None
         centre = corners.mean(axis=0, keepdims=True)
         wider = centre + (corners - centre) * (1 + 2 * MOTION_MARGIN)
-        motions = []
+        rms, changed = 0.0, 0.0
         for quad in (corners, wider):
             p = [cv2.GaussianBlur(cv2.resize(warp(gray, quad, MOTION_SIDE * 2), (MOTION_SIDE, MOTION_SIDE),
                                              interpolation=cv2.INTER_AREA), (0, 0), 1.5).astype(np.float32)
                  for gray in self._grays]
-            motions.append(float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2))))
-            # an RMS over the whole warp dilutes a hand mostly outside the page: count changed pixels too
-            changed = (np.abs(p[2] - p[1]) > LOCAL_CHANGE) | (np.abs(p[1] - p[0]) > LOCAL_CHANGE)
-            self._local = max(self._local, float(changed.mean()))
-        return max(motions)
+            rms = max(rms, float(np.sqrt(np.mean((p[2] - p[1]) ** 2)) + np.sqrt(np.mean((p[1] - p[0]) ** 2))))
+            moved = (np.abs(p[2] - p[1]) > LOCAL_CHANGE) | (np.abs(p[1] - p[0]) > LOCAL_CHANGE)
+            changed = max(changed, float(moved.mean()))
+        return rms, changed
 
     def update(self, frame: np.ndarray, known_board: Sequence) -> Recognition:
         """Process one BGR frame given the board as known from the game history."""
@@ -134,14 +133,15 @@ class MoveRecogniser:
             return Recognition("no_page", detail="no paper sheet found in the frame")
         self._grays.append(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
         self._areas.append(float(cv2.contourArea(corners)))
-        motion = self._motion(corners)
-        if motion is None:
+        measured = self._motion(corners)
+        if measured is None:
             self._forget()
             return Recognition("waiting", detail="collecting frames to judge motion")
-        if motion > self.tau or self._local > LOCAL_AREA:
+        motion, changed = measured
+        if motion > self.tau or changed > LOCAL_AREA:
             self._forget()
             return Recognition("moving", motion=motion,
-                               detail="" if motion > self.tau else f"{100 * self._local:.1f}% of the page and its surround changed")
+                               detail="" if motion > self.tau else f"{100 * changed:.1f}% of the page and its surround changed")
         areas = list(self._areas)
         change = max(abs(b - a) / max(a, 1.0) for a, b in zip(areas, areas[1:]))
         if change > AREA_CHANGE:
