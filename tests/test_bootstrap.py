@@ -49,3 +49,19 @@ def test_available_is_unchanged_and_bad_input_is_named() -> None:
         set_bootstrap_mask(transitions.exclude(*NEXT_LOOKAHEAD_KEYS), "greedy", "one_step")
     with pytest.raises(ValueError, match="one-step mask rules"):
         set_bootstrap_mask(transitions.clone(), "greedy", "k2")
+
+
+def test_training_applies_the_option(tmp_path) -> None:
+    """Same seed, the two bootstraps: the trained weights differ, so train.py really routes loss.bootstrap."""
+    from pipelines.checkpoint import load_checkpoint
+    from pipelines.config import load_config
+    from pipelines.train import train
+    from tests.learning_helpers import write_tiny_config
+
+    weights = {}
+    for choice in ("available", "greedy"):
+        config = load_config(write_tiny_config(tmp_path), [f"loss.bootstrap={choice}", "collector.total_frames=256"])
+        train(config, tmp_path / choice)
+        weights[choice] = load_checkpoint(tmp_path / choice / "checkpoint.pt")["qnet"]
+    assert weights["available"].keys() == weights["greedy"].keys()
+    assert any(not torch.equal(weights["available"][key], weights["greedy"][key]) for key in weights["greedy"])
