@@ -64,7 +64,6 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
 def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> dict[str, Any]:
     """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json)."""
     from torchrl.collectors import Collector
-    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
     from tqdm import tqdm
 
     from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
@@ -72,7 +71,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
     from pipelines.evaluate import evaluate_agent
-    from pipelines.learner import Learner, scheduled_lr
+    from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
     from pipelines.run_env import make_run_env
 
@@ -111,9 +110,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
         nstep = NStepTransitions(config.loss.n_step, config.loss.gamma)
         learner.loss_module.make_value_estimator(gamma=nstep.bootstrap_gamma)
     extra_keys = bootstrap_keys(config.loss.bootstrap)  # what the TD max's mask is built from (loss.bootstrap)
-    buffer = TensorDictReplayBuffer(
-        storage=LazyTensorStorage(config.buffer.size), batch_size=config.buffer.batch_size
-    )
+    buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)  # index-gather reads, same samples
 
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
     history: list[dict[str, Any]] = []
