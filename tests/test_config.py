@@ -78,7 +78,7 @@ def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path
     result = _ncbot("train", str(bad), "--out", str(tmp_path / "run"), cwd=tmp_path)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        "ncbot: error: unknown config key 'optim.momentum'; allowed: lr, updates_per_batch, max_grad_norm, weight_decay"
+        "ncbot: error: unknown config key 'optim.momentum'; allowed: lr, updates_per_batch, max_grad_norm, weight_decay, precision"
     ]
     result = _ncbot("train", str(CONFIGS / "default.yaml"), "buffer.batch_size=big", cwd=tmp_path)
     assert result.returncode == 2
