@@ -255,8 +255,8 @@ class StandardEngine(_Engine):
     @lru_cache(maxsize=1)
     def _status_table() -> torch.Tensor:
         """(3^9,) int64 ``outcome * 2 + marks % 2`` of every board code."""
-        digits = torch.arange(3**9).unsqueeze(1) // (3 ** torch.arange(9)) % 3
-        return StandardEngine._outcome_table() * 2 + (digits != 0).sum(1) % 2
+        boards = StandardEngine._code_tables()[2]
+        return StandardEngine._outcome_table() * 2 + (boards != 0).sum(1) % 2
 
     @staticmethod
     @lru_cache(maxsize=1)
