@@ -67,13 +67,10 @@ def _least_squares(design: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.linalg.solve(gram, np.einsum("ni,nc->ic", a, values.astype(np.float64))).astype(np.float32)
 
 
-def shade_and_hue(page_bgr: np.ndarray, seed_mask: np.ndarray | None, field: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per pixel, against the local paper colour: (brightness ratio, hue offset = the largest channel
-    deviation from the pixel's own grey after white balance). Paper is (1, 0); `field` (from paper_field)
-    may be given when it was fitted elsewhere (e.g. at a lower resolution)."""
-    if field is None:
-        field = paper_field(page_bgr, seed_mask)
+def shade_and_hue(page_bgr: np.ndarray, seed_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel, against the local paper colour (paper_field): (brightness ratio, hue offset = the largest
+    channel deviation from the pixel's own grey after white balance). Paper is (1, 0)."""
+    field = paper_field(page_bgr, seed_mask)
     page = page_bgr.astype(np.float32)
     # a channel the camera clipped says nothing about hue or shade: there it matches the paper by definition
     ratio = cv2.divide(page, np.where(page >= CLIPPED, np.maximum(field, page), field))
