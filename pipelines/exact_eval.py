@@ -132,8 +132,8 @@ def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactRes
     if not dialogue_seeds:
         raise ValueError("exact evaluation needs at least one dialogue seed")
     wins, draws, losses, lengths, losing = [], [], [], [], []
+    user = BranchUser(seat)  # stateless: the same branch table under every dialogue draw
     for seed in dialogue_seeds:
-        user = BranchUser(seat)
         recorder = MoveRecorder(user.branches)
 
         def make_env(batch_size: int, seed: int = seed, user: BranchUser = user):
@@ -147,7 +147,7 @@ def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactRes
         lengths.append(float(length.double().mean()))
         losing.extend(recorder.line(row) for row in lost_games.nonzero().squeeze(1).tolist())
     mean = lambda values: sum(values) / len(values)  # noqa: E731
-    return ExactResult(seat=seat, branches=math.prod(USER_CHOICES[seat]), dialogue_seeds=list(dialogue_seeds),
+    return ExactResult(seat=seat, branches=user.branches, dialogue_seeds=list(dialogue_seeds),
                        win=mean(wins), draw=mean(draws), loss=mean(losses), task_success=mean(wins) + mean(draws),
                        worst_loss=max(losses), avg_length=mean(lengths), losing_lines=sorted(set(losing)))
 
