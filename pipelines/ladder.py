@@ -52,10 +52,8 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
         config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
         from torchrl.data import Categorical
 
-        from pipelines.checkpoint import load_checkpoint
-
         qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
-        n_actions = int(load_checkpoint(checkpoint)["n_actions"])
+        n_actions = qnet.module[-1].out_features  # its last Linear has one output per action (modules.qnet.make_qnet)
         greedy = make_policies(qnet, Categorical(n_actions), config.lookahead).greedy
     description = f"greedy Q, masks {config.lookahead}"
     if not search:
