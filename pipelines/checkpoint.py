@@ -4,7 +4,8 @@ Two kinds live in a run folder:
 - `checkpoint.pt`: the final agent (Q-network weights + resolved config): what `ncbot eval` loads.
 - `checkpoints/step-NNNNNNNNN.pt`: periodic training state (network, target network, optimiser, epsilon, replay
   buffer, counters, RNG, evaluation history) that `ncbot train --resume DIR` continues from.
-A crash can leave a stray `*.tmp` file but never a half-written checkpoint under its final name.
+A crash can leave a stray `.NAME.*.tmp` file but never a half-written checkpoint under its final name; `--resume`
+removes such leftovers, since the resumed run is now the folder's only writer.
 """
 from __future__ import annotations
 
@@ -100,7 +101,19 @@ def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
     found = periodic_checkpoints(run_dir)
     if not found:
         raise FileNotFoundError(f"no periodic checkpoint in {str(run_dir / PERIODIC_DIR)!r} to resume from")
+    remove_stray_temp_files(run_dir)
     state = load_checkpoint(found[-1])
     if "learner" not in state:
         raise ValueError(f"checkpoint {str(found[-1])!r} holds no training state to resume from")
     return state
+
+
+def remove_stray_temp_files(run_dir: str | os.PathLike) -> list[Path]:
+    """Delete the temp files `_atomic_write` leaves when a run is killed mid-write (run folder and its
+    checkpoints); returns what was removed. Only for a folder no other process is writing to."""
+    run_dir = Path(run_dir)
+    stray = [p for folder in (run_dir, run_dir / PERIODIC_DIR) if folder.is_dir()
+             for p in folder.glob(".*.tmp") if p.is_file()]
+    for path in stray:
+        path.unlink(missing_ok=True)
+    return stray

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.checkpoint import atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
+from pipelines.checkpoint import FORMAT, atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
 from pipelines.train import resolve_run
 from tests.learning_helpers import ncbot, write_tiny_config
 
@@ -67,3 +67,15 @@ def test_missing_or_corrupt_checkpoint_is_one_line_exit_2(tmp_path: Path) -> Non
     result = ncbot("train", "--resume", str(run))  # the CLI turns it into one line and exit code 2
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
     assert "corrupt" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_resume_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    atomic_save({"format": FORMAT, "learner": {}, "frames": 0}, run / "checkpoints" / "step-000000128.pt")
+    stray = [run / "checkpoints" / ".step-000000256.pt.abc123.tmp", run / ".checkpoint.pt.def456.tmp"]
+    for path in stray:
+        path.write_bytes(b"half a checkpoint")
+    keep = run / "notes.tmp"  # not one of ours: left alone
+    keep.write_text("user file")
+    assert latest_training_state(run)["frames"] == 0
+    assert not any(path.exists() for path in stray) and keep.exists()
