@@ -60,7 +60,7 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
         return config, greedy, description
     from modules.guided_mcts import GuidedMCTSPolicy
 
-    _, mcts = load_guided_search(checkpoint, search)
+    mcts = guided_search(config, greedy, search)  # the same loaded Q-network, not a second read of the file
     rule = lookahead_rule(config.lookahead)
     prune = rule if hasattr(rule, "forced_losses") and getattr(rule, "plies", 0) >= 3 else None
     policy = GuidedMCTSPolicy(greedy, mcts, seed, prune=prune)
@@ -299,16 +299,22 @@ def register_agent_opponent() -> None:
 
 
 # ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
-def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
-    """(config, GuidedMCTS) of a saved agent: its Q-network gives the priors and values of a PUCT search."""
+def guided_search(config, greedy, simulations: int, free_move: str | None = None):
+    """A PUCT search whose priors and values come from an already loaded agent's Q-network."""
     from modules.guided_mcts import GuidedMCTS, TurnFeatures
-    from pipelines.evaluate import load_agent
 
-    config, greedy = load_agent(checkpoint)
     free_move = free_move or config.env.free_move
     qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
     features = TurnFeatures(config.env.game, config.env.temporal, free_move)
-    return config, GuidedMCTS(qnet, features, config.env.game, free_move, simulations)
+    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations)
+
+
+def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
+    """(config, GuidedMCTS) of a saved agent: its Q-network gives the priors and values of a PUCT search."""
+    from pipelines.evaluate import load_agent
+
+    config, greedy = load_agent(checkpoint)
+    return config, guided_search(config, greedy, simulations, free_move)
 
 
 def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0):
@@ -317,8 +323,7 @@ def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0):
     from pipelines.evaluate import load_agent
 
     config, greedy = load_agent(checkpoint)
-    _, search = load_guided_search(checkpoint, simulations)
-    return config, GuidedMCTSPolicy(greedy, search, seed)
+    return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations), seed)
 
 
 def register_qmcts_opponent() -> None:
