@@ -62,6 +62,8 @@ class BufferConfig:
 
     size: int = 10_000  # paper: 10,000
     batch_size: int = 128  # sampled transitions per update (paper: 2)
+    # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
+    augment: Literal["none", "d4"] = "none"
 
 
 @dataclass

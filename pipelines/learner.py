@@ -15,6 +15,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.objectives import HardUpdate
 
 from modules.loss import CompetitiveDQNLoss, TargetValueCache, make_target_updater
+from modules.symmetry import BoardSymmetries
 from pipelines.config import RunConfig
 
 
@@ -81,9 +82,11 @@ class Learner:
     optimizer: torch.optim.Optimizer
     max_grad_norm: float
     target_cache: TargetValueCache | None = None  # hard target updates without double DQN: bootstrap values per slot
+    symmetries: BoardSymmetries | None = None  # buffer.augment=d4: each sample seen under a random board symmetry
 
     @classmethod
-    def from_config(cls, qnet: TensorDictModule, config: RunConfig) -> "Learner":
+    def from_config(cls, qnet: TensorDictModule, config: RunConfig,
+                    symmetries: BoardSymmetries | None = None) -> "Learner":
         loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn,
                                          precision=config.optim.precision)
         loss_module.make_value_estimator(gamma=config.loss.gamma)
@@ -92,9 +95,10 @@ class Learner:
         optimizer = torch.optim.Adam(loss_module.parameters(), lr=config.optim.lr,
                                      weight_decay=config.optim.weight_decay, fused=True)
         cache = None
-        if isinstance(updater, HardUpdate) and not config.loss.double_dqn:
+        # the cache keys a slot's bootstrap value by slot, so it cannot hold one value per orientation (augment)
+        if isinstance(updater, HardUpdate) and not config.loss.double_dqn and symmetries is None:
             cache = TargetValueCache(loss_module)
-        return cls(loss_module, updater, optimizer, config.optim.max_grad_norm, cache)
+        return cls(loss_module, updater, optimizer, config.optim.max_grad_norm, cache, symmetries)
 
     def set_lr(self, lr: float) -> None:
         """Schedule hook: the train loop decays the step size so Q stops jittering between near-tied moves."""
@@ -109,6 +113,11 @@ class Learner:
         (slot index + write stamp) take their bootstrap values from the target cache when it has them.
         """
         inputs = self.loss_module.td_loss_inputs(batch)
+        if self.symmetries is not None:
+            observation, action, reward, terminated, next_observation, next_mask = inputs
+            observation, action, next_observation, next_mask = self.symmetries.transitions(
+                observation, action, next_observation, next_mask)
+            inputs = (observation, action, reward, terminated, next_observation, next_mask)
         next_value = None
         if self.target_cache is not None:
             slots, stamps = batch.get("index", None), batch.get(WRITE_STAMP_KEY, None)
@@ -125,8 +134,11 @@ class Learner:
         return loss.detach()
 
     def state_dict(self) -> dict:
-        return {"loss": self.loss_module.state_dict(), "optimizer": self.optimizer.state_dict(),
-                "target_counter": getattr(self.target_updater, "counter", 0)}
+        state = {"loss": self.loss_module.state_dict(), "optimizer": self.optimizer.state_dict(),
+                 "target_counter": getattr(self.target_updater, "counter", 0)}
+        if self.symmetries is not None:
+            state["symmetries"] = self.symmetries.state_dict()
+        return state
 
     def load_state_dict(self, state: dict) -> None:
         self.loss_module.load_state_dict(state["loss"])
@@ -135,3 +147,5 @@ class Learner:
             self.target_updater.counter = state.get("target_counter", 0)
         if self.target_cache is not None:
             self.target_cache.clear()
+        if self.symmetries is not None and "symmetries" in state:
+            self.symmetries.load_state_dict(state["symmetries"])

@@ -67,6 +67,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from tqdm import tqdm
 
     from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
+    from modules.symmetry import make_symmetries
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
@@ -102,7 +103,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     )
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
-    learner = Learner.from_config(qnet, config)
+    symmetries = make_symmetries(config.buffer.augment, env, seed)
+    learner = Learner.from_config(qnet, config, symmetries)
     nstep = None
     if config.loss.n_step > 1:  # opt-in n-step returns (modules/nstep.py): the loss then bootstraps with gamma**n
         from modules.nstep import NStepTransitions
