@@ -65,6 +65,7 @@ class Ours:
         from modules.policy import make_policies
         from modules.qnet import make_qnet, seeded_init
         from modules.rewards import learning_rewards
+        from modules.symmetry import make_symmetries
         from pipelines.config import load_config
         from pipelines.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
@@ -78,7 +79,9 @@ class Ours:
         for precision in ("fp32", "bf16"):
             qnet = make_qnet(self.env.n_features, self.env.n_actions, config.agent.hidden)
             seeded_init(qnet, 0)
-            self.learners[precision] = Learner.from_config(qnet, load_config(config_path, [f"optim.precision={precision}"]))
+            learner_config = load_config(config_path, [f"optim.precision={precision}"])
+            symmetries = make_symmetries(config.buffer.augment, self.env, 0)  # buffer.augment: as training runs it
+            self.learners[precision] = Learner.from_config(qnet, learner_config, symmetries)
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)

@@ -106,3 +106,14 @@ def test_augmented_run_is_reproducible_and_differs_from_plain(tmp_path: Path) ->
         runs[name] = torch.load(tmp_path / name / "checkpoint.pt", weights_only=True)["qnet"]
     assert all(torch.equal(runs["a"][key], runs["b"][key]) for key in runs["a"])
     assert not all(torch.equal(runs["a"][key], runs["plain"][key]) for key in runs["a"])
+
+
+def test_the_symmetry_stream_resumes_where_it_stopped() -> None:
+    """The learner's checkpoint holds the draw generator, so a resumed run draws the same symmetries."""
+    symmetries = BoardSymmetries([f"robot_move[{c}]" for c in range(9)], cells=9, n_actions=18, seed=4)
+    symmetries.draw(100)
+    saved = symmetries.state_dict()
+    expected = symmetries.draw(50)
+    restored = BoardSymmetries([f"robot_move[{c}]" for c in range(9)], cells=9, n_actions=18, seed=0)
+    restored.load_state_dict(saved)
+    assert torch.equal(restored.draw(50), expected)
