@@ -67,10 +67,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from tqdm import tqdm
 
     from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
-    from modules.symmetry import make_symmetries
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.rewards import learning_rewards
+    from modules.symmetry import make_symmetries
     from pipelines.evaluate import evaluate_agent
     from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
