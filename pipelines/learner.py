@@ -6,6 +6,7 @@ update the training loop runs. Why each speed choice was made, with figures: doc
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import torch
@@ -14,7 +15,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.objectives import HardUpdate
 
-from modules.loss import CompetitiveDQNLoss, TargetValueCache, make_target_updater
+from modules.loss import CACHE_ROW_BLOCK, CompetitiveDQNLoss, TargetValueCache, make_target_updater
 from modules.symmetry import BoardSymmetries
 from pipelines.config import RunConfig
 
@@ -84,6 +85,11 @@ class Learner:
     target_cache: TargetValueCache | None = None  # hard target updates without double DQN: bootstrap values per slot
     symmetries: BoardSymmetries | None = None  # buffer.augment=d4: each sample seen under a random board symmetry
 
+    def __post_init__(self) -> None:
+        # the online parameters, listed once: LossModule.parameters() walks its modules at every call (~80 us, which
+        # is a third of a whole update at the paper's batch of 2)
+        self._parameters = list(self.loss_module.parameters())
+
     @classmethod
     def from_config(cls, qnet: TensorDictModule, config: RunConfig,
                     symmetries: BoardSymmetries | None = None) -> "Learner":
@@ -95,8 +101,10 @@ class Learner:
         optimizer = torch.optim.Adam(loss_module.parameters(), lr=config.optim.lr,
                                      weight_decay=config.optim.weight_decay, fused=True)
         cache = None
-        # the cache keys a slot's bootstrap value by slot, so it cannot hold one value per orientation (augment)
-        if isinstance(updater, HardUpdate) and not config.loss.double_dqn and symmetries is None:
+        # the cache keys a slot's bootstrap value by slot, so it cannot hold one value per orientation (augment); it
+        # pads its products to CACHE_ROW_BLOCK rows, so for small batches (the paper's 2) it costs more than it saves
+        if isinstance(updater, HardUpdate) and not config.loss.double_dqn and symmetries is None \
+                and config.buffer.batch_size >= CACHE_ROW_BLOCK:
             cache = TargetValueCache(loss_module)
         return cls(loss_module, updater, optimizer, config.optim.max_grad_norm, cache, symmetries)
 
@@ -126,12 +134,28 @@ class Learner:
         loss, _, _ = self.loss_module.td_loss(*inputs, next_value=next_value)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(self.loss_module.parameters(), self.max_grad_norm, foreach=True)
+        torch.nn.utils.clip_grad_norm_(self._parameters, self.max_grad_norm, foreach=True)
         self.optimizer.step()
         self.target_updater.step()
         if self.target_cache is not None and self.target_updater.counter == 0:  # HardUpdate just copied the weights
             self.target_cache.clear()
         return loss.detach()
+
+    def update_many(self, buffer: TensorDictReplayBuffer, count: int) -> list[torch.Tensor]:
+        """`count` gradient steps on `count` batches drawn from `buffer` in one sampling call; returns their losses.
+
+        Why: the buffer does not change between the updates of one collected batch, and the sampler draws rows
+        i.i.d. uniformly, so one draw of count x batch_size rows split in order is the same sample as `count` draws
+        (the same rows, bit for bit: the sampler's index draw consumes the generator row by row), but pays the
+        sampler's fixed cost once. That cost is most of an update at small batches (the paper's batch of 2).
+        """
+        if count <= 0:
+            return []
+        size = buffer.batch_size
+        with warnings.catch_warnings():  # TorchRL warns that the call's size overrides the constructor's: intended
+            warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+            draw = buffer.sample(size * count)
+        return [self.update(part) for part in draw.split(size)]
 
     def state_dict(self) -> dict:
         state = {"loss": self.loss_module.state_dict(), "optimizer": self.optimizer.state_dict(),

@@ -192,7 +192,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             if len(buffer) >= config.collector.init_random_frames:
                 if config.schedule.lr_end is not None:
                     learner.set_lr(scheduled_lr(config, counters["frames"]))
-                step_losses = [learner.update(buffer.sample()) for _ in range(config.optim.updates_per_batch)]
+                step_losses = learner.update_many(buffer, config.optim.updates_per_batch)
                 counters["updates"] += len(step_losses)
                 losses.append(float(torch.stack(step_losses).mean()))
 

@@ -293,12 +293,14 @@ def test_gather_storage_state_round_trips_for_resume() -> None:
     assert (_without_stamps(restored.sample()) == _without_stamps(ours)).all()
 
 
-def _learner(**loss_settings):
+def _learner(batch_size: int | None = None, **loss_settings):
     from modules.qnet import seeded_init
     from pipelines.config import RunConfig
     from pipelines.learner import Learner
 
     config = RunConfig()
+    if batch_size is not None:
+        config.buffer.batch_size = batch_size
     for key, value in loss_settings.items():
         setattr(config.loss, key, value)
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
@@ -337,6 +339,24 @@ def test_learner_update_with_target_cache_matches_the_plain_torchrl_update_bit_f
             assert torch.equal(a, b), f"update {step}"
     if fast.target_cache is not None:  # the cache did skip target rows (64 samples over 300 slots revisit some)
         assert 0 < fast.target_cache.computed < fast.target_cache.looked_up == 12 * 64
+
+
+@pytest.mark.parametrize("batch", [2, 64])
+def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch: int) -> None:
+    """One sampling call of count x batch rows split in order = count calls of batch rows: same rows, same weights
+    bit for bit (with the target cache at 64 rows, without it at the paper's batch of 2)."""
+    once, each = _learner(target_period=3, batch_size=batch), _learner(target_period=3, batch_size=batch)
+    assert (once.target_cache is None) == (batch < 64)
+    once_buffer, _ = _filled_buffers(size=300, batch=batch)
+    each_buffer, _ = _filled_buffers(size=300, batch=batch)
+    torch.manual_seed(5)
+    losses = once.update_many(once_buffer, 7)
+    torch.manual_seed(5)
+    expected = [each.update(each_buffer.sample()) for _ in range(7)]
+    assert len(losses) == 7 and all(torch.equal(a, b) for a, b in zip(losses, expected))
+    for a, b in zip(once.loss_module.parameters(), each.loss_module.parameters()):
+        assert torch.equal(a, b)
+    assert once.update_many(once_buffer, 0) == []
 
 
 def test_target_cache_is_cleared_by_a_hard_update_and_by_loading_a_state() -> None:
