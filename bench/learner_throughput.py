@@ -119,8 +119,7 @@ class Ours:
 
         def train_iteration() -> None:  # what the training loop does per collected batch
             self.collect()
-            for _ in range(config.optim.updates_per_batch):
-                default.update(buffer.sample())
+            default.update_many(buffer, config.optim.updates_per_batch)
 
         def rate(update: Callable[[], object]) -> float:
             return _update_rate(update, self.collect, config.optim.updates_per_batch, seconds)
