@@ -37,10 +37,13 @@ CELL_ORDER = list(CELL_LABELS)
 
 
 def _mean_std(values: list[float]) -> str:
+    """Mean ± sample std over seeds; a single seed has no spread to report, so it shows the value alone."""
     if not values:
         return "–"
     mean = sum(values) / len(values)
-    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else 0.0
+    if len(values) == 1:
+        return f"{mean:.4f}"
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
     return f"{mean:.4f} ± {std:.4f}"
 
 
