@@ -128,13 +128,19 @@ def ablate_command(
 
 def table_command(
     runs_dir: str = typer.Argument(..., help="Folder of runs written by ncbot ablate."),
-    out: Optional[str] = typer.Option(None, "--out", help="Markdown file to write (default RUNS_DIR/table.md)."),
+    out: Optional[str] = typer.Option(None, "--out", help="Markdown table to write (default RUNS_DIR/table.md)."),
+    claims: Optional[str] = typer.Option(None, "--claims", help="Markdown claims table to write (default paper_claims.md beside --out)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object {command, rows, claims} instead of the markdown (files are still written)."),
 ) -> None:
-    """Paper-style table (mean ± std over seeds, paper's numbers beside ours) and learning-curve PNGs per agent."""
-    from pipelines.table import write_table
+    """Paper-style table (mean and 95% t-interval over seeds, the paper's numbers beside ours), the paper's claims
+    tested over seeds (one-sided Welch's t-tests) and learning-curve PNGs per agent."""
+    import shlex
+    import sys
 
-    text = write_table(runs_dir, out)
-    typer.echo(text)
+    from pipelines.table import write_report
+
+    report = write_report(runs_dir, out, claims, command="ncbot " + shlex.join(sys.argv[1:]))
+    typer.echo(json.dumps(report.to_dict()) if as_json else report.table + "\n" + report.claims_text)
 
 
 def register(app: typer.Typer) -> None:

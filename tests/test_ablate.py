@@ -57,10 +57,3 @@ def test_grid_runs_in_parallel_skips_finished_and_tabulates(tmp_path: Path) -> N
     assert "Proposed + temporal" in text and "0.9980" in text  # the paper's task success beside ours
     assert (tmp_path / "curves_fast_standard.png").stat().st_size > 0
 
-
-def test_table_cells_show_the_spread_over_seeds_only_when_there_is_more_than_one() -> None:
-    from pipelines.table import _mean_std
-
-    assert _mean_std([0.99]) == "0.9900"  # one seed: no "± 0.0000" pretending to be a spread
-    assert _mean_std([0.98, 1.0]) == "0.9900 ± 0.0141"  # sample std over seeds
-    assert _mean_std([]) == "–"
