@@ -21,17 +21,16 @@ Rand = Callable[[], float]  # random.Random.random: all chance of a search comes
 
 
 class Node:
-    """A search-tree node. ``untried`` (UCT) holds the moves not expanded yet; ``moves`` / ``priors`` (PUCT) are set
-    when the evaluator expands the node; ``children`` maps a move to its child, in creation order."""
+    """A search-tree node. ``moves``: for UCT the moves not expanded yet (consumed as children are made), for PUCT
+    the moves the evaluator expanded the node with (None before), with their ``priors``; ``children`` maps a move
+    to its child, in creation order."""
 
-    __slots__ = ("pos", "move", "mover", "visits", "value", "untried", "moves", "priors", "children")
+    __slots__ = ("pos", "move", "mover", "visits", "value", "moves", "priors", "children")
 
-    def __init__(self, pos: tuple, move: int, mover: int, untried: list[int] | None = None) -> None:
-        self.pos, self.move, self.mover = pos, move, mover
+    def __init__(self, pos: tuple, move: int, mover: int, moves: list[int] | None = None) -> None:
+        self.pos, self.move, self.mover, self.moves = pos, move, mover, moves
         self.visits, self.value = 0, 0.0
-        self.untried = untried
-        self.moves: list[int] | None = None
-        self.priors: list[float] = []
+        self.priors: list[float] | None = None
         self.children: dict[int, Node] = {}
 
 
@@ -50,17 +49,18 @@ class Evaluator(Protocol):
 
 def run_search(root: Node, simulations: int, rand: Rand, policy: TreePolicy, evaluator: Evaluator) -> None:
     """``simulations`` times: descend with ``policy`` until a leaf or a new node, evaluate it, back the value up."""
+    child_of, evaluate = policy.child, evaluator.evaluate
     for _ in range(simulations):
         node, path = root, [root]
         while True:
-            child = policy.child(node, rand)
+            child = child_of(node, rand)
             if child is None:
                 break
             path.append(child)
             node = child
             if child.visits == 0:
                 break
-        value = evaluator.evaluate(node, rand)
+        value = evaluate(node, rand)
         mover = node.mover
         for visited in path:  # two sides: what the leaf's mover gains, the other side loses
             visited.visits += 1
@@ -79,27 +79,28 @@ class RandomRollout:
         self.engine = engine
 
     def evaluate(self, node: Node, rand: Rand) -> float:
-        return result_value(self.engine.rollout(node.pos, rand), node.mover)
+        result = self.engine.rollout(node.pos, rand)
+        return 1.0 if result == node.mover else 0.5 if result == DRAW else 0.0  # result_value, inlined: hot
 
 
 class UCT:
-    """UCB1 over fully expanded nodes; a node with untried moves expands one of them, chosen at random."""
+    """UCB1 over fully expanded nodes; a node with untried moves (``Node.moves``) expands one of them at random."""
 
     def __init__(self, engine, exploration: float) -> None:
         self.engine, self.exploration = engine, exploration
 
     def root(self, pos: tuple, moves: list[int]) -> Node:
-        return Node(pos, -1, -1, untried=list(moves))
+        return Node(pos, -1, -1, list(moves))
 
     def child(self, node: Node, rand: Rand) -> Node | None:
-        untried = node.untried
+        untried = node.moves
         if untried:
             i = int(rand() * len(untried))
             untried[i], untried[-1] = untried[-1], untried[i]
             move = untried.pop()
             engine = self.engine
             pos = engine.play(node.pos, move)
-            child = Node(pos, move, engine.turn(node.pos), untried=engine.moves(pos))
+            child = Node(pos, move, engine.turn(node.pos), engine.moves(pos))
             node.children[move] = child
             return child
         if not node.children:
