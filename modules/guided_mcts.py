@@ -26,7 +26,7 @@ from torch import nn
 
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, StandardBits, UltimateBits, make_bits
-from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search
+from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 
 DEFAULT_C_PUCT = 1.5
@@ -167,8 +167,7 @@ class GuidedMCTS:
         self.expand(root, moves)
         rand = rng.random
         run_search(root, self.simulations, rand, self.policy, self.evaluator)
-        visits = {move: child.visits for move, child in root.children.items()}
-        return self.policy.choose(root, rand), visits
+        return self.policy.choose(root, rand), visits_by_move(root)
 
 
 class QMCTSOpponent(Opponent):

@@ -29,7 +29,7 @@ def uct_search(engine, pos: tuple, root_moves: list[int], simulations: int, rng:
     policy = UCT(engine, exploration)
     root = policy.root(pos, root_moves)
     run_search(root, simulations, rand, policy, RandomRollout(engine))
-    stats = {move: (child.visits, child.value / child.visits) for move, child in root.children.items()}
+    stats = {child.move: (child.visits, child.value / child.visits) for child in root.children}
     return policy.choose(root, rand), stats
 
 

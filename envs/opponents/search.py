@@ -22,8 +22,9 @@ Rand = Callable[[], float]  # random.Random.random: all chance of a search comes
 
 class Node:
     """A search-tree node. ``moves``: for UCT the moves not expanded yet (consumed as children are made), for PUCT
-    the moves the evaluator expanded the node with (None before), with their ``priors``; ``children`` maps a move
-    to its child, in creation order."""
+    the moves the evaluator expanded the node with (None before), with their ``priors``. ``children``: UCT appends
+    them in creation order; PUCT keeps one slot per move of ``moves`` (None until first selected). A list, not a
+    dict by move: the UCB1 scan over a root's 81 children is the search's hot loop after the playouts."""
 
     __slots__ = ("pos", "move", "mover", "visits", "value", "moves", "priors", "children")
 
@@ -31,7 +32,7 @@ class Node:
         self.pos, self.move, self.mover, self.moves = pos, move, mover, moves
         self.visits, self.value = 0, 0.0
         self.priors: list[float] | None = None
-        self.children: dict[int, Node] = {}
+        self.children: list = []
 
 
 class TreePolicy(Protocol):
@@ -101,13 +102,13 @@ class UCT:
             engine = self.engine
             pos = engine.play(node.pos, move)
             child = Node(pos, move, engine.turn(node.pos), engine.moves(pos))
-            node.children[move] = child
+            node.children.append(child)
             return child
         if not node.children:
             return None
         log_parent, exploration = math.log(node.visits), self.exploration
         best, best_score = None, -1.0
-        for child in node.children.values():
+        for child in node.children:
             score = child.value / child.visits + exploration * math.sqrt(log_parent / child.visits)
             if score > best_score:
                 best, best_score = child, score
@@ -115,8 +116,8 @@ class UCT:
 
     def choose(self, root: Node, rand: Rand) -> int:
         """The most visited root move (ties: uniformly at random)."""
-        most = max(child.visits for child in root.children.values())
-        tied = sorted(move for move, child in root.children.items() if child.visits == most)
+        most = max(child.visits for child in root.children)
+        tied = sorted(child.move for child in root.children if child.visits == most)
         return tied[int(rand() * len(tied))]
 
 
@@ -132,27 +133,34 @@ class PUCT:
             return None
         sqrt_parent = math.sqrt(max(1, node.visits))
         c_puct, children = self.c_puct, node.children
-        best_score, best_move = -1.0, -1
-        for move, prior in zip(node.moves, node.priors):
-            child = children.get(move)
+        if not children:
+            children.extend([None] * len(node.moves))
+        best_score, best = -1.0, -1
+        for i, (child, prior) in enumerate(zip(children, node.priors)):
             if child is None or child.visits == 0:
                 score = 0.5 + c_puct * prior * sqrt_parent
             else:
                 score = child.value / child.visits + c_puct * prior * sqrt_parent / (1 + child.visits)
             if score > best_score:
-                best_score, best_move = score, move
-        child = children.get(best_move)
+                best_score, best = score, i
+        child = children[best]
         if child is None:
-            child = Node(self.engine.play(node.pos, best_move), best_move, self.engine.turn(node.pos))
-            children[best_move] = child
+            move = node.moves[best]
+            child = Node(self.engine.play(node.pos, move), move, self.engine.turn(node.pos))
+            children[best] = child
         return child
 
     def choose(self, root: Node, rand: Rand) -> int:
         """The most visited root move; ties go to the higher prior, then uniformly at random."""
-        visits = {move: child.visits for move, child in root.children.items()}
+        visits = visits_by_move(root)
         prior = dict(zip(root.moves, root.priors))
         best = max(visits.values())
         tied = sorted(m for m, v in visits.items() if v == best)
         top_prior = max(prior[m] for m in tied)
         tied = [m for m in tied if prior[m] == top_prior]
         return tied[int(rand() * len(tied))]
+
+
+def visits_by_move(root: Node) -> dict[int, int]:
+    """Visit count of every root move that has a child (in creation order for UCT, move order for PUCT)."""
+    return {child.move: child.visits for child in root.children if child is not None}
