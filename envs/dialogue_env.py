@@ -10,6 +10,10 @@ when the user starts, the robot first says "your turn" (Request(userGameMove)). 
 (win / loose / draw) and closing, which ends the episode. The act filter (Naive Bayes over the example
 dialogues) and the legal squares form ``action_mask``; an act outside it is refused: -5, nothing changes
 except the action count. See docs/env.md for rewards, features and every key.
+
+This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
+specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
+``envs.env_speed``. Who opens is the option ``first`` (``env.first``); ``starts`` is its deprecated spelling.
 """
 from __future__ import annotations
 
