@@ -23,15 +23,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tre
 
 # (name, make_env keyword arguments, policy): "mask" = env.rand_action, "dialogue" = uniform over dialogue_mask
 CONFIGS: tuple[tuple[str, dict, str], ...] = (
-    ("standard/robot", dict(game="standard", starts="robot"), "mask"),
-    ("standard/alternate", dict(game="standard", starts="alternate"), "mask"),
-    ("standard/alternate/no-temporal", dict(game="standard", starts="alternate", temporal=False), "mask"),
-    ("standard/random-seat/dialogue-mask", dict(game="standard", starts="random"), "dialogue"),
-    ("standard/human/rule-opponent", dict(game="standard", starts="human", opponent="rule"), "mask"),
-    ("ultimate/robot", dict(game="ultimate", starts="robot"), "mask"),
-    ("ultimate/alternate", dict(game="ultimate", starts="alternate"), "mask"),
-    ("ultimate/alternate/open_subgrids", dict(game="ultimate", starts="alternate", free_move="open_subgrids", temporal=False), "mask"),
-    ("ultimate/robot/dialogue-mask", dict(game="ultimate", starts="robot"), "dialogue"),
+    ("standard/robot", dict(game="standard", first="robot"), "mask"),
+    ("standard/alternate", dict(game="standard", first="alternate"), "mask"),
+    ("standard/alternate/no-temporal", dict(game="standard", first="alternate", temporal=False), "mask"),
+    ("standard/random-seat/dialogue-mask", dict(game="standard", first="random"), "dialogue"),
+    ("standard/human/rule-opponent", dict(game="standard", first="human", opponent="rule"), "mask"),
+    ("ultimate/robot", dict(game="ultimate", first="robot"), "mask"),
+    ("ultimate/alternate", dict(game="ultimate", first="alternate"), "mask"),
+    ("ultimate/alternate/open_subgrids", dict(game="ultimate", first="alternate", free_move="open_subgrids", temporal=False), "mask"),
+    ("ultimate/robot/dialogue-mask", dict(game="ultimate", first="robot"), "dialogue"),
 )
 
 

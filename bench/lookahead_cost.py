@@ -20,7 +20,7 @@ def collect_positions(game: str, free_move: str, batch: int, steps: int, seed: i
     """TensorDicts (copies) of the states in which at least one robot may take a square."""
     from envs import make_env
 
-    env = make_env(game, batch_size=(batch,), temporal=True, free_move=free_move, seed=seed, starts="alternate")
+    env = make_env(game, batch_size=(batch,), temporal=True, free_move=free_move, seed=seed, first="alternate")
     td = env.reset()
     kept = []
     for _ in range(steps):

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from envs.env_options import OPTION_NAMES  # light: no torch
+
 GYM_ID = "ncbot/NoughtsCrosses-v0"
-OPTION_NAMES = ("starts", "opponent", "asr_confidence", "max_actions")
 
 
 def make_env(
@@ -17,12 +18,14 @@ def make_env(
     temporal: bool = True,
     free_move: str = "anywhere",
     seed: int = 0,
+    first: str = "robot",
     **options: Any,
 ):
     """Build the batched dialogue game env (a TorchRL ``EnvBase`` with batch size ``(B,)``).
 
-    Options: ``starts`` robot|human|alternate|random (who makes the first game move; default robot),
-    ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
+    ``first``: robot|human|alternate|random, who makes the first game move (default robot; ``alternate`` flips per
+    game slot every episode, ``random`` draws per game). The old spelling ``starts=`` still works with a
+    DeprecationWarning. Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
     object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
     uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100).
     """
@@ -31,7 +34,7 @@ def make_env(
             raise ValueError(f"unknown option {name!r}; options: {', '.join(OPTION_NAMES)}")
     from envs.dialogue_env import DialogueGameEnv
 
-    return DialogueGameEnv(game=game, batch_size=batch_size, temporal=temporal, free_move=free_move, seed=seed, **options)
+    return DialogueGameEnv(game=game, batch_size=batch_size, temporal=temporal, free_move=free_move, seed=seed, first=first, **options)
 
 
 def _register_gym() -> None:

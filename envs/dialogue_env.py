@@ -10,32 +10,37 @@ when the user starts, the robot first says "your turn" (Request(userGameMove)). 
 (win / loose / draw) and closing, which ends the episode. The act filter (Naive Bayes over the example
 dialogues) and the legal squares form ``action_mask``; an act outside it is refused: -5, nothing changes
 except the action count. See docs/env.md for rewards, features and every key.
+
+This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
+specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
+``envs.env_speed``. Who opens is the option ``first`` (``env.first``); ``starts`` is its deprecated spelling.
 """
 from __future__ import annotations
 
-import inspect
+import warnings
 from typing import Any
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from envs import dialogue as dlg
-from envs.engine import FREE_MOVE_CHOICES, make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
+import envs.dialogue as dlg
+from envs.core import (
+    FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, check_free_move, check_game,  # noqa: F401
+)
+from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
+    AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
+)
+from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
+from envs.env_options import check_batch, check_confidence, first_of, resolve_opponent
+from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 
-GAME_CHOICES = ("standard", "ultimate")
-STARTS_CHOICES = ("robot", "human", "alternate", "random")
-ILLEGAL_ACT_REWARD = -5.0  # the paper's penalty for a repeated move, applied to every refused act (ours)
-ROBOT, USER = 1, 2
-# Dialogue flags, kept multiplied by 8 so that ``engine.status`` (outcome * 2 + marks % 2, 0..7) + flags is the
-# game's "stage" (0..63): all the phase depends on, one integer per game, and the index of the phase table.
-ROBOT_FIRST, AGREED, CLOSED = 8, 16, 32
-N_STAGES = 64
-N_USER = 1 + len(dlg.USER_ACTS)  # values of the last user act: 0 none, else user act + 1
+STARTS_CHOICES = FIRST_CHOICES  # the deprecated spelling's name, kept for old imports
+ILLEGAL_ACT_REWARD = REWARD_ILLEGAL  # the paper's penalty for a repeated move, applied to every refused act (ours)
+USER = HUMAN  # the simulated user sits in the human seat
 
 
-class DialogueGameEnv(EnvBase):
+class DialogueGameEnv(FastProcHooks, EnvBase):
     """Batched Noughts & Crosses dialogue env (3x3 or Ultimate); build it with ``envs.make_env``.
 
     Metadata: ``action_names``, ``templates``, ``robot_commands`` (per action), ``feature_names``,
@@ -52,165 +57,49 @@ class DialogueGameEnv(EnvBase):
         temporal: bool = True,
         free_move: str = "anywhere",
         seed: int = 0,
-        starts: str = "robot",
+        first: str = "robot",
         opponent: Any = "random",
         asr_confidence: tuple[float, float] = (0.0, 1.0),
         max_actions: int = 100,
+        starts: str | None = None,
     ) -> None:
-        batch = _check_batch(batch_size)
-        if game not in GAME_CHOICES:
-            raise ValueError(f"game must be one of {', '.join(GAME_CHOICES)}; got {game!r}")
-        if free_move not in FREE_MOVE_CHOICES:
-            raise ValueError(f"free_move must be one of {', '.join(FREE_MOVE_CHOICES)}; got {free_move!r}")
-        if starts not in STARTS_CHOICES:
-            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {starts!r}")
-        low, high = _check_confidence(asr_confidence)
+        batch = check_batch(batch_size)
+        check_game(game)
+        check_free_move(free_move)
+        first = first_of(first, starts)
+        low, high = check_confidence(asr_confidence)
         if not isinstance(max_actions, int) or max_actions < 1:
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
-        self.game, self.free_move, self.temporal, self.starts = game, free_move, bool(temporal), starts
+        self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
         self.engine = make_engine(game, free_move)
         self.cells = self.engine.cells
         self.model = dlg.build_dialogue_model(game)
-        self.opponent, self._opponent_params = self._resolve_opponent(opponent, seed)
-        self._describe()
-        self._make_specs(batch)
+        self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
+        for name, value in describe(self.model, self.cells, self.temporal).items():
+            setattr(self, name, value)
+        for name, spec in make_specs(batch, self.cells, self.n_actions, self.n_features, len(self.model.utterance_texts)).items():
+            setattr(self, name, spec)
         self._rng = torch.Generator().manual_seed(int(seed))
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
-        self._make_tables()
+        for name, table in step_tables(self.model, self.engine, self.n_actions, (low, high)).items():
+            setattr(self, name, table)
+        self._reply_key: tuple | None = None  # what _reply_tables last derived its tables from
         self._all_games = torch.arange(batch)
         self._init_state(batch)
         self.set_seed(int(seed))
 
+    @property
+    def starts(self) -> str:
+        """Deprecated spelling of ``first`` (who opens the game)."""
+        warnings.warn("env.starts is deprecated: use env.first (same values)", DeprecationWarning, stacklevel=2)
+        return self.first
+
     # ------------------------------------------------------------------ construction helpers
-    def _resolve_opponent(self, opponent: Any, seed: int) -> tuple[Any, set[str]]:
-        """None for the inline uniform-random user; else an object with ``select`` (by name or given).
-
-        Also returns which optional keywords its ``select`` takes: ``owners`` (Ultimate subgrid owners) and
-        ``rows`` (the batch indices of the games that move, for opponents that hold per-game input such as
-        ``envs.external_opponent.ExternalOpponent``).
-        """
-        if isinstance(opponent, str):
-            if opponent == "random":
-                return None, set()
-            from envs.opponents import make_opponent, opponent_choices
-
-            try:
-                opponent = make_opponent(opponent, game=self.game, free_move=self.free_move, seed=seed)
-            except (KeyError, ValueError) as error:
-                raise ValueError(f"opponent {opponent!r} unknown or invalid ({error}); choices: {', '.join(opponent_choices())}") from None
-        if not callable(getattr(opponent, "select", None)):
-            raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
-        params = set(inspect.signature(opponent.select).parameters) & {"owners", "rows"}
-        return opponent, params
-
-    def _make_tables(self) -> None:
-        """Flat look-up tables for the step (index_select on 1-D tables is the fastest gather on CPU).
-
-        Utterance id ``U`` (one past the last) stands for silence inside the step; it is reported as -1.
-        """
-        model, cells = self.model, self.cells
-        n_utt = len(model.utterance_texts)
-        self._silence = n_utt
-        self._reply_key: tuple | None = None  # what _reply_tables last derived its tables from
-        self._act_type = torch.cat([torch.zeros(cells, dtype=torch.int64), torch.arange(1, len(dlg.SYSTEM_TYPES))])
-        self._asks_move = torch.zeros(len(dlg.SYSTEM_TYPES), dtype=torch.bool)
-        self._asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
-        self._utterance_acts = torch.cat([model.utterance_acts, torch.tensor([-1])])
-        # the words of each utterance as column indices (padded with V, a spare column): ASR confidences are
-        # drawn for these few words only (torch.rand costs ~10 ns per number, (B, V) draws dominated the step)
-        words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))]) > 0
-        width = max(1, int(words.sum(1).max()))
-        order = torch.sort(words.to(torch.uint8), dim=1, descending=True, stable=True).indices[:, :width]
-        present = torch.arange(width).unsqueeze(0) < words.sum(1, keepdim=True)
-        # user words live in columns C.. of a (B, C + V) block whose first C (command) columns stay 0, so one
-        # maximum with the robot's last act's commands + words row gives the whole tail of the observation
-        n_commands = model.template_commands.shape[1]
-        self._utterance_word_columns = torch.where(present, order + n_commands, n_commands + len(model.words))
-        # the commands + words of each said act type (row 0: nothing said), plus the spare column the padding hits
-        system_features = torch.cat([model.template_commands, model.template_words], dim=1)
-        self._said_features = torch.cat([system_features, torch.zeros(len(system_features), 1)], dim=1)
-        self._utterance_out = torch.cat([torch.arange(n_utt), torch.tensor([-1])])  # silence is reported as -1
-        self._utterance_is_move = torch.cat([model.utterance_acts == dlg.USER_MOVE, torch.tensor([False])])
-        self._asr_scaled = (self.asr_low, self.asr_high) != (0.0, 1.0)  # else confidences are the uniforms themselves
-        # phase of every stage (see ROBOT_FIRST); the filter by (talk = last system act * N_USER + last user act,
-        # stage): one row gather per step instead of ~12 ops that build the phase and the context
-        stage = torch.arange(N_STAGES)
-        self._stage_phase = torch.tensor([
-            dlg.phase_of(bool(flags & AGREED), bool(flags & CLOSED), status // 2, (status % 2 == 0) == bool(flags & ROBOT_FIRST))
-            for status, flags in zip((stage % 8).tolist(), (stage // 8 * 8).tolist())
-        ])
-        allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
-        by_phase = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1)
-        n_talk = (1 + len(dlg.SYSTEM_TYPES)) * N_USER
-        rows = (torch.arange(n_talk).unsqueeze(1) * len(dlg.PHASES) + self._stage_phase.unsqueeze(0)).reshape(-1)
-        self._filter_table = by_phase.index_select(0, rows).contiguous()  # row talk * N_STAGES + stage
-        # flags an accepted act sets (by act type + 1), and those a (system act, user reply) pair sets (by talk)
-        self._said_flags = torch.zeros(1 + len(dlg.SYSTEM_TYPES), dtype=torch.int64)
-        self._said_flags[dlg.REPLY_YES + 1], self._said_flags[dlg.CLOSING + 1] = AGREED, CLOSED
-        self._talk_flags = torch.zeros(n_talk, dtype=torch.int64)
-        self._talk_flags[(dlg.REQUEST_PLAY + 1) * N_USER + dlg.USER_YES + 1] = AGREED
-        # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
-        self._user_turn = (self._asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1)
-        self._code_legal = self._code_rewards = self._code_wins = None
-        if self.game == "standard":  # 3x3: legal squares and look-ahead rewards are one row per board code
-            legal, rewards = self.engine.rows_by_code(ROBOT)
-            talk_acts = self.n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
-            self._code_legal = torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous()
-            self._code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
-            self._code_wins = (self._code_rewards == 5.0).contiguous()  # winning_actions = mask & this row
-
-    def _describe(self) -> None:
-        cells, model = self.cells, self.model
-        self.action_names = dlg.action_names(cells)
-        self.n_actions = len(self.action_names)
-        self.templates = [dlg.TEMPLATES[0]] * cells + list(dlg.TEMPLATES[1:])
-        self.robot_commands = [dlg.TYPE_COMMANDS[0]] * cells + list(dlg.TYPE_COMMANDS[1:])
-        self.user_act_names = list(dlg.USER_ACTS)
-        self.words = list(model.words)
-        width = len(str(cells - 1))
-        names = [f"robot_move[{c:0{width}d}]" for c in range(cells)]
-        names += [f"human_move[{c:0{width}d}]" for c in range(cells)]
-        names += [f"command[{c}]" for c in dlg.ROBOT_COMMANDS]
-        names += [f"word[{w}]" for w in model.words]
-        if self.temporal:
-            names += [f"time[{c:0{width}d}]" for c in range(cells)]
-        self.feature_names = names
-        self.n_features = len(names)
-
-    def _make_specs(self, batch: int) -> None:
-        cells, actions, n_utt = self.cells, self.n_actions, len(self.model.utterance_texts)
-        shape = torch.Size([batch])
-
-        def flag(width: int) -> Categorical:
-            return Categorical(2, shape=(batch, width), dtype=torch.bool)
-
-        def ints(low: int, high: int, width: int = 1, dtype=torch.int64) -> Bounded:
-            return Bounded(low=low, high=high, shape=(batch, width), dtype=dtype)
-
-        self.observation_spec = Composite(
-            observation=Bounded(low=0.0, high=1.0, shape=(batch, self.n_features), dtype=torch.float32),
-            action_mask=flag(actions),
-            dialogue_mask=flag(actions),
-            lookahead_reward=Bounded(low=-5.0, high=5.0, shape=(batch, actions), dtype=torch.float32),
-            winning_actions=flag(actions),
-            board=ints(0, 2, cells, torch.int8),
-            outcome=ints(0, 3, 1, torch.int8),
-            robot_first=flag(1),
-            turn=Unbounded(shape=(batch, 1), dtype=torch.int64),
-            user_act=ints(-1, len(dlg.USER_ACTS) - 1),
-            user_move=ints(-1, cells - 1),
-            user_utterance=ints(-1, n_utt - 1),
-            shape=shape,
-        )
-        self.action_spec = Categorical(actions, shape=shape, dtype=torch.int64)
-        self.reward_spec = Unbounded(shape=(batch, 1), dtype=torch.float32)
-        self.done_spec = Composite(done=flag(1), terminated=flag(1), truncated=flag(1), shape=shape)
-
     def _init_state(self, batch: int) -> None:
         self.boards = self.engine.new(batch)
-        self.d = _Dialogues()
+        self.d = DialogueState()
         self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
         self.d.talk = torch.zeros(batch, dtype=torch.int64)
         # the tensors handed out as (B, 1) keys are kept as columns (no unsqueeze per output)
@@ -265,7 +154,7 @@ class DialogueGameEnv(EnvBase):
         if self._code_legal is not None:
             code = self.boards.codes[:, 0]
             mask = dialogue_mask & self._code_legal.index_select(0, code)
-            lookahead = torch.where(mask, self._code_rewards.index_select(0, code), ILLEGAL_ACT_REWARD)
+            lookahead = torch.where(mask, self._code_rewards.index_select(0, code), REWARD_ILLEGAL)
             self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
             return
         legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
@@ -274,9 +163,9 @@ class DialogueGameEnv(EnvBase):
         if bool(can_move.any()):
             # moves' rewards padded with 0 for the other acts: allowed entries keep them, the rest get -5
             rewards = torch.nn.functional.pad(self.engine.move_rewards(self.boards, ROBOT, can_move), (0, self.n_actions - cells))
-            lookahead = torch.where(mask, rewards, ILLEGAL_ACT_REWARD)
+            lookahead = torch.where(mask, rewards, REWARD_ILLEGAL)
         else:
-            lookahead = torch.where(mask, 0.0, ILLEGAL_ACT_REWARD)
+            lookahead = torch.where(mask, 0.0, REWARD_ILLEGAL)
         self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
 
     def _observation(self) -> torch.Tensor:
@@ -298,15 +187,15 @@ class DialogueGameEnv(EnvBase):
             if self._code_wins is not None:  # 3x3: the moves worth +5 are one row per board code
                 winning = mask & self._code_wins.index_select(0, self.boards.codes[:, 0])
             else:
-                winning = mask & (self.d.lookahead == 5.0)
+                winning = mask & (self.d.lookahead == REWARD_WIN)
             observation = self._observation()
             terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
             truncated = (self.d.turn >= self.max_actions) & ~terminated
             done = terminated | truncated
         else:
             fresh_observation, fresh_winning = self._fresh_features
-            observation = _paste_rows(self.d.observation, reset_rows, fresh_observation)
-            winning = _paste_rows(self.d.winning_actions, reset_rows, fresh_winning)
+            observation = paste_rows(self.d.observation, reset_rows, fresh_observation)
+            winning = paste_rows(self.d.winning_actions, reset_rows, fresh_winning)
             # a new dialogue is neither over nor cut short; the other games are as in the last output
             terminated, truncated, done = (flag.index_fill(0, reset_rows, False) for flag in self.d.done_flags)
         self.d.observation, self.d.winning_actions = observation, winning
@@ -349,50 +238,6 @@ class DialogueGameEnv(EnvBase):
             return self._output(reset_rows=index)
         return self._output()
 
-    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
-        """Skip TorchRL's per-key completion of the step output when it has nothing to do.
-
-        Why exact: ``_step`` always emits ``reward`` (B, 1) and the three done keys in their spec shapes, so
-        the generic pass (reshape the reward to its spec, add missing done keys) changes nothing; only the
-        optional type checks (``run_type_checks``) go through it. ``tests/test_env_speed.py`` compares both.
-        """
-        if self.run_type_checks:
-            return super()._step_proc_data(next_tensordict)
-        return next_tensordict
-
-    def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
-        """Merge the reset output into the input TensorDict with one update instead of a per-key ``where``.
-
-        Why this is exact: the env is stateful and ``_reset`` returns every game's current state, so for the
-        games not reset its values equal the input's (the previous step's output); TorchRL's generic path
-        (``where(~_reset, input, reset_output)`` over every key, ~2 ms at batch 1024 with our 16 keys) would
-        pick the same numbers. Keys the env does not emit (e.g. a policy's outputs) are padded with 0 on the
-        reset rows exactly as TorchRL does. ``_reset`` never leaves a reset game done, so the done check is
-        skipped too.
-        """
-        if tensordict is None:
-            return tensordict_reset
-        reset = tensordict.pop("_reset", None)
-        emitted = set(tensordict_reset.keys())
-        others = [key for key in tensordict.keys() if key not in emitted]  # e.g. "action", a policy's outputs
-        padded: dict[str, Any] = {}
-        if others and reset is not None and not bool(reset.all()):
-            keep = ~reset.reshape(self.batch_size)
-            for key in others:
-                value = tensordict.get(key)
-                if isinstance(value, torch.Tensor):
-                    condition = keep.reshape(keep.shape + (1,) * (value.ndim - keep.ndim))
-                    padded[key] = torch.where(condition, value, torch.zeros((), dtype=value.dtype))
-                else:  # a nested TensorDict: TorchRL's own padding
-                    padded[key] = value.where(keep, value.empty(), pad=0)
-        if type(tensordict) is TensorDict and not tensordict.is_locked and tensordict.batch_size == self.batch_size:
-            # a plain dict update: every value was built by the env with this batch size and device, so the
-            # per-key validation of TensorDict.update (~40 µs a key) has nothing to find
-            tensordict._tensordict.update(tensordict_reset._tensordict)
-            tensordict._tensordict.update(padded)
-            return tensordict
-        return tensordict.update(tensordict_reset).update(padded)
-
     def _reset_rows(self, index: torch.Tensor) -> None:
         """Start new dialogues in the games ``index`` (int64 (N,)); the others keep their state.
 
@@ -415,12 +260,12 @@ class DialogueGameEnv(EnvBase):
         self.d.user_act = self.d.user_act.index_fill(0, index, -1)
         self.d.user_move = self.d.user_move.index_fill(0, index, -1)
         self.d.user_utterance = self.d.user_utterance.index_fill(0, index, -1)
-        if self.starts in ("robot", "human"):
-            robot = self.starts == "robot"
+        if self.first in ("robot", "human"):
+            robot = self.first == "robot"
             self.d.robot_first = self.d.robot_first.index_fill(0, index, robot)
             self.d.flags.index_fill_(0, index, ROBOT_FIRST if robot else 0)
         else:
-            if self.starts == "alternate":
+            if self.first == "alternate":
                 first = self.d.episodes.index_select(0, index) % 2 == 0
                 self.d.episodes.index_add_(0, index, torch.ones_like(index))
             else:  # one draw per game, reset or not (the random stream does not depend on which games reset)
@@ -428,9 +273,9 @@ class DialogueGameEnv(EnvBase):
             self.d.robot_first = self.d.robot_first.index_copy(0, index, first.unsqueeze(1))
             self.d.flags.index_copy_(0, index, first.long() * ROBOT_FIRST)
         mask, dialogue_mask, lookahead = self._fresh_rows
-        self.d.mask = _paste_rows(self.d.mask, index, mask)
-        self.d.dialogue_mask = _paste_rows(self.d.dialogue_mask, index, dialogue_mask)
-        self.d.lookahead = _paste_rows(self.d.lookahead, index, lookahead)
+        self.d.mask = paste_rows(self.d.mask, index, mask)
+        self.d.dialogue_mask = paste_rows(self.d.dialogue_mask, index, dialogue_mask)
+        self.d.lookahead = paste_rows(self.d.lookahead, index, lookahead)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
@@ -491,26 +336,15 @@ class DialogueGameEnv(EnvBase):
         return self._output(reward)
 
     def _reply_tables(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """(contexts,) reply counts and the flat (contexts * (K + 1)) utterance ids of the simulated user, where
-        context = act type * phases + phase, derived from ``self.model`` (read each step: ``ncbot play`` swaps
-        in or edits its tables to make the user say what a person typed; rebuilt when they change).
-
-        Column 0 of a context without replies holds silence, and column K repeats column K - 1, so the pick
-        ``floor(u * count)`` needs neither the ``count > 0`` test nor a clamp: same utterances as reading
-        ``reply_options`` with ``min(pick, K - 1)`` and silencing contexts without replies. A move utterance in
-        a context where the user does not move (an act the data never shows; ``ncbot play`` can set one) is
-        silence too, as the user says nothing it cannot do.
-        """
+        """The simulated user's reply tables (``envs.dialogue_tables.reply_tables``), read each step from
+        ``self.model``: ``ncbot play`` swaps in or edits its tables to make the user say what a person typed,
+        so they are rebuilt when the model's tensors change."""
         options, counts = self.model.reply_options, self.model.reply_counts
         key = (options, counts, options._version, counts._version)  # holds the tensors: identity checks stay valid
         last = self._reply_key
         if last is None or last[0] is not options or last[1] is not counts or last[2:] != key[2:]:
-            flat = options.reshape(-1, options.shape[-1])
-            replies = torch.cat([flat, flat[:, -1:]], dim=1)
-            replies[counts.reshape(-1) == 0, 0] = self._silence
-            moves_without_move = self._utterance_is_move[replies] & ~self._user_turn.unsqueeze(1)
-            replies[moves_without_move] = self._silence
-            self._reply_key, self._replies = key, (counts.reshape(-1).clone(), replies.reshape(-1).contiguous())
+            self._reply_key = key
+            self._replies = reply_tables(self.model, self._silence, self._utterance_is_move, self._user_turn)
         return self._replies
 
     def _user_cells(self, rows: torch.Tensor) -> torch.Tensor:
@@ -548,54 +382,3 @@ class DialogueGameEnv(EnvBase):
         seed = 0 if seed is None else int(seed)
         self._rng.manual_seed(seed)
         self._action_rng.manual_seed(seed + 1)
-
-
-class _Dialogues:
-    """Per-game dialogue state and the current mask / look-ahead, each a tensor with the batch first.
-
-    A plain object (not attributes of the env): EnvBase is an nn.Module, whose attribute setting costs
-    ~20 µs, and the step replaces these tensors every call.
-    """
-
-    flags: torch.Tensor  # (B,) ROBOT_FIRST | AGREED (the user agreed to play) | CLOSED (the robot said goodbye)
-    talk: torch.Tensor  # (B,) last accepted system act type + 1 (0: none), times N_USER, + last user act + 1 (0: none / silence)
-    robot_first: torch.Tensor  # (B, 1) bool
-    episodes: torch.Tensor  # (B,) dialogues started (counted for starts="alternate" only)
-    turn: torch.Tensor  # (B, 1) actions taken in this dialogue
-    user_act: torch.Tensor  # (B, 1) the user's act in the last step (-1 none)
-    user_move: torch.Tensor  # (B, 1) the user's square in the last step (-1 none)
-    user_utterance: torch.Tensor  # (B, 1) id of the user's utterance in the last step (-1 none)
-    words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
-    mask: torch.Tensor  # (B, A) action_mask
-    dialogue_mask: torch.Tensor  # (B, A) the act filter alone
-    lookahead: torch.Tensor  # (B, A) one-step reward of every action
-    observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)
-    winning_actions: torch.Tensor  # (B, A) the winning actions of the last output
-    done_flags: tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # (B, 1) terminated, truncated, done of the last output
-
-
-def _paste_rows(values: torch.Tensor, index: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
-    """A copy of ``values`` (B, F) with ``row`` (F,) in the rows ``index``: 3-4x faster than a broadcast ``where``."""
-    return values.index_put((index,), row)
-
-
-def _check_batch(batch_size: Any) -> int:
-    if isinstance(batch_size, int):
-        batch_size = (batch_size,)
-    try:
-        dims = tuple(int(b) for b in batch_size)
-    except TypeError:
-        raise ValueError(f"batch_size must be an int or a 1-tuple like (64,), got {batch_size!r}") from None
-    if len(dims) != 1 or dims[0] < 1:
-        raise ValueError(f"batch_size must be a 1-tuple with a positive size like (64,), got {batch_size!r}")
-    return dims[0]
-
-
-def _check_confidence(bounds: Any) -> tuple[float, float]:
-    try:
-        low, high = (float(v) for v in bounds)
-    except (TypeError, ValueError):
-        raise ValueError(f"asr_confidence must be (low, high) of a uniform distribution in [0, 1], got {bounds!r}") from None
-    if not 0.0 <= low <= high <= 1.0:
-        raise ValueError(f"asr_confidence must satisfy 0 <= low <= high <= 1, got {bounds!r}")
-    return low, high

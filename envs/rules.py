@@ -24,32 +24,13 @@ import operator
 from dataclasses import dataclass
 from typing import Literal
 
-EMPTY, X, O = 0, 1, 2
-DRAWN = 3  # value of a drawn subgrid in State.subgrids (and of a drawn game in State.result)
+from envs.core import (  # noqa: F401  (re-exported: the rules' public vocabulary)
+    COLUMN_LETTERS, DRAWN, EMPTY, FREE_MOVE_CHOICES, LINES_3X3, O, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, X,
+    check_free_move, check_game, subgrid_cells,
+)
 
 MARK_NAMES = {X: "x", O: "o"}
 RESULT_NAMES = {0: None, X: "x", O: "o", DRAWN: "draw"}
-FREE_MOVE_CHOICES = ("anywhere", "open_subgrids")
-COLUMN_LETTERS = "abcdefghi"
-
-# The 8 lines of a 3x3 grid as cell indices 0..8 (rows, columns, diagonals).
-LINES_3X3: tuple[tuple[int, int, int], ...] = (
-    (0, 1, 2), (3, 4, 5), (6, 7, 8),
-    (0, 3, 6), (1, 4, 7), (2, 5, 8),
-    (0, 4, 8), (2, 4, 6),
-)
-
-
-def subgrid_cells(subgrid: int) -> tuple[int, ...]:
-    """The 9 full-grid cells (row-major inside the subgrid) of Ultimate subgrid ``subgrid``."""
-    top, left = (subgrid // 3) * 3, (subgrid % 3) * 3
-    return tuple((top + r) * 9 + left + c for r in range(3) for c in range(3))
-
-
-SUBGRID_CELLS: tuple[tuple[int, ...], ...] = tuple(subgrid_cells(k) for k in range(9))
-# cell -> the subgrid it lies in, and cell -> the subgrid it sends the opponent to.
-SUBGRID_OF_CELL: tuple[int, ...] = tuple((cell // 27) * 3 + (cell % 9) // 3 for cell in range(81))
-TARGET_OF_CELL: tuple[int, ...] = tuple(((cell // 9) % 3) * 3 + (cell % 9) % 3 for cell in range(81))
 
 
 def _has_line(marks: tuple[int, ...] | list[int], mark: int) -> bool:
@@ -257,9 +238,7 @@ class Ultimate(_Game):
     n_cells = 81
 
     def __init__(self, free_move: str = "anywhere") -> None:
-        if free_move not in FREE_MOVE_CHOICES:
-            raise ValueError(f"free_move must be one of {', '.join(FREE_MOVE_CHOICES)}; got {free_move!r}")
-        self.free_move = free_move
+        self.free_move = check_free_move(free_move)
 
     def new(self) -> State:
         return State(board=(EMPTY,) * 81, subgrids=(0,) * 9)
@@ -344,8 +323,4 @@ Game = Standard | Ultimate
 
 def make_game(game: str = "standard", free_move: str = "anywhere") -> Standard | Ultimate:
     """Build a game by name ("standard" or "ultimate"); ValueError naming the choices otherwise."""
-    if game == "standard":
-        return Standard()
-    if game == "ultimate":
-        return Ultimate(free_move=free_move)
-    raise ValueError(f"game must be one of standard, ultimate; got {game!r}")
+    return Standard() if check_game(game) == "standard" else Ultimate(free_move=free_move)

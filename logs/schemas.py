@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 
+from envs.core import OUTCOME_NAMES
+
 SCHEMA_VERSION = 1
 
 EPISODE_TOPIC = "/episode"
@@ -29,7 +31,7 @@ STEP_DETAIL_CHOICES = ("per_action", "packed", "none")
 
 PHASES = ("train", "eval", "robot", "play")
 #: Outcome names from the robot's point of view, indexed by the env's `outcome` code.
-OUTCOMES = ("none", "win", "loss", "draw")
+OUTCOMES = OUTCOME_NAMES  # the robot's view of outcome codes 0..3, defined once in envs.core
 
 _INT_LIST = {"type": "array", "items": {"type": "integer"}}
 _NUM_LIST = {"type": "array", "items": {"type": "number"}}

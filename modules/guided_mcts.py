@@ -1,6 +1,7 @@
 """MCTS guided by the learnt Q-network: the paper's future work ("MinMax/MCTS combined with the learnt policy").
 
-PUCT search (AlphaZero-style selection) on the opponents' bitboards with three inputs from the agent:
+The shared search loop of ``envs.opponents.search`` with PUCT (AlphaZero-style) selection and a Q-guided
+evaluator, on the opponents' bitboards, with three inputs from the agent:
 - priors: softmax(Q / temperature) over the legal cells of the side to move, read from the Q-network on the
   features of a typical game turn seen from that side (``TurnFeatures``);
 - values: a leaf is scored by ``value_weight * v_Q + (1 - value_weight) * random playout``, where
@@ -24,7 +25,8 @@ from tensordict.nn import TensorDictModuleBase
 from torch import nn
 
 from envs.opponents.base import Opponent
-from envs.opponents.bitboards import CELL_OF, DRAW, ONGOING, StandardBits, UltimateBits, make_bits
+from envs.opponents.bitboards import CELL_OF, ONGOING, StandardBits, UltimateBits, make_bits
+from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 
 DEFAULT_C_PUCT = 1.5
@@ -83,21 +85,28 @@ class TurnFeatures:
         return features
 
 
-class _Node:
-    """A tree node; ``value`` sums the results (win 1, draw 0.5) for ``mover``, the side whose move led here."""
+class QGuidedEvaluator:
+    """The search's evaluator: expands a leaf with softmax(Q / temperature) priors and scores it by
+    ``value_weight * v_Q + (1 - value_weight) * random playout`` (a finished game: its result)."""
 
-    __slots__ = ("pos", "move", "mover", "visits", "value", "moves", "priors", "children")
+    def __init__(self, search: "GuidedMCTS") -> None:
+        self.search = search
+        self.rollout = RandomRollout(search.engine)
 
-    def __init__(self, pos: tuple, move: int, mover: int) -> None:
-        self.pos, self.move, self.mover = pos, move, mover
-        self.visits, self.value = 0, 0.0
-        self.moves: list[int] | None = None  # set on expansion
-        self.priors: list[float] = []
-        self.children: dict[int, _Node] = {}
+    def evaluate(self, node: Node, rand) -> float:
+        search, engine = self.search, self.search.engine
+        result = engine.result(node.pos)
+        if result != ONGOING:
+            return result_value(result, node.mover)
+        v_q = search.expand(node, engine.moves(node.pos)) if node.moves is None else 0.5
+        weight = search.value_weight
+        return weight * (1.0 - v_q) + (1.0 - weight) * self.rollout.evaluate(node, rand)
 
 
 class GuidedMCTS:
-    """PUCT search whose priors and leaf values come from a Q-network (see the module docstring)."""
+    """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
+
+    The loop is ``envs.opponents.search.run_search`` with ``PUCT`` selection and ``QGuidedEvaluator``."""
 
     def __init__(self, qnet: nn.Module, features: TurnFeatures, game: str, free_move: str = "anywhere",
                  simulations: int = 100, c_puct: float = DEFAULT_C_PUCT, temperature: float = DEFAULT_TEMPERATURE,
@@ -113,6 +122,8 @@ class GuidedMCTS:
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
+        self.policy = PUCT(self.engine, self.c_puct)
+        self.evaluator = QGuidedEvaluator(self)
 
     # -- Q-network reads --------------------------------------------------------------------------------------
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
@@ -131,7 +142,7 @@ class GuidedMCTS:
         q = self.qnet(self.features(own, other, last_move).unsqueeze(0))[0]
         return q[moves].tolist()
 
-    def _expand(self, node: _Node, moves: list[int]) -> float:
+    def expand(self, node: Node, moves: list[int]) -> float:
         """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move."""
         q = self._q(node.pos, node.move, moves)
         top = max(q)
@@ -152,54 +163,11 @@ class GuidedMCTS:
         moves = safe or list(root_moves)
         if len(moves) == 1:
             return moves[0], {moves[0]: 0}
-        root = _Node(pos, -1, -1)
-        self._expand(root, moves)
+        root = Node(pos, -1, -1)
+        self.expand(root, moves)
         rand = rng.random
-        for _ in range(self.simulations):
-            node, path = root, [root]
-            while node.moves is not None and node.moves:
-                node = self._select_child(node)
-                path.append(node)
-                if node.visits == 0:
-                    break
-            result = engine.result(node.pos)
-            if result != ONGOING:
-                value_for_mover = 1.0 if result == node.mover else 0.5 if result == DRAW else 0.0
-            else:
-                if node.moves is None:
-                    v_q = self._expand(node, engine.moves(node.pos))
-                else:
-                    v_q = 0.5
-                playout = engine.rollout(node.pos, rand)
-                rollout_for_mover = 1.0 if playout == node.mover else 0.5 if playout == DRAW else 0.0
-                value_for_mover = self.value_weight * (1.0 - v_q) + (1.0 - self.value_weight) * rollout_for_mover
-            for visited in path:
-                visited.visits += 1
-                visited.value += value_for_mover if visited.mover == node.mover else 1.0 - value_for_mover
-        visits = {move: child.visits for move, child in root.children.items()}
-        prior = dict(zip(root.moves, root.priors))
-        best = max(visits.values())
-        tied = sorted(m for m, v in visits.items() if v == best)
-        top_prior = max(prior[m] for m in tied)
-        tied = [m for m in tied if prior[m] == top_prior]
-        return tied[int(rand() * len(tied))], visits
-
-    def _select_child(self, node: _Node) -> _Node:
-        sqrt_parent = math.sqrt(max(1, node.visits))
-        best_score, best_move, best_prior = -1.0, -1, 0.0
-        for move, prior in zip(node.moves, node.priors):
-            child = node.children.get(move)
-            if child is None or child.visits == 0:
-                score = 0.5 + self.c_puct * prior * sqrt_parent
-            else:
-                score = child.value / child.visits + self.c_puct * prior * sqrt_parent / (1 + child.visits)
-            if score > best_score:
-                best_score, best_move, best_prior = score, move, prior
-        child = node.children.get(best_move)
-        if child is None:
-            child = _Node(self.engine.play(node.pos, best_move), best_move, self.engine.turn(node.pos))
-            node.children[best_move] = child
-        return child
+        run_search(root, self.simulations, rand, self.policy, self.evaluator)
+        return self.policy.choose(root, rand), visits_by_move(root)
 
 
 class QMCTSOpponent(Opponent):

@@ -12,7 +12,8 @@ from typing import Any
 
 import torch
 
-OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW = 1, 2, 3
+from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
+
 MAX_EVAL_BATCH = 4096
 
 

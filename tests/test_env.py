@@ -35,7 +35,7 @@ def start_game(env) -> TensorDict:
 
 
 def scripted(starts: str = "robot", **kw):
-    return make_env("standard", batch_size=(1,), starts=starts, opponent=ExternalOpponent(), **kw)
+    return make_env("standard", batch_size=(1,), first=starts, opponent=ExternalOpponent(), **kw)
 
 
 # ---------------------------------------------------------------- specs and sizes
@@ -61,7 +61,7 @@ def test_sizes_and_names(game: str, temporal: bool, features: int, actions: int)
 # ---------------------------------------------------------------- masks over random rollouts
 @pytest.mark.parametrize("game,free_move", [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")])
 def test_random_rollouts_respect_masks_and_invariants(game: str, free_move: str) -> None:
-    env = make_env(game, batch_size=(32,), free_move=free_move, starts="random", seed=4)
+    env = make_env(game, batch_size=(32,), free_move=free_move, first="random", seed=4)
     data = env.rollout(300 if game == "ultimate" else 60, break_when_any_done=False)
     mask, action = data["action_mask"], data["action"]
     assert mask.gather(-1, action.unsqueeze(-1)).all(), "a random rollout took a masked action"
@@ -86,7 +86,7 @@ def play_script(env, robot_cells: list[int], user_cells: list[int]) -> list[floa
     """Robot moves ``robot_cells``; the user answers each with the next of ``user_cells`` (if any)."""
     rewards = []
     users = list(user_cells)
-    if env.starts == "human":
+    if env.first == "human":
         act(env, "Request(userGameMove)", users.pop(0))
     for cell in robot_cells:
         td = act(env, cell, users.pop(0) if users else None)
@@ -195,7 +195,7 @@ def test_features_words_commands_and_temporal() -> None:
 
 # ---------------------------------------------------------------- seats, truncation, reproducibility
 def test_human_first_starts_with_your_turn() -> None:
-    env = make_env("standard", batch_size=(1,), starts="human")
+    env = make_env("standard", batch_size=(1,), first="human")
     td = start_game(env)
     allowed = [env.action_names[a] for a in td["action_mask"][0].nonzero().flatten().tolist()]
     assert allowed == ["Request(userGameMove)"]
@@ -205,12 +205,24 @@ def test_human_first_starts_with_your_turn() -> None:
 
 @pytest.mark.parametrize("starts,expected", [("robot", {True}), ("human", {False}), ("alternate", {True, False}), ("random", {True, False})])
 def test_seat_options(starts: str, expected: set[bool]) -> None:
-    env = make_env("standard", batch_size=(16,), starts=starts, seed=1)
+    env = make_env("standard", batch_size=(16,), first=starts, seed=1)
     seats = set(env.reset()["robot_first"].flatten().tolist()) | set(env.reset()["robot_first"].flatten().tolist())
     assert seats == expected
     if starts == "alternate":
         first = env.reset()["robot_first"]
         assert torch.equal(env.reset()["robot_first"], ~first)
+
+
+def test_old_starts_spelling_warns_and_plays_the_same() -> None:
+    """``starts=`` is the deprecated name of ``first=``: same games, a warning that names the new spelling."""
+    with pytest.warns(DeprecationWarning, match="use first='human'"):
+        old = make_env("standard", batch_size=(8,), seed=3, starts="human")
+    new = make_env("standard", batch_size=(8,), seed=3, first="human")
+    assert old.first == "human"
+    a, b = old.rollout(30, break_when_any_done=False), new.rollout(30, break_when_any_done=False)
+    assert torch.equal(a["next", "observation"], b["next", "observation"])
+    with pytest.raises(ValueError, match="disagree"):
+        make_env("standard", first="human", starts="robot")
 
 
 def test_truncated_after_100_actions() -> None:
@@ -225,7 +237,7 @@ def test_truncated_after_100_actions() -> None:
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_same_seed_same_rollout(game: str) -> None:
     def rollout(seed: int):
-        env = make_env(game, batch_size=(8,), seed=seed, starts="random")
+        env = make_env(game, batch_size=(8,), seed=seed, first="random")
         return env.rollout(40, break_when_any_done=False)
 
     a, b, c = rollout(3), rollout(3), rollout(4)
@@ -249,7 +261,7 @@ def test_partial_reset_only_touches_selected_games() -> None:
     ({"game": "chess"}, "game must be one of standard, ultimate"),
     ({"batch_size": (0,)}, "batch_size must be a 1-tuple with a positive size"),
     ({"batch_size": (2, 3)}, "batch_size must be a 1-tuple"),
-    ({"starts": "nobody"}, "starts must be one of robot, human, alternate, random"),
+    ({"first": "nobody"}, "first must be one of robot, human, alternate, random"),
     ({"free_move": "never"}, "free_move must be one of anywhere, open_subgrids"),
     ({"opponent": "grandmaster"}, "opponent 'grandmaster' unknown"),
     ({"opponent": 3}, "opponent must be a name"),
@@ -262,7 +274,7 @@ def test_bad_arguments(kwargs: dict, message: str) -> None:
 
 
 def test_unknown_option_is_rejected() -> None:
-    with pytest.raises(ValueError, match="unknown option 'colour'; options: starts, opponent"):
+    with pytest.raises(ValueError, match="unknown option 'colour'; options: first, opponent"):
         make_env(colour="red")
 
 
@@ -285,7 +297,7 @@ def test_external_opponent_rejects_illegal_queued_move() -> None:
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_filter_is_as_sharp_as_the_example_dialogues(game: str) -> None:
     """In masked play every dialogue context allows one act type, and feedback always matches the result."""
-    env = make_env(game, batch_size=(64,), starts="random", seed=9)
+    env = make_env(game, batch_size=(64,), first="random", seed=9)
     cells, td = env.cells, env.reset()
     feedback = {1: "Provide(feedback=win)", 2: "Provide(feedback=loose)", 3: "Provide(feedback=draw)"}
     for _ in range(120 if game == "ultimate" else 40):

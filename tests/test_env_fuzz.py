@@ -48,7 +48,7 @@ assert sum(batch * steps for _, _, batch, steps in RUNS) == TOTAL_ACTIONS
 
 @pytest.mark.parametrize("game,free_move,batch,steps", RUNS)
 def test_fuzz_random_actions(game: str, free_move: str, batch: int, steps: int) -> None:
-    env = make_env(game, batch_size=(batch,), free_move=free_move, starts="random", seed=13)
+    env = make_env(game, batch_size=(batch,), free_move=free_move, first="random", seed=13)
     generator = torch.Generator().manual_seed(0)
     td = env.reset()
     unmasked = torch.arange(batch) % 2 == 0  # half the games act blindly, half from the mask

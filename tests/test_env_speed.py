@@ -92,7 +92,7 @@ def test_ultimate_lookahead_on_active_rows_only_matches_all_rows(free_move: str)
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_partial_reset_output_equals_full_recompute(game: str) -> None:
     """A partial reset pastes the fresh observation / winning rows into the last ones: == computing them anew."""
-    env = make_env(game, batch_size=(32,), seed=2, temporal=True, starts="alternate")
+    env = make_env(game, batch_size=(32,), seed=2, temporal=True, first="alternate")
     td = env.reset()
     partial = 0
     for _ in range(60 if game == "standard" else 150):
@@ -160,7 +160,7 @@ def test_stage_table_equals_phase_rules() -> None:
 def test_standard_mask_and_lookahead_by_code_equal_engine_path() -> None:
     """3x3 mask / look-ahead / winning actions read as board-code rows == the engine's legal squares and
     move rewards combined with the act filter, over random rollouts (both seats)."""
-    env = make_env("standard", batch_size=(64,), seed=6, starts="alternate")
+    env = make_env("standard", batch_size=(64,), seed=6, first="alternate")
     td = env.reset()
     cells, checked = env.cells, 0
     for _ in range(200):

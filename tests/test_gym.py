@@ -44,7 +44,7 @@ def test_masked_random_episode_ends_and_mask_matches_info(game: str, temporal: b
 
 def test_same_seed_same_episode() -> None:
     def run(seed: int) -> list[float]:
-        env = gymnasium.make(envs.GYM_ID, game="standard", starts="random")
+        env = gymnasium.make(envs.GYM_ID, game="standard", first="random")
         obs, info = env.reset(seed=seed)
         trace = [float(obs.sum())]
         for _ in range(12):

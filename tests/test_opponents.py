@@ -339,3 +339,30 @@ def test_uct_search_spends_every_simulation_below_the_root() -> None:
     assert sum(visits for visits, _ in stats.values()) == 300
     assert move in engine.moves(pos) and stats[move][0] == max(v for v, _ in stats.values())
     assert all(0.0 <= rate <= 1.0 for _, rate in stats.values())
+
+
+def test_shared_search_loop_makes_the_decisions_of_the_former_uct_loop() -> None:
+    """envs.opponents.search replaced mcts.py's own loop (issue 13): the hash of root moves and root statistics on
+    120 positions, pinned from the former loop (commit 1c89ae0), must not move."""
+    import hashlib
+
+    from envs.opponents.bitboards import make_bits
+    from envs.opponents.mcts import uct_search
+
+    digest = hashlib.sha256()
+    for game, free_move, simulations in (("standard", "anywhere", 50), ("ultimate", "anywhere", 60), ("ultimate", "open_subgrids", 60)):
+        rules, rng, engine = make_game(game, free_move), random.Random(1), make_bits(game, free_move)
+        found = 0
+        while found < 40:
+            s = rules.new()
+            for _ in range(rng.randrange(0, 30 if game == "ultimate" else 6)):
+                if rules.outcome(s) is not None:
+                    break
+                s = rules.play(s, rng.choice(rules.legal(s)))
+            if rules.outcome(s) is not None or len(rules.legal(s)) < 2:
+                continue
+            pos = engine.from_board(list(s.board), rules.mark_to_move(s), s.last_move, list(s.subgrids) or None)
+            move, stats = uct_search(engine, pos, rules.legal(s), simulations, random.Random(found))
+            digest.update(repr((move, sorted(stats.items()))).encode())
+            found += 1
+    assert digest.hexdigest()[:16] == "d75a2893e1f9bc07"

@@ -11,10 +11,7 @@ from typing import Callable, Protocol
 
 import torch
 
-GAME_CHOICES = ("standard", "ultimate")
-FREE_MOVE_CHOICES = ("anywhere", "open_subgrids")
-CELLS_OF_GAME = {"standard": 9, "ultimate": 81}
-
+from envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, check_free_move, check_game  # noqa: F401
 
 class Opponent:
     """A move chooser for batches of games; subclasses implement ``_select``.
@@ -89,18 +86,6 @@ def masked_uniform_choice(legal: torch.Tensor, generator: torch.Generator, score
     key = key.masked_fill(~legal, -1.0)
     cells = key.argmax(dim=1)
     return torch.where(legal.any(dim=1), cells, torch.zeros_like(cells))
-
-
-def check_game(game: str) -> str:
-    if game not in GAME_CHOICES:
-        raise ValueError(f"game must be one of {', '.join(GAME_CHOICES)}; got {game!r}")
-    return game
-
-
-def check_free_move(free_move: str) -> str:
-    if free_move not in FREE_MOVE_CHOICES:
-        raise ValueError(f"free_move must be one of {', '.join(FREE_MOVE_CHOICES)}; got {free_move!r}")
-    return free_move
 
 
 class OpponentFactory(Protocol):

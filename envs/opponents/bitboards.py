@@ -13,7 +13,7 @@ drawn subgrids, ``macro*`` the subgrids each side owns, ``target`` the subgrid t
 """
 from __future__ import annotations
 
-from envs.rules import LINES_3X3, SUBGRID_CELLS
+from envs.core import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
 
 ONGOING, DRAW = -1, 2
 FULL = 0b111111111
@@ -23,8 +23,8 @@ IS_LINE = tuple(any(mask & line == line for line in LINE_MASKS) for mask in rang
 FREE_SQUARES = tuple(tuple(p for p in range(9) if not mask >> p & 1) for mask in range(512))
 N_FREE = tuple(len(squares) for squares in FREE_SQUARES)
 CELL_OF = tuple(tuple(row) for row in SUBGRID_CELLS)  # (subgrid, square) -> full-grid cell
-SUBGRID_OF = tuple((c // 27) * 3 + (c % 9) // 3 for c in range(81))
-SQUARE_OF = tuple(((c // 9) % 3) * 3 + (c % 9) % 3 for c in range(81))
+SUBGRID_OF = SUBGRID_OF_CELL  # cell -> its subgrid
+SQUARE_OF = TARGET_OF_CELL  # cell -> its square inside the subgrid (= the subgrid it sends the opponent to)
 
 
 class StandardBits:
@@ -235,4 +235,5 @@ class UltimateBits:
 
 
 def make_bits(game: str, free_move: str = "anywhere") -> StandardBits | UltimateBits:
+    """The bitboard engine of ``game`` (sides relative to the mover: 0 to move, 1 the other; ``DRAW`` = 2)."""
     return StandardBits() if game == "standard" else UltimateBits(free_move)

@@ -12,13 +12,13 @@ from functools import lru_cache
 
 import torch
 
-from envs.rules import LINES_3X3, SUBGRID_CELLS
+from envs.core import DRAWN, LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL as _SUBGRID_OF_CELL
 
-OPEN, DRAWN = 0, 3
+OPEN = 0
 SENTINEL = -1  # value of the padding column: never a player's code, never empty
 
 SUBGRID_INDEX = torch.tensor(SUBGRID_CELLS, dtype=torch.long)  # (9, 9) cells of each subgrid
-SUBGRID_OF_CELL = torch.tensor([(c // 27) * 3 + (c % 9) // 3 for c in range(81)], dtype=torch.long)
+SUBGRID_OF_CELL = torch.tensor(_SUBGRID_OF_CELL, dtype=torch.long)  # (81,) subgrid of each cell
 LINE_INDEX = {
     9: torch.tensor(LINES_3X3, dtype=torch.long),
     81: torch.tensor([[SUBGRID_CELLS[k][i] for i in line] for k in range(9) for line in LINES_3X3], dtype=torch.long),

@@ -1,5 +1,7 @@
 """``mcts:N``: plain UCT with N simulations and uniformly random playouts, for both games and both rule variants.
 
+The search itself is the shared loop of ``envs.opponents.search`` (UCT selection, ``RandomRollout`` evaluator).
+
 One search per game in the batch, each on the bitboard engines of ``bitboards.py`` (the random playouts are
 the hot loop). Each decision draws one seed from the caller's torch generator for a private ``random.Random``,
 so results are reproducible from the generator alone. The root's moves are the caller's legal cells: the
@@ -7,70 +9,28 @@ opponent never contradicts the env, even where the board alone leaves subgrid ow
 """
 from __future__ import annotations
 
-import math
 import random
 
 import torch
 
 from envs.opponents.base import Opponent, register_opponent
-from envs.opponents.bitboards import DRAW, make_bits
+from envs.opponents.bitboards import make_bits
+from envs.opponents.search import UCT, RandomRollout, run_search
 
 DEFAULT_EXPLORATION = 0.7  # UCB1 constant for rewards in [0, 1]; 0.5-0.7 beat 1.0-1.4 vs random at 100 sims (docs)
 
 
-class _Node:
-    """A search-tree node; ``wins`` are counted for ``mover``, the side whose move led here."""
-
-    __slots__ = ("pos", "untried", "children", "visits", "wins", "move", "mover")
-
-    def __init__(self, pos: tuple, untried: list[int], move: int, mover: int) -> None:
-        self.pos = pos
-        self.untried = untried
-        self.children: list[_Node] = []
-        self.visits = 0
-        self.wins = 0.0
-        self.move = move
-        self.mover = mover
-
-
 def uct_search(engine, pos: tuple, root_moves: list[int], simulations: int, rng: random.Random,
                exploration: float = DEFAULT_EXPLORATION) -> tuple[int, dict[int, tuple[int, float]]]:
-    """Run ``simulations`` UCT iterations from ``pos``; the most visited root move and per-move (visits, win rate)."""
+    """Run ``simulations`` UCT iterations from ``pos``; the most visited root move and per-move (visits, win rate).
+
+    The search loop of ``envs.opponents.search`` with UCB1 selection and random-playout evaluation."""
     rand = rng.random
-    root = _Node(pos, list(root_moves), -1, -1)
-    for _ in range(simulations):
-        node = root
-        path = [root]
-        while not node.untried and node.children:  # selection: UCB1 over fully expanded nodes
-            log_parent = math.log(node.visits)
-            best, best_score = None, -1.0
-            for child in node.children:
-                score = child.wins / child.visits + exploration * math.sqrt(log_parent / child.visits)
-                if score > best_score:
-                    best, best_score = child, score
-            node = best
-            path.append(node)
-        if node.untried:  # expansion: one random untried move
-            untried = node.untried
-            i = int(rand() * len(untried))
-            untried[i], untried[-1] = untried[-1], untried[i]
-            move = untried.pop()
-            child_pos = engine.play(node.pos, move)
-            child = _Node(child_pos, engine.moves(child_pos), move, engine.turn(node.pos))
-            node.children.append(child)
-            node = child
-            path.append(child)
-        result = engine.rollout(node.pos, rand)  # simulation
-        for visited in path:  # backpropagation
-            visited.visits += 1
-            if result == visited.mover:
-                visited.wins += 1.0
-            elif result == DRAW:
-                visited.wins += 0.5
-    stats = {child.move: (child.visits, child.wins / child.visits) for child in root.children}
-    most = max(visits for visits, _ in stats.values())
-    best_moves = sorted(move for move, (visits, _) in stats.items() if visits == most)
-    return best_moves[int(rand() * len(best_moves))], stats
+    policy = UCT(engine, exploration)
+    root = policy.root(pos, root_moves)
+    run_search(root, simulations, rand, policy, RandomRollout(engine))
+    stats = {child.move: (child.visits, child.value / child.visits) for child in root.children}
+    return policy.choose(root, rand), stats
 
 
 class MCTSOpponent(Opponent):

@@ -11,7 +11,7 @@ from functools import lru_cache
 import torch
 
 from envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
-from envs.rules import LINES_3X3
+from envs.core import LINES_3X3
 
 POWERS_OF_3 = torch.tensor([3**i for i in range(9)], dtype=torch.long)
 

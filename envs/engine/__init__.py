@@ -1,0 +1,33 @@
+"""Batched tensor engine for 3x3 and Ultimate Noughts & Crosses: whole-batch torch ops, no Python loop over games.
+
+Why tables: every 3x3 grid (the whole 3x3 board, or one Ultimate subgrid) has one of 3^9 = 19,683 contents.
+Precomputing, for each, "has a line", "is full", "every line blocked" and the bitmask of squares that would
+complete a line lets the engine answer those questions for a whole batch with a single gather. The grid of
+subgrid owners (open, robot, human, drawn) has 4^9 = 262,144 contents and gets the same treatment. This is
+what makes the one-step look-ahead of all 81 Ultimate moves cheap: it is a handful of (B, 81) integer ops
+instead of replaying 81 boards.
+
+Marks: 0 empty, 1 and 2 the two players (in the env 1 = robot, 2 = human, whoever starts). Cells are numbered
+row-major on the full grid (as in ``envs.rules``). Boards are ``(B, cells)`` int8.
+
+Outcome codes (``envs.core``): 0 game on, 1 / 2 that player won, 3 draw.
+
+Layout: ``tables`` (grid tables and gathers), ``base`` (the state and shared helpers), ``standard`` and
+``ultimate`` (one engine each); this module picks one by name.
+"""
+from __future__ import annotations
+
+from envs.core import DRAWN, FREE_MOVE_CHOICES, check_game  # noqa: F401  (re-exported)
+from envs.engine.base import Boards
+from envs.engine.standard import StandardEngine
+from envs.engine.tables import (  # noqa: F401  (re-exported)
+    REWARD_ABOUT_TO_DRAW, REWARD_ABOUT_TO_WIN, GridTables, grid_tables, lookup, lookup_rows, uniform_choice,
+)
+from envs.engine.ultimate import UltimateEngine
+
+__all__ = ["Boards", "StandardEngine", "UltimateEngine", "make_engine", "grid_tables", "uniform_choice"]
+
+
+def make_engine(game: str, free_move: str = "anywhere") -> StandardEngine | UltimateEngine:
+    """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise."""
+    return StandardEngine() if check_game(game) == "standard" else UltimateEngine(free_move)

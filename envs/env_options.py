@@ -1,0 +1,66 @@
+"""The dialogue env's options, checked: one clear ValueError per bad value, before anything is built."""
+from __future__ import annotations
+
+import inspect
+import warnings
+from typing import Any
+
+from envs.core import FIRST_CHOICES
+
+OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts")  # starts: deprecated spelling of first
+
+
+def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:
+    """None for the inline uniform-random user; else an object with ``select`` (by name or given).
+
+    Also returns which optional keywords its ``select`` takes: ``owners`` (Ultimate subgrid owners) and
+    ``rows`` (the batch indices of the games that move, for opponents that hold per-game input such as
+    ``envs.external_opponent.ExternalOpponent``).
+    """
+    if isinstance(opponent, str):
+        if opponent == "random":
+            return None, set()
+        from envs.opponents import make_opponent, opponent_choices
+
+        try:
+            opponent = make_opponent(opponent, game=game, free_move=free_move, seed=seed)
+        except (KeyError, ValueError) as error:
+            raise ValueError(f"opponent {opponent!r} unknown or invalid ({error}); choices: {', '.join(opponent_choices())}") from None
+    if not callable(getattr(opponent, "select", None)):
+        raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
+    params = set(inspect.signature(opponent.select).parameters) & {"owners", "rows"}
+    return opponent, params
+
+
+def first_of(first: str, starts: str | None) -> str:
+    """The ``first`` option, also accepting the deprecated ``starts`` (with a warning naming the new spelling)."""
+    if starts is not None:
+        warnings.warn(f"starts={starts!r} is deprecated: use first={starts!r} (same values)", DeprecationWarning, stacklevel=5)
+        if first != "robot" and first != starts:
+            raise ValueError(f"first={first!r} and the deprecated starts={starts!r} disagree: pass first only")
+        first = starts
+    if first not in FIRST_CHOICES:
+        raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {first!r}")
+    return first
+
+
+def check_batch(batch_size: Any) -> int:
+    if isinstance(batch_size, int):
+        batch_size = (batch_size,)
+    try:
+        dims = tuple(int(b) for b in batch_size)
+    except TypeError:
+        raise ValueError(f"batch_size must be an int or a 1-tuple like (64,), got {batch_size!r}") from None
+    if len(dims) != 1 or dims[0] < 1:
+        raise ValueError(f"batch_size must be a 1-tuple with a positive size like (64,), got {batch_size!r}")
+    return dims[0]
+
+
+def check_confidence(bounds: Any) -> tuple[float, float]:
+    try:
+        low, high = (float(v) for v in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(f"asr_confidence must be (low, high) of a uniform distribution in [0, 1], got {bounds!r}") from None
+    if not 0.0 <= low <= high <= 1.0:
+        raise ValueError(f"asr_confidence must satisfy 0 <= low <= high <= 1, got {bounds!r}")
+    return low, high
