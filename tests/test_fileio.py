@@ -98,3 +98,14 @@ def test_the_file_is_fsynced_before_the_rename_and_the_folder_after(tmp_path: Pa
 def test_fsync_folder_is_a_no_op_where_it_cannot_work(tmp_path: Path) -> None:
     fsync_folder(tmp_path)
     fsync_folder(tmp_path / "missing")
+
+
+def test_no_other_atomic_write_in_the_packages() -> None:
+    """One atomic write: temp files and renames appear nowhere else in the ncbot packages."""
+    root = Path(__file__).resolve().parents[1]
+    needles = ("os.replace(", "os.rename(", ".rename(", "mkstemp(", "NamedTemporaryFile(")
+    found = [f"{path.relative_to(root)}: {needle}"
+             for package in ("envs", "modules", "vision", "logs", "robot_sim", "pipelines")
+             for path in sorted((root / package).rglob("*.py"))
+             for needle in needles if needle in path.read_text()]
+    assert not found, "write through fileio (atomic_path / atomic_write_bytes / atomic_write_text) instead:\n" + "\n".join(found)
