@@ -102,10 +102,11 @@ def draw(rows: list[tuple[int, float, float, float]], path: str) -> None:
     ax.set_title("Env throughput (random masked actions, 1 thread)")
     ax.legend()
     fig.tight_layout()
-    tmp = f"{path}.tmp.png"
-    fig.savefig(tmp, dpi=120)
+    from fileio import atomic_path
+
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=120, format="png")
     plt.close(fig)
-    os.replace(tmp, path)
     print(f"wrote {path}")
 
 

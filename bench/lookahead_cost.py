@@ -67,7 +67,6 @@ def main() -> None:
     parser.add_argument("--png", default=None, help="also draw CPU ms per decision as a bar chart")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    import modules.deep_lookahead  # noqa: F401  (registers k1..k5)
     from tqdm import tqdm
 
     results = []

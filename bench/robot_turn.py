@@ -48,8 +48,9 @@ def main() -> None:
     from logs import EpisodeLogger
     from robot_sim.ik import PositionIK
     from robot_sim.pepper_model import ARM_JOINTS
-    from robot_sim.play import RobotGameRunner, RobotPlayConfig
-    from robot_sim.policy import LookaheadOnlyPolicy
+    from modules.masks import LookaheadOnlyPolicy
+    from robot_sim.game_config import RobotPlayConfig
+    from robot_sim.play import RobotGameRunner
     from robot_sim.scene import PepperScene, SceneConfig
     from robot_sim.sheet import HUMAN_INK, MarkSpec
     from vision.grid import read_page

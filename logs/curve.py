@@ -5,14 +5,13 @@ grouped by the `env_steps` they were run at and give one point each (mean over t
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from fileio import atomic_path
 from logs.reader import read_episodes
 
 
@@ -116,14 +115,9 @@ def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200,
     axes[0].legend(fontsize=7, loc="lower right")
     figure.suptitle(f"learning curve from {Path(path).name}")
     figure.tight_layout()
-    output.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(suffix=".png", dir=output.parent)
-    os.close(handle)
     try:
-        figure.savefig(temporary, dpi=110)
-        os.replace(temporary, output)
+        with atomic_path(output) as temporary:
+            figure.savefig(temporary, dpi=110, format="png")
     finally:
         plt.close(figure)
-        if os.path.exists(temporary):
-            os.unlink(temporary)
     return series

@@ -7,16 +7,19 @@ first incomplete record and reports how many bytes were cut off.
 from __future__ import annotations
 
 import json
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
-from logs import packed, schemas
+import logs.packed as packed
+import logs.schemas as schemas
 from logs.names import NameTables
 from logs.steps import expand_episode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")  # the files an EpisodeLogger writes in a run folder
 PROGRESS_MIN_BYTES = 16 * 2**20
 
 # Foxglove protobuf types the logger writes, decoded by schema name.
@@ -264,3 +267,28 @@ def read_episode_records(path: str | Path, episode_ids: Iterable[int] | None = N
             record.boards.append(message.data)
     return records
 
+
+def episode_file_name(index: int) -> str:
+    return f"episodes-{index:04d}.mcap"
+
+
+def next_episode_id(run_dir: Path, existing: list[int]) -> int:
+    """Continue after the largest episode id of the run. A finished file says it in its `ncbot.end` metadata
+    (read through the summary index); otherwise (a crashed writer) the newest file holding an episode is
+    read with crash recovery: ids grow with the file index."""
+    for index in reversed(existing):
+        path = run_dir / episode_file_name(index)
+        with open(path, "rb") as handle:
+            handle.seek(max(0, path.stat().st_size - len(MCAP_MAGIC)))
+            complete = handle.read() == MCAP_MAGIC
+            if complete:
+                from mcap.reader import make_reader
+
+                handle.seek(0)
+                for record in make_reader(handle).iter_metadata():
+                    if record.name == "ncbot.end":
+                        return int(record.metadata["next_episode"])
+        ids = [int(summary["episode"]) for summary in read_episodes(path, require_ncbot=False)]
+        if ids:
+            return max(ids) + 1
+    return 0

@@ -7,12 +7,11 @@ joint states, which are not tied to a step).
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
-from logs import schemas
+from fileio import atomic_path
+import logs.schemas as schemas
 from logs.board_image import board_png, changed_cell
 from logs.names import NameTables
 from logs.reader import EpisodeRecord, LogReader, read_episode_records
@@ -62,11 +61,8 @@ def export_to_rerun(path: str | Path, output: str | Path, episodes: Iterable[int
         raise ValueError(f"{path} holds no episodes to export")
     names = NameTables.from_metadata(reader.names())
 
-    output.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(suffix=".rrd", dir=output.parent)
-    os.close(handle)
     counts = {"episodes": 0, "steps": 0, "camera_frames": 0, "joint_states": 0, "transforms": 0}
-    try:
+    with atomic_path(output) as temporary:
         recording = rr.RecordingStream("ncbot", recording_id=f"ncbot-{Path(path).resolve().name}")
         recording.save(temporary)
         tick = 0
@@ -77,10 +73,6 @@ def export_to_rerun(path: str | Path, output: str | Path, episodes: Iterable[int
         _log_robot_streams(recording, rr, reader, chosen, counts)
         recording.flush()
         recording.disconnect()
-        os.replace(temporary, output)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
     counts["bytes"] = output.stat().st_size
     return counts
 

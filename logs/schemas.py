@@ -8,6 +8,7 @@ written as protobuf because that is what Foxglove and rerun's MCAP importer disp
 from __future__ import annotations
 
 import json
+from typing import Any
 
 from envs.core import OUTCOME_NAMES
 
@@ -129,3 +130,18 @@ def schema_bytes(schema: dict) -> bytes:
     """The schema as written into the MCAP Schema record (compact JSON)."""
     return json.dumps({"$schema": "https://json-schema.org/draft/2020-12/schema", **schema},
                       separators=(",", ":")).encode()
+
+
+def checked_message(message: dict[str, Any], schema: dict) -> dict[str, Any]:
+    """A copy of `message`; ValueError naming the keys `schema` requires that it lacks."""
+    missing = [key for key in schema["required"] if key not in message]
+    if missing:
+        raise ValueError(f"{schema['title']} message is missing {', '.join(missing)}; required: "
+                         f"{', '.join(schema['required'])}")
+    return dict(message)
+
+
+def check_phase(phase: str) -> None:
+    """ValueError naming the phases unless `phase` is one of them."""
+    if phase not in PHASES:
+        raise ValueError(f"phase must be one of {', '.join(PHASES)}, got {phase!r}")

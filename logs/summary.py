@@ -6,7 +6,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from logs import schemas
+import logs.schemas as schemas
 from logs.reader import LogReader
 
 

@@ -10,26 +10,24 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from logs import packed, schemas
+import logs.foxglove as foxglove
+import logs.packed as packed
+import logs.schemas as schemas
+from fileio import fsync_folder
 from logs.board_image import board_png, changed_cell
 from logs.names import NameTables
+from logs.reader import FILE_PATTERN, episode_file_name, next_episode_id
 from logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_arrays
 
-FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")
 DEFAULT_MAX_FILE_BYTES = 256 * 2**20
 DEFAULT_STEP_DETAIL = {"train": "packed", "eval": "packed", "robot": "per_action", "play": "per_action"}
 MESSAGE_RECORD_OVERHEAD = 31  # MCAP Message record header: opcode, length, channel, sequence, two times
-
-
-def episode_file_name(index: int) -> str:
-    return f"episodes-{index:04d}.mcap"
 
 
 class EpisodeLogger:
@@ -92,12 +90,12 @@ class EpisodeLogger:
         self.board_image_phases = frozenset(board_image_phases)
         self.step_detail = {**DEFAULT_STEP_DETAIL, **(step_detail or {})}
         for phase, detail in self.step_detail.items():
-            _check_phase(phase)
+            schemas.check_phase(phase)
             if detail not in schemas.STEP_DETAIL_CHOICES:
                 raise ValueError(f"step_detail for {phase} must be one of {', '.join(schemas.STEP_DETAIL_CHOICES)}, "
                                  f"got {detail!r}")
         for phase in self.board_image_phases:
-            _check_phase(phase)
+            schemas.check_phase(phase)
         self.flush_interval_s = float(flush_interval_s)
         self.chunk_bytes = int(chunk_bytes)
 
@@ -116,7 +114,7 @@ class EpisodeLogger:
         self._closed = False
         existing = sorted(int(m.group(1)) for p in self.run_dir.iterdir() if (m := FILE_PATTERN.match(p.name)))
         self._file_index = existing[-1] + 1 if existing else 0
-        self._next_episode = _next_episode_id(self.run_dir, existing)
+        self._next_episode = next_episode_id(self.run_dir, existing)
         self.files: list[Path] = []
         self._open_file()
 
@@ -134,7 +132,7 @@ class EpisodeLogger:
         `active` (bool (B,)) logs only those batch rows, e.g. the slots still playing their first test game
         in an evaluation that counts one game per slot (extra games would bias the logged results).
         """
-        _check_phase(phase)
+        schemas.check_phase(phase)
         if env is not None and id(env) != self._names_source:
             self.set_names(NameTables.from_env(env))
             self._names_source = id(env)
@@ -227,22 +225,22 @@ class EpisodeLogger:
 
     def log_step(self, step: dict[str, Any]) -> None:
         """Write one `/step` message (keys per `schemas.STEP_SCHEMA`)."""
-        self._write_json(schemas.STEP_TOPIC, _checked(step, schemas.STEP_SCHEMA))
+        self._write_json(schemas.STEP_TOPIC, schemas.checked_message(step, schemas.STEP_SCHEMA))
 
     def log_dialogue(self, turn: dict[str, Any]) -> None:
         """Write one `/dialogue` message (keys per `schemas.DIALOGUE_SCHEMA`)."""
-        self._write_json(schemas.DIALOGUE_TOPIC, _checked(turn, schemas.DIALOGUE_SCHEMA))
+        self._write_json(schemas.DIALOGUE_TOPIC, schemas.checked_message(turn, schemas.DIALOGUE_SCHEMA))
 
     def log_board(self, board: dict[str, Any], image: bool = False) -> None:
         """Write one `/board` message (keys per `schemas.BOARD_SCHEMA`), and its picture if `image`."""
-        self._write_json(schemas.BOARD_TOPIC, _checked(board, schemas.BOARD_SCHEMA))
+        self._write_json(schemas.BOARD_TOPIC, schemas.checked_message(board, schemas.BOARD_SCHEMA))
         if image:
             self.log_board_image(board["cells"], frame_id=f"episode{board['episode']}")
 
     def log_episode(self, summary: dict[str, Any]) -> None:
         """Write one `/episode` summary (keys per `schemas.EPISODE_SCHEMA`); may start a new file after it."""
-        summary = _checked(summary, schemas.EPISODE_SCHEMA)
-        _check_phase(summary["phase"])
+        summary = schemas.checked_message(summary, schemas.EPISODE_SCHEMA)
+        schemas.check_phase(summary["phase"])
         if summary["outcome"] not in schemas.OUTCOMES:
             raise ValueError(f"outcome must be one of {', '.join(schemas.OUTCOMES)}, got {summary['outcome']!r}")
         summary.setdefault("wall_time", round(time.monotonic() - self._opened, 3))
@@ -263,45 +261,18 @@ class EpisodeLogger:
         `t` is the producer's own time in seconds (e.g. simulation time) and goes into the message
         timestamp; the MCAP log time always comes from the logger's clock.
         """
-        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-
-        if not isinstance(image, (bytes, bytearray)) or not image:
-            raise ValueError("log_camera needs the encoded image as non-empty bytes (e.g. cv2.imencode('.jpg', ...))")
-        message = CompressedImage(frame_id=frame_id, data=bytes(image), format=image_format)
-        self._write_protobuf(topic, message, t)
+        self._write_protobuf(topic, foxglove.compressed_image(image, image_format, frame_id), t)
 
     def log_joint_states(self, names: Sequence[str], positions: Sequence[float],
                          velocities: Sequence[float] | None = None, efforts: Sequence[float] | None = None,
                          t: float | None = None) -> None:
         """Write joint positions (rad or m) as `foxglove.JointStates` on `/joint_states`."""
-        from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
-
-        if len(names) != len(positions):
-            raise ValueError(f"log_joint_states got {len(names)} names but {len(positions)} positions")
-        joints = []
-        for index, name in enumerate(names):
-            joint = {"name": str(name), "position": float(positions[index])}
-            if velocities is not None:
-                joint["velocity"] = float(velocities[index])
-            if efforts is not None:
-                joint["effort"] = float(efforts[index])
-            joints.append(joint)
-        message = JointStates(joints=joints)
-        self._write_protobuf(schemas.JOINT_STATES_TOPIC, message, t)
+        self._write_protobuf(schemas.JOINT_STATES_TOPIC, foxglove.joint_states(names, positions, velocities, efforts), t)
 
     def log_transform(self, parent: str, child: str, translation: Sequence[float],
                       rotation_xyzw: Sequence[float] = (0.0, 0.0, 0.0, 1.0), t: float | None = None) -> None:
         """Write a `foxglove.FrameTransform` (child pose in the parent frame) on `/tf`."""
-        from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
-
-        if len(translation) != 3 or len(rotation_xyzw) != 4:
-            raise ValueError("log_transform needs translation (x, y, z) and rotation quaternion (x, y, z, w)")
-        x, y, z = (float(v) for v in translation)
-        qx, qy, qz, qw = (float(v) for v in rotation_xyzw)
-        message = FrameTransform(parent_frame_id=parent, child_frame_id=child,
-                                 translation={"x": x, "y": y, "z": z},
-                                 rotation={"x": qx, "y": qy, "z": qz, "w": qw})
-        self._write_protobuf(schemas.TRANSFORM_TOPIC, message, t)
+        self._write_protobuf(schemas.TRANSFORM_TOPIC, foxglove.frame_transform(parent, child, translation, rotation_xyzw), t)
 
     # ----------------------------------------------------------------- files, chunks, time
     def flush(self) -> None:
@@ -358,7 +329,10 @@ class EpisodeLogger:
             # indexed in the summary: the next logger on this run continues ids without reading the file
             self._writer.add_metadata("ncbot.end", {"next_episode": str(self._next_episode)})
             self._writer.finish()
+            self._file.flush()
+            os.fsync(self._file.fileno())  # a finished file survives a power loss with its summary and index
             self._file.close()
+            fsync_folder(self.run_dir)
             self._writer = None
             self._file = None
 
@@ -418,40 +392,3 @@ class EpisodeLogger:
     def _require_open(self) -> None:
         if self._closed:
             raise ValueError("the EpisodeLogger is closed; open a new one to log more")
-
-
-def _checked(message: dict[str, Any], schema: dict) -> dict[str, Any]:
-    missing = [key for key in schema["required"] if key not in message]
-    if missing:
-        raise ValueError(f"{schema['title']} message is missing {', '.join(missing)}; required: "
-                         f"{', '.join(schema['required'])}")
-    return dict(message)
-
-
-def _check_phase(phase: str) -> None:
-    if phase not in schemas.PHASES:
-        raise ValueError(f"phase must be one of {', '.join(schemas.PHASES)}, got {phase!r}")
-
-
-def _next_episode_id(run_dir: Path, existing: list[int]) -> int:
-    """Continue after the largest episode id of the run. A finished file says it in its `ncbot.end` metadata
-    (read through the summary index); otherwise (a crashed writer) the newest file holding an episode is
-    read with crash recovery: ids grow with the file index."""
-    from logs.reader import MCAP_MAGIC, read_episodes
-
-    for index in reversed(existing):
-        path = run_dir / episode_file_name(index)
-        with open(path, "rb") as handle:
-            handle.seek(max(0, path.stat().st_size - len(MCAP_MAGIC)))
-            complete = handle.read() == MCAP_MAGIC
-            if complete:
-                from mcap.reader import make_reader
-
-                handle.seek(0)
-                for record in make_reader(handle).iter_metadata():
-                    if record.name == "ncbot.end":
-                        return int(record.metadata["next_episode"])
-        ids = [int(summary["episode"]) for summary in read_episodes(path, require_ncbot=False)]
-        if ids:
-            return max(ids) + 1
-    return 0

@@ -27,9 +27,7 @@ from tensordict import TensorDictBase
 
 from envs.opponents.bitboards import FREE_SQUARES, IS_LINE, ONGOING, StandardBits, UltimateBits
 from envs.rules import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL
-from modules.masks import (
-    AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, _nonempty_or, register_lookahead,
-)
+from modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, nonempty_or
 
 ROBOT, HUMAN = 1, 2
 MAX_PLIES = 5
@@ -153,13 +151,13 @@ class KStepLookahead:
 
     def masks_from_tensordict(self, td: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
         available, reward, winning = td.get(AVAILABLE_KEY), td.get(LOOKAHEAD_REWARD_KEY), td.get(WINNING_KEY)
-        set_a = _nonempty_or(winning & available, available)
+        set_a = nonempty_or(winning & available, available)
         safe_now = available & ~(reward < 0)  # available minus the one-step A_hat
         deep = self.forced_losses(td, safe_now)
         # The env's set A holds "about to win" moves (a threat earns +5), and a threat can walk into a forced
         # loss: then the greedy choice may leave A for a move that survives the deeper search.
-        greedy = _nonempty_or(set_a & safe_now & ~deep, safe_now & ~deep)
-        return set_a, _nonempty_or(greedy, _nonempty_or(set_a & safe_now, set_a))
+        greedy = nonempty_or(set_a & safe_now & ~deep, safe_now & ~deep)
+        return set_a, nonempty_or(greedy, nonempty_or(set_a & safe_now, set_a))
 
     def forced_losses(self, td: TensorDictBase, candidates: torch.Tensor) -> torch.Tensor:
         """(B, A) bool: candidate game moves after which the user forces a win within k plies."""
@@ -217,13 +215,3 @@ def _owner_from_board(board: list[int], k: int) -> int:
         if any(all(marks[i] == code for i in line) for line in LINES_3X3):
             return code
     return 3 if all(marks) else 0
-
-
-def lookahead_names() -> list[str]:
-    """The names this module registers: k1..k5 (free_move anywhere) and k1_open..k5_open."""
-    return [f"k{n}{suffix}" for suffix in ("", "_open") for n in range(1, MAX_PLIES + 1)]
-
-
-for _plies in range(1, MAX_PLIES + 1):
-    register_lookahead(f"k{_plies}", KStepLookahead(_plies, "anywhere"))
-    register_lookahead(f"k{_plies}_open", KStepLookahead(_plies, "open_subgrids"))

@@ -39,7 +39,7 @@ class TurnFeatures:
 
     Own marks as robot moves, the other side's as human moves, the words of "I take this one" and the user's
     move utterance, no command, and (temporal) the last mark at 1.0 and the others at 0.5 (a tree node knows its
-    last move but not the order of the earlier ones). Same reading as ``pipelines.ladder.AgentOpponent``.
+    last move but not the order of the earlier ones). Same reading as ``pipelines.agents.AgentOpponent``.
     """
 
     def __init__(self, game: str, temporal: bool, free_move: str = "anywhere") -> None:

@@ -11,68 +11,27 @@ the available actions, which the env guarantees non-empty.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
-AVAILABLE_KEY = "action_mask"
-LOOKAHEAD_REWARD_KEY = "lookahead_reward"
-WINNING_KEY = "winning_actions"
-EXPLORE_MASK_KEY = "explore_mask"
-GREEDY_MASK_KEY = "greedy_mask"
+from modules.deep_lookahead import MAX_PLIES, KStepLookahead
+from modules.mask_rules import (  # noqa: F401  (the keys and rules are used from here too)
+    AVAILABLE_KEY, EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, MaskRule, no_lookahead,
+    one_step_lookahead, variant_lookahead,
+)
 
-MaskRule = Callable[[torch.Tensor, torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
-
-
-def _nonempty_or(mask: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
-    """Rows of `mask` with no True entry are replaced by the same row of `fallback`."""
-    return torch.where(mask.any(-1, keepdim=True), mask, fallback)
-
-
-def no_lookahead(available: torch.Tensor, reward: torch.Tensor, winning: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """DQN-Original: plain masked DQN; repeated or losing moves are only discouraged by their -5 reward."""
-    return available, available
-
-
-def variant_lookahead(
-    available: torch.Tensor, reward: torch.Tensor, winning: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """DQN-Variant: the greedy choice skips the available actions tied for the lowest reward when it is negative.
-
-    Exploration is unchanged (uniform over available actions); there is no win-forcing.
-    """
-    masked_reward = torch.where(available, reward, torch.full_like(reward, float("inf")))
-    lowest = masked_reward.min(-1, keepdim=True).values
-    worst = available & (reward == lowest) & (lowest < 0)
-    return available, _nonempty_or(available & ~worst, available)
-
-
-def one_step_lookahead(
-    available: torch.Tensor, reward: torch.Tensor, winning: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Proposed (Algorithm 2): A = winning actions if any else available; greedy over A minus A_hat (negative reward).
-
-    Epsilon picks uniformly in A; the greedy argmax falls back to A when every action of A has a negative reward.
-    """
-    set_a = _nonempty_or(winning & available, available)
-    a_hat = reward < 0
-    return set_a, _nonempty_or(set_a & ~a_hat, set_a)
-
-
+#: Every mask rule a config, the CLI or a checkpoint can name: the paper's three, then the k-step searches
+#: (``kN`` for free_move=anywhere, ``kN_open`` for open_subgrids).
 LOOKAHEAD_RULES: dict[str, MaskRule] = {
     "none": no_lookahead,
     "variant": variant_lookahead,
     "one_step": one_step_lookahead,
+    **{f"k{plies}": KStepLookahead(plies, "anywhere") for plies in range(1, MAX_PLIES + 1)},
+    **{f"k{plies}_open": KStepLookahead(plies, "open_subgrids") for plies in range(1, MAX_PLIES + 1)},
 }
 
 AGENT_LOOKAHEAD: dict[str, str] = {"dqn_original": "none", "dqn_variant": "variant", "proposed": "one_step"}
-
-
-def register_lookahead(name: str, rule: MaskRule) -> None:
-    """Add a mask rule (e.g. a k-step look-ahead) so configs can select it by name."""
-    LOOKAHEAD_RULES[name] = rule
 
 
 def lookahead_rule(name: str) -> MaskRule:
@@ -106,4 +65,20 @@ class LookaheadMasks(TensorDictModuleBase):
         return tensordict
 
 
-import modules.deep_lookahead  # noqa: E402,F401  (registers the k-step rules k1..k5, k1_open..k5_open)
+class LookaheadOnlyPolicy:
+    """No learning: an agent's look-ahead masks with a seeded uniform choice inside them (paper-notes §6).
+
+    The decision maker of `ncbot play` and `ncbot robot play` without a checkpoint; `ncbot ladder --baseline`
+    plays it beside the agent, since a learnt agent must clearly beat its own masks to have learnt anything.
+    """
+
+    name = "lookahead"
+
+    def __init__(self, seed: int = 0, lookahead: str = "one_step") -> None:
+        self.masks = LookaheadMasks(lookahead)
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        greedy = self.masks(td).get(GREEDY_MASK_KEY)
+        td.set("action", (torch.rand(greedy.shape, generator=self.generator) + greedy.float()).argmax(-1))
+        return td

@@ -1,4 +1,4 @@
-"""Checkpoints: written atomically (temp file + fsync + os.replace), read back with `weights_only=True`.
+"""Checkpoints: written atomically (`fileio.atomic_path`), read back with `weights_only=True`.
 
 Two kinds live in a run folder:
 - `checkpoint.pt`: the final agent (Q-network weights + resolved config): what `ncbot eval` loads.
@@ -12,48 +12,25 @@ from __future__ import annotations
 import os
 import pickle
 import re
-import tempfile
 import zipfile
 from pathlib import Path
-from typing import IO, Any, Callable
+from typing import Any
 
 import torch
 
-_UMASK = os.umask(0)
-os.umask(_UMASK)
+from fileio import TEMP_GLOB, atomic_path
+
 FORMAT = "ncbot-dqn/1"
 FINAL_NAME = "checkpoint.pt"
 PERIODIC_DIR = "checkpoints"
 PERIODIC_PATTERN = re.compile(r"^step-(\d{9})\.pt$")
 
 
-def _atomic_write(path: str | os.PathLike, mode: str, write: Callable[[IO], None]) -> Path:
-    """Write through a temp file in the same folder, fsync it, then rename over `path` (atomic on POSIX), so a
-    reader or a crash never sees half a file under its final name."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.fchmod(handle, 0o666 & ~_UMASK)  # mkstemp makes 0600 files; give the usual permissions
-    try:
-        with os.fdopen(handle, mode) as stream:
-            write(stream)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temp_name, path)
-    except BaseException:
-        Path(temp_name).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
     """torch.save `obj` to `path` atomically."""
-    return _atomic_write(path, "wb", lambda stream: torch.save(obj, stream))
-
-
-def atomic_write_text(text: str, path: str | os.PathLike) -> Path:
-    """Write a text file atomically so readers never see half of it."""
-    return _atomic_write(path, "w", lambda stream: stream.write(text))
+    with atomic_path(path) as temp:
+        torch.save(obj, temp)
+    return Path(path)
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -109,11 +86,11 @@ def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
 
 
 def remove_stray_temp_files(run_dir: str | os.PathLike) -> list[Path]:
-    """Delete the temp files `_atomic_write` leaves when a run is killed mid-write (run folder and its
+    """Delete the temp files `fileio.atomic_path` leaves when a run is killed mid-write (run folder and its
     checkpoints); returns what was removed. Only for a folder no other process is writing to."""
     run_dir = Path(run_dir)
     stray = [p for folder in (run_dir, run_dir / PERIODIC_DIR) if folder.is_dir()
-             for p in folder.glob(".*.tmp") if p.is_file()]
+             for p in folder.glob(TEMP_GLOB) if p.is_file()]
     for path in stray:
         path.unlink(missing_ok=True)
     return stray

@@ -70,7 +70,7 @@ def eval_command(
     import torch
 
     from pipelines.evaluate import evaluate_checkpoint
-    from pipelines.ladder import register_agent_opponent
+    from pipelines.agents import register_agent_opponent
 
     torch.set_num_threads(1)
     if exhaustive:

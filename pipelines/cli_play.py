@@ -5,7 +5,7 @@ from typing import Optional
 
 import typer
 
-from pipelines.ladder import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
+from pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
 
 
 def play_command(
@@ -90,7 +90,7 @@ def match_command(
 
     from envs.opponents import make_opponent
     from envs.opponents.arena import play_match
-    from pipelines.ladder import register_agent_opponent
+    from pipelines.agents import register_agent_opponent
 
     torch.set_num_threads(1)
     register_agent_opponent()

@@ -1,7 +1,7 @@
 """`ncbot robot ...`: the simulated Pepper (SAPIEN) — play whole games, render the mouth camera, write the URDF.
 
 The logic lives in `robot_sim`; this module parses options, builds the policy (a trained checkpoint through
-`pipelines.evaluate.load_agent`, or the look-ahead filter alone), and prints results. SAPIEN, torch and cv2 are
+`pipelines.agents.load_agent`, or the look-ahead filter alone), and prints results. SAPIEN, torch and cv2 are
 imported inside the commands so `ncbot --help` stays fast.
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ def play(
     torch.set_num_threads(1)
     policy, agent_name = None, "lookahead"
     if checkpoint is not None:
-        from pipelines.evaluate import load_agent
+        from pipelines.agents import load_agent
 
         agent_config, policy = load_agent(checkpoint)
         if agent_config.env.game != game:

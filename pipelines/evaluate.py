@@ -134,23 +134,6 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
     return summarise(*(torch.cat(parts) for parts in zip(*per_game)))
 
 
-def load_agent(checkpoint_path):
-    """(config, greedy policy) of a saved agent: the same masks as in training."""
-    from modules.policy import make_policies
-    from modules.qnet import make_qnet
-    from pipelines.checkpoint import load_checkpoint
-    from pipelines.config import config_from_dict
-    from torchrl.data import Categorical
-
-    data = load_checkpoint(checkpoint_path)
-    config = config_from_dict(data["config"])
-    qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
-    qnet.load_state_dict(data["qnet"])
-    qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead)
-    return config, policies.greedy
-
-
 def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", seat: str = "alternate",
                         seed: int = 0, mcap_dir=None, search: int | None = None) -> EvalResult:
     """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`).
@@ -159,9 +142,9 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     """
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
-    if search:
-        from pipelines.ladder import load_guided_agent
+    from pipelines.agents import load_agent, load_guided_agent
 
+    if search:
         config, policy = load_guided_agent(checkpoint_path, search, seed)
     else:
         config, policy = load_agent(checkpoint_path)

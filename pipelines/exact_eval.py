@@ -158,7 +158,7 @@ def exact_checkpoint(checkpoint_path, *, seat: str = "alternate", seed: int = 0,
 
     Dialogue draws use env seeds seed, seed + 1, ..., seed + dialogue_seeds - 1.
     """
-    from pipelines.evaluate import load_agent
+    from pipelines.agents import load_agent
 
     if seat not in (*SEATS, "alternate"):
         raise ValueError(f"unknown seat {seat!r}; expected one of first, second, alternate")

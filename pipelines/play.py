@@ -136,33 +136,10 @@ class HeardReplies:
         return min(ids, key=lambda u: len(self.model.utterance_texts[u]))
 
 
-class LookaheadOnlyPolicy:
-    """No learning: an agent's look-ahead masks with a uniformly random choice inside them (paper-notes §6).
-
-    ``ncbot play`` uses it without a checkpoint; ``ncbot ladder --baseline`` plays it beside the agent, since a
-    learnt agent must clearly beat its own masks to have learnt anything.
-    """
-
-    name = "lookahead"
-
-    def __init__(self, seed: int, lookahead: str = "one_step") -> None:
-        from modules.masks import lookahead_rule
-
-        self.rule = lookahead_rule(lookahead)
-        self.generator = torch.Generator().manual_seed(seed)
-
-    def __call__(self, td):
-        if getattr(self.rule, "needs_tensordict", False):  # k-step rules read the board (modules.deep_lookahead)
-            _, greedy = self.rule.masks_from_tensordict(td)
-        else:
-            _, greedy = self.rule(td.get("action_mask"), td.get("lookahead_reward"), td.get("winning_actions"))
-        td.set("action", (torch.rand(greedy.shape, generator=self.generator) + greedy).argmax(-1))
-        return td
-
-
 def _build(game: str | None, checkpoint: str | None, free_move: str | None, starts: str, seed: int, human_factory):
     """(env, policy, agent name) from a checkpoint (its own game and features) or the look-ahead policy."""
     from envs import make_env
+    from modules.masks import LookaheadOnlyPolicy
 
     if checkpoint is None:
         game = game or "standard"
@@ -171,7 +148,7 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, star
         env = make_env(game, batch_size=(1,), temporal=True, free_move=free_move, seed=seed, starts=starts,
                        opponent=human, asr_confidence=(1.0, 1.0))
         return env, LookaheadOnlyPolicy(seed), "lookahead"
-    from pipelines.evaluate import load_agent
+    from pipelines.agents import load_agent
     from pipelines.run_env import make_run_env
 
     if not Path(checkpoint).exists():

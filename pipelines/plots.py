@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from fileio import atomic_path
 
 CURVES = (
     ("avg_reward", "avg reward / action"),
@@ -26,17 +27,14 @@ def pyplot():
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
-    """Save a PNG through a temp file + rename so a crash never leaves half a picture; closes the figure."""
+    """Save a figure (PNG, or the format of the suffix) atomically so a crash never leaves half a picture; closes
+    the figure."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(handle)
     try:
-        fig.savefig(temp_name, dpi=dpi, bbox_inches="tight")
-        os.replace(temp_name, path)
+        with atomic_path(path) as temp:
+            fig.savefig(temp, dpi=dpi, bbox_inches="tight", format=path.suffix.lstrip(".") or "png")
     finally:
         pyplot().close(fig)
-        Path(temp_name).unlink(missing_ok=True)
     return path
 
 

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, atomic_write_text, latest_training_state, save_periodic
+from fileio import atomic_write_text
+from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, latest_training_state, save_periodic
 from pipelines.config import RunConfig, config_from_dict, dump_config
 
 # Keys a transition needs for the loss; everything else the policy wrote (masks, Q-values) stays out of the buffer.

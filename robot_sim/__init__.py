@@ -8,7 +8,9 @@ Modules, each with one job:
 - `ik`, `motion`: position IK for the pen, base driving, gestures, drawing a mark;
 - `localise`: the sheet's pose on the table from a camera frame;
 - `human`: the simulated person (opponent model, drawing with an occluding arm, waits, nudges);
-- `speech`, `policy`: template speech (espeak-ng optional) and the look-ahead-only decision maker;
+- `speech`: template speech (espeak-ng optional); without a checkpoint the robot decides with
+  `modules.masks.LookaheadOnlyPolicy` (the paper's look-ahead filter alone);
+- `game_config`, `report`: what `ncbot robot play` can change, and its per-game records and JSON report;
 - `play`: the closed loop (env + vision recogniser + simulator + MCAP logger), `ncbot robot play`.
 Import the submodules you need; nothing heavy is imported here.
 """

@@ -15,11 +15,11 @@ omni wheels, as qibullet does.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
+
+from fileio import atomic_write_text
 
 PACKAGED_URDF = Path(__file__).parent / "assets" / "pepper.urdf"
 
@@ -250,15 +250,8 @@ def pepper_urdf_text(meshes_dir: str | Path | None = None) -> str:
 
 
 def write_pepper_urdf(path: str | Path = PACKAGED_URDF, meshes_dir: str | Path | None = None) -> Path:
-    """Write the URDF atomically (temp file + rename) and return its path."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    text = pepper_urdf_text(meshes_dir)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".pepper-", suffix=".urdf")
-    with os.fdopen(fd, "w") as handle:
-        handle.write(text)
-    os.replace(tmp, target)
-    return target
+    """Write the URDF atomically (`fileio`) and return its path."""
+    return atomic_write_text(pepper_urdf_text(meshes_dir), path)
 
 
 def joint_limits() -> dict[str, tuple[float, float]]:

@@ -14,97 +14,27 @@ per step in the episode summary); a PNG snapshot of the camera view closes each 
 """
 from __future__ import annotations
 
-import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from robot_sim.human import HumanConfig, SimulatedHuman
+from fileio import atomic_write_bytes
+from robot_sim.game_config import RobotPlayConfig
+from robot_sim.human import SimulatedHuman
 from robot_sim.localise import localise_sheet
 from robot_sim.motion import RobotMotion
+from robot_sim.report import GameRecord, games_report, write_report
 from robot_sim.scene import PepperScene, SceneConfig, check_game
 from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from robot_sim.speech import Speaker
 
-STARTS_CHOICES = ("robot", "human", "alternate", "random")
+__all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
-
-
-@dataclass
-class RobotPlayConfig:
-    """Everything `ncbot robot play` can change; defaults are the paper's set-up on our simulator."""
-
-    game: str = "standard"
-    games: int = 1
-    seed: int = 0
-    #: Who opens each game (the env's option): robot (the paper's demo), human, alternate, random.
-    starts: str = "robot"
-    free_move: str = "anywhere"
-    camera_width: int = 640
-    camera_height: int = 480
-    #: Simulated seconds between two logged camera frames while the robot moves. Rendering is most of a turn's
-    #: cost: 1.0 s gives ~5 frames per move (1.5-1.75 s wall per move on the shared 2-core machine), 0.5 s ~10
-    #: (2.4-3.0 s). The human's turn is watched at `human.frame_period` regardless.
-    robot_frame_period: float = 1.0
-    human: HumanConfig = field(default_factory=HumanConfig)
-    #: Ultimate: False = as in the paper, the robot points and says its move and the human draws it.
-    ultimate_robot_draws: bool = False
-    #: Frames the recogniser may take after the human withdrew before the move counts as unseen.
-    max_perception_frames: int = 20
-    #: Motion threshold tau of Algorithm 1 (gray levels). Rendered frames carry no sensor noise (a still scene
-    #: gives 0), so a far lower tau than a real camera needs (vision's default 12) lets even a pen moving over
-    #: the sheet count as "a hand is drawing".
-    recogniser_tau: float = 1.5
-    #: The robot accepts a move once the recogniser reported the same cell and mark this many frames in a row.
-    confirm_frames: int = 2
-    jpeg_quality: int = 80
-    #: Speak through espeak-ng into WAV files (only if installed).
-    audio: bool = False
-    agent_name: str = "lookahead"
-    #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
-    meshes_dir: str | None = None
-
-    def validate(self) -> None:
-        check_game(self.game)
-        if self.games < 1:
-            raise ValueError(f"games must be at least 1; got {self.games}")
-        if self.starts not in STARTS_CHOICES:
-            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {self.starts!r}")
-        if not 1 <= self.jpeg_quality <= 100:
-            raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")
-
-
-@dataclass
-class GameRecord:
-    """What happened in one game, judged on the true board."""
-
-    index: int
-    outcome: str                      # win | draw | loss | unfinished (robot's view of the true game)
-    robot_first: bool
-    actions: int
-    misrecognised_moves: int = 0
-    unseen_moves: int = 0
-    human_moves: int = 0
-    robot_moves: int = 0
-    robot_move_seconds: list[float] = field(default_factory=list)
-    #: CPU time of the process (all threads, incl. lavapipe's) per robot move: the cost without other jobs' load.
-    robot_move_cpu_seconds: list[float] = field(default_factory=list)
-    dialogue_act_seconds: list[float] = field(default_factory=list)
-    human_turn_seconds: list[float] = field(default_factory=list)
-    frames: int = 0
-    snapshot: str | None = None
-    ik_failures: int = 0
-    #: Largest distance (m) between where the robot believed its target cell was and where it really was.
-    cell_localisation_error: float = 0.0
-    #: Robot moves whose fresh mark the robot's own look at the sheet did not read.
-    own_mark_misreads: int = 0
 
 
 class PerceivedHumanOpponent:
@@ -130,10 +60,7 @@ def _write_png_atomic(path: Path, image_bgr: np.ndarray) -> None:
     ok, data = cv2.imencode(".png", image_bgr)
     if not ok:
         raise ValueError(f"could not encode the snapshot for {path}")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".snap-", suffix=".png")
-    with os.fdopen(fd, "wb") as handle:
-        handle.write(data.tobytes())
-    os.replace(tmp, path)
+    atomic_write_bytes(data.tobytes(), path)
 
 
 class RobotGameRunner:
@@ -378,47 +305,14 @@ class RobotGameRunner:
         return self.report()
 
     def report(self) -> dict[str, Any]:
-        """The JSON report of `ncbot robot play` (first keys as in the issue, then details)."""
-        records = self.records
-        moves = [s for r in records for s in r.robot_move_seconds]
-        moves_cpu = [s for r in records for s in r.robot_move_cpu_seconds]
-        acts = [s for r in records for s in r.dialogue_act_seconds]
-        human = [s for r in records for s in r.human_turn_seconds]
-
-        def mean(values: list[float]) -> float | None:
-            return round(float(np.mean(values)), 3) if values else None
-
-        return {
-            "games": len(records),
-            "wins": sum(r.outcome == "win" for r in records),
-            "draws": sum(r.outcome == "draw" for r in records),
-            "losses": sum(r.outcome == "loss" for r in records),
-            "misrecognised_moves": sum(r.misrecognised_moves for r in records),
-            "seconds_per_robot_turn": mean(moves),
-            "unfinished": sum(r.outcome == "unfinished" for r in records),
-            "unseen_moves": sum(r.unseen_moves for r in records),
-            "human_moves": sum(r.human_moves for r in records),
-            "robot_moves": sum(r.robot_moves for r in records),
-            "own_mark_misread": sum(r.own_mark_misreads for r in records),
-            "max_seconds_per_robot_turn": round(max(moves), 3) if moves else None,
-            "cpu_seconds_per_robot_turn": mean(moves_cpu),
-            "load_average": round(os.getloadavg()[0], 2),
-            "seconds_per_dialogue_act": mean(acts),
-            "seconds_per_human_turn": mean(human),
-            "frames": sum(r.frames for r in records),
-            "ik_failures": sum(r.ik_failures for r in records),
-            "max_cell_localisation_error_mm": round(1000 * max((r.cell_localisation_error for r in records), default=0.0), 2),
-            "game": self.config.game,
-            "agent": self.config.agent_name,
-            "seed": self.config.seed,
-            "snapshots": [r.snapshot for r in records if r.snapshot],
-        }
+        """The JSON report of `ncbot robot play` (`robot_sim.report.games_report`)."""
+        return games_report(self.records, self.config)
 
 
 def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
                      log_mcap: bool = True, progress: bool = True) -> dict[str, Any]:
     """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
-    from robot_sim.policy import LookaheadOnlyPolicy
+    from modules.masks import LookaheadOnlyPolicy
 
     config.validate()
     if policy is None:
@@ -435,9 +329,5 @@ def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, ou
         if logger is not None:
             logger.close()
     if out_dir is not None:
-        path = Path(out_dir) / "report.json"
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".report-", suffix=".json")
-        with os.fdopen(fd, "w") as handle:
-            json.dump(report, handle, indent=2)
-        os.replace(tmp, path)
+        write_report(report, out_dir)
     return report

@@ -164,7 +164,8 @@ def test_greedy_mask_drops_forced_losses_and_keeps_one_step():
 def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
     """`agent.lookahead: k3` passes config validation, trains through the Collector and reloads for eval."""
     from pipelines.config import load_config
-    from pipelines.evaluate import evaluate_agent, load_agent
+    from pipelines.agents import load_agent
+    from pipelines.evaluate import evaluate_agent
     from pipelines.train import train
     from tests.learning_helpers import write_tiny_config
 
@@ -181,7 +182,7 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
 
 def test_lookahead_only_baseline_accepts_k_rules():
     """`ncbot ladder --baseline` / `ncbot play` without a checkpoint: the masks alone, k5 included."""
-    from pipelines.play import LookaheadOnlyPolicy
+    from modules.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(16,), seed=0, starts="human", opponent="minimax")
     policy = LookaheadOnlyPolicy(0, "k5")

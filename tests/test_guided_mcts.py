@@ -12,7 +12,7 @@ from envs.opponents.arena import play_match
 from modules.guided_mcts import parse_qmcts
 from pipelines.config import load_config
 from pipelines.evaluate import evaluate_agent
-from pipelines.ladder import load_guided_agent, register_agent_opponent
+from pipelines.agents import load_guided_agent, register_agent_opponent
 from pipelines.train import train
 from tests.learning_helpers import write_tiny_config
 

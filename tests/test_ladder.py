@@ -92,7 +92,7 @@ def test_agent_checkpoint_as_an_opponent(tmp_path) -> None:
     """``agent:CHECKPOINT``: legal cells, the look-ahead takes wins and blocks, and the env accepts it by name."""
     from envs import make_env
     from envs.opponents import make_opponent
-    from pipelines.ladder import register_agent_opponent
+    from pipelines.agents import register_agent_opponent
 
     checkpoint = _checkpoint(tmp_path)
     register_agent_opponent()
@@ -139,7 +139,7 @@ def test_match_command_plays_two_opponents() -> None:
 def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
     """`--lookahead k5`: the same (untrained) Q-network behind deeper masks loses less to minimax, and the table
     says which masks played; a name for the other Ultimate variant is mapped, a bad name is one line."""
-    from pipelines.ladder import resolve_lookahead
+    from pipelines.agents import resolve_lookahead
 
     checkpoint = _checkpoint(tmp_path)
     losses = {}
@@ -162,7 +162,7 @@ def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
     """`--search N --lookahead k5`: the Q-guided search never plays a move the k-step rule proves lost while
     another move survives (a 3-simulation search alone would, often), in real dialogues of the env."""
     from envs import make_env
-    from pipelines.ladder import load_robot
+    from pipelines.agents import load_robot
 
     checkpoint = _checkpoint(tmp_path)
     config, policy, robot = load_robot(str(checkpoint), search=3, lookahead="k5", seed=0)

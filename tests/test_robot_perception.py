@@ -11,7 +11,7 @@ pytestmark = pytest.mark.sapien
 def test_recogniser_waits_for_the_hand_and_then_reads_the_move(sapien_render_system, cell, seed, nudge):
     from envs.rules import Standard
     from robot_sim.human import HumanConfig, SimulatedHuman
-    from robot_sim.play import RobotPlayConfig
+    from robot_sim.game_config import RobotPlayConfig
     from robot_sim.scene import PepperScene, SceneConfig
     import cv2
     from vision.page import find_page

@@ -11,7 +11,8 @@ pytestmark = pytest.mark.sapien
 
 def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_system, tmp_path):
     from logs import LogReader, read_episodes
-    from robot_sim.play import RobotPlayConfig, play_robot_games
+    from robot_sim.game_config import RobotPlayConfig
+    from robot_sim.play import play_robot_games
 
     config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=320, camera_height=240,
                              robot_frame_period=1.0)
@@ -67,7 +68,7 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
 def test_lookahead_policy_is_seeded_and_respects_masks():
     import torch
     from envs import make_env
-    from robot_sim.policy import LookaheadOnlyPolicy
+    from modules.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(1,), seed=0)
     td = env.reset()

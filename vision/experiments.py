@@ -7,14 +7,13 @@ tested on the one left out. Every result comes with a confusion matrix as markdo
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
+from fileio import atomic_path, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
 from vision.classifier.train import TrainConfig, fit
 from vision.data import CLEAN_SEED, N_CLEAN, N_NOISY, NOISY_SEED, TEST_SEED
@@ -158,31 +157,16 @@ def confusion_png(results: list[Result], path: Path) -> None:
         ax.set_ylabel("true")
         ax.set_title(f"{r.name}\n{100 * r.accuracy:.1f}% of {r.n}", fontsize=8)
     fig.tight_layout()
-    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=110, format="png")
     plt.close(fig)
-
-
-def _atomic(path: Path, write) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def write_report(results: list[Result], out_dir: Path, stem: str) -> list[Path]:
     """<stem>.md, <stem>.png and <stem>.json in out_dir, each written atomically."""
     out_dir = Path(out_dir)
     md, png, js = out_dir / f"{stem}.md", out_dir / f"{stem}.png", out_dir / f"{stem}.json"
-
-    def write_text(text: str):
-        return lambda tmp: Path(tmp).write_text(text)
-
-    _atomic(md, write_text(markdown(results)))
+    atomic_write_text(markdown(results), md)
     confusion_png(results, png)
-    _atomic(js, write_text(json.dumps([r.to_json() for r in results], indent=1)))
+    atomic_write_text(json.dumps([r.to_json() for r in results], indent=1), js)
     return [md, png, js]

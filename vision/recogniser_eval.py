@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from fileio import atomic_path, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
 from vision.data import TEST_SEED
 
@@ -145,8 +146,6 @@ def plot(sets: list[SequenceSet], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from vision.experiments import _atomic
-
     fig, ax = plt.subplots(figsize=(1.6 + 1.5 * len(sets), 3.4))
     bins = list(range(1, MAX_CLEAN_FRAMES + 3))
     width = 0.8 / (len(bins) + 1)
@@ -164,19 +163,18 @@ def plot(sets: list[SequenceSet], path: Path) -> None:
     ax.set_title("Move reported after the hand left (target: <= 3 clean frames)", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=110, format="png")
     plt.close(fig)
 
 
 def write_report(sets: list[SequenceSet], out_dir: Path, stem: str = "recogniser") -> list[Path]:
     """<stem>.md, <stem>.json (summaries + failures) and <stem>.png in out_dir, each written atomically."""
-    from vision.experiments import _atomic
-
     out_dir = Path(out_dir)
     md, js, png = out_dir / f"{stem}.md", out_dir / f"{stem}.json", out_dir / f"{stem}.png"
     text = markdown(sets)
-    _atomic(md, lambda tmp: Path(tmp).write_text(text))
+    atomic_write_text(text, md)
     rows = [{**s.summary(), "failures": s.failures, "unnoticed_hands": s.unnoticed_hands} for s in sets]
-    _atomic(js, lambda tmp: Path(tmp).write_text(json.dumps(rows, indent=1)))
+    atomic_write_text(json.dumps(rows, indent=1), js)
     plot(sets, png)
     return [md, js, png]

@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import functools
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from fileio import atomic_path
 from vision.classifier.model import CellCNN
 from vision.classifier.preprocess import to_gray_cell, to_input
 from vision.labels import LABELS
@@ -46,19 +45,10 @@ class CellClassifier:
 
 
 def save_weights(model: CellCNN, path: str | Path, meta: dict[str, str | int | float] | None = None) -> Path:
-    """Write {state_dict, meta} atomically (temp file + os.replace), so a crash never leaves half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    os.close(fd)
-    try:
-        torch.save({"state_dict": model.state_dict(), "meta": dict(meta or {})}, tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+    """Write {state_dict, meta} atomically (`fileio`), so a crash never leaves half a file."""
+    with atomic_path(path) as temp:
+        torch.save({"state_dict": model.state_dict(), "meta": dict(meta or {})}, temp)
+    return Path(path)
 
 
 def load_classifier(path: str | Path | None = None) -> CellClassifier:

@@ -1,0 +1,208 @@
+"""Trained agents as the pipelines play them: loaded from a checkpoint, as the robot or as the user's opponent.
+
+`load_agent` gives the greedy policy with the masks the agent trained with; `load_robot` lets a ladder choose how
+the robot decides (other masks, Q-guided MCTS); `AgentOpponent` and the ``qmcts`` opponent put a trained agent in
+the user's seat (``envs`` cannot import ``pipelines``, so `register_agent_opponent` adds those names to the
+opponent registry). Light to import: torch and the env load inside the functions.
+"""
+from __future__ import annotations
+
+LOOKAHEAD_CHOICES = ("none", "one_step", "k1", "k2", "k3", "k4", "k5")
+
+
+def load_agent(checkpoint_path):
+    """(config, greedy policy) of a saved agent: the same masks as in training."""
+    from modules.policy import make_policies
+    from modules.qnet import make_qnet
+    from pipelines.checkpoint import load_checkpoint
+    from pipelines.config import config_from_dict
+    from torchrl.data import Categorical
+
+    data = load_checkpoint(checkpoint_path)
+    config = config_from_dict(data["config"])
+    qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
+    qnet.load_state_dict(data["qnet"])
+    qnet.eval()
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead)
+    return config, policies.greedy
+
+
+def resolve_lookahead(name: str, free_move: str) -> str:
+    """A `--lookahead` choice -> the mask rule name for this game's rule variant (`k3` -> `k3_open` on
+    `open_subgrids`); ValueError naming the allowed choices otherwise."""
+    from modules.masks import LOOKAHEAD_RULES
+
+    rule = name.strip()
+    if free_move == "open_subgrids" and rule.startswith("k") and not rule.endswith("_open"):
+        rule = f"{rule}_open"
+    if rule not in LOOKAHEAD_RULES or rule == "variant":
+        raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {name!r}")
+    return rule
+
+
+def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | None = None, seed: int = 0):
+    """(config, policy, description) of the robot as the ladder plays it.
+
+    How the robot decides is part of what a ladder measures, so it is chosen here and named in the table:
+    ``lookahead`` replaces the checkpoint's masks (``none``, ``one_step`` = the paper's, ``k1``..``k5``);
+    ``search`` > 0 picks every game move by MCTS guided by the Q-network with that many simulations (dialogue
+    acts stay greedy); with both, the search's root skips the moves the k-step rule proves lost (when some
+    move survives).
+    """
+    from modules.masks import lookahead_rule
+    from modules.policy import make_policies
+
+    if search is not None and search < 1:
+        raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    config, greedy = load_agent(checkpoint)
+    if lookahead is not None:
+        config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
+        from torchrl.data import Categorical
+
+        qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
+        n_actions = qnet.module[-1].out_features  # its last Linear has one output per action (modules.qnet.make_qnet)
+        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead).greedy
+    description = f"greedy Q, masks {config.lookahead}"
+    if not search:
+        return config, greedy, description
+    from modules.guided_mcts import GuidedMCTSPolicy
+
+    mcts = guided_search(config, greedy, search)  # the same loaded Q-network, not a second read of the file
+    rule = lookahead_rule(config.lookahead)
+    prune = rule if hasattr(rule, "forced_losses") and getattr(rule, "plies", 0) >= 3 else None
+    policy = GuidedMCTSPolicy(greedy, mcts, seed, prune=prune)
+    return config, policy, f"Q-guided MCTS {search} sims, masks {config.lookahead}"
+
+
+# ---------------------------------------------------------------------------------------------- agent:CHECKPOINT
+class AgentOpponent:
+    """A trained agent as the user's move policy (``agent:CHECKPOINT``), for agent-vs-agent ladders and curricula.
+
+    The agent learnt its Q-network as the robot in the middle of a dialogue, so its game moves are read from
+    the feature vector of a typical game turn: its own marks as robot moves, the other side's as human moves,
+    the words of "I take this one" / "done", no command, and (temporal features) the last mark at 1.0 and the
+    others at 0.5 because the order of earlier marks is not in the board. On top, the paper's one-step
+    look-ahead (Algorithm 2), computed with the exact rules: take a winning cell if there is one, never a cell
+    after which the other side wins at once (unless every cell is such), else the best Q-value.
+    """
+
+    name = "agent"
+
+    def __init__(self, checkpoint: str, game: str, free_move: str, seed: int) -> None:
+        import torch
+
+        from envs.rules import make_game
+        from modules.guided_mcts import TurnFeatures
+        from modules.qnet import make_qnet
+        from pipelines.checkpoint import load_checkpoint
+        from pipelines.config import config_from_dict
+
+        data = load_checkpoint(checkpoint)
+        config = config_from_dict(data["config"])
+        if config.env.game != game:
+            raise ValueError(f"agent checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
+        self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
+        self.qnet.load_state_dict(data["qnet"])
+        self.qnet.eval()
+        self.features = TurnFeatures(game, config.env.temporal, free_move)
+        self.cells = self.features.cells
+        self.rules = make_game(game, free_move)
+        self.game, self.free_move = game, free_move
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def select(self, boards, last_move, legal, player, generator=None, owners=None):
+        import torch
+
+        from envs.opponents.lines import subgrid_owners
+
+        rows = boards.shape[0]
+        features = self.features.batch(boards, player, last_move)
+        with torch.no_grad():
+            q = self.qnet.module(features)[:, :self.cells]
+        if self.game == "ultimate" and owners is None:
+            owners = subgrid_owners(boards)
+        cells = torch.zeros(rows, dtype=torch.long)
+        for row in torch.nonzero(legal.any(dim=1)).flatten().tolist():
+            choices = torch.nonzero(legal[row]).flatten().tolist()
+            preferred = self._lookahead(boards[row].tolist(), int(last_move[row]), player, choices,
+                                        None if owners is None else owners[row].tolist())
+            values = q[row, preferred]
+            cells[row] = preferred[int(values.argmax())]
+        return cells
+
+    def _lookahead(self, board: list[int], last_move: int, player: int, choices: list[int], owners) -> list[int]:
+        """Algorithm 2 on game moves: the winning cells if any, else the cells that do not lose at once."""
+        from envs.rules import DRAWN, State
+
+        other = 3 - player
+        mover_is_x = board.count(player) == board.count(other)
+        to_xo = {0: 0, player: 1 if mover_is_x else 2, other: 2 if mover_is_x else 1}
+        subgrids = () if owners is None else tuple(DRAWN if o == 3 else to_xo[o] for o in owners)
+        state = State(board=tuple(to_xo[v] for v in board), last_move=last_move, subgrids=subgrids)
+        me = "x" if mover_is_x else "o"
+        winning, safe = [], []
+        for cell in choices:
+            try:
+                after = self.rules.play(state, cell)
+            except ValueError:  # the caller's legal mask rules; the board alone may disagree (see docs)
+                safe.append(cell)
+                continue
+            if self.rules.outcome(after) == me:
+                winning.append(cell)
+            elif not any(self.rules.outcome(self.rules.play(after, reply)) not in (None, me, "draw")
+                         for reply in self.rules.legal(after)):
+                safe.append(cell)
+        return winning or safe or choices
+
+
+def register_agent_opponent() -> None:
+    """Make ``agent:CHECKPOINT`` a valid opponent name (envs cannot import pipelines, so pipelines registers it)."""
+    from envs.opponents import register_opponent
+
+    def factory(arg, *, game, free_move, seed):
+        if not arg:
+            raise ValueError("opponent 'agent' needs a checkpoint path, e.g. 'agent:runs/default/checkpoint.pt'")
+        return AgentOpponent(arg, game, free_move, seed)
+
+    register_opponent("agent", factory, usage="agent:CHECKPOINT")
+    register_qmcts_opponent()
+
+
+# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
+def guided_search(config, greedy, simulations: int, free_move: str | None = None):
+    """A PUCT search whose priors and values come from an already loaded agent's Q-network."""
+    from modules.guided_mcts import GuidedMCTS, TurnFeatures
+
+    free_move = free_move or config.env.free_move
+    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
+    features = TurnFeatures(config.env.game, config.env.temporal, free_move)
+    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations)
+
+
+def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
+    """(config, GuidedMCTS) of a saved agent: its Q-network gives the priors and values of a PUCT search."""
+    config, greedy = load_agent(checkpoint)
+    return config, guided_search(config, greedy, simulations, free_move)
+
+
+def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0):
+    """(config, policy) for eval / ladder: the agent's greedy dialogue policy with game moves chosen by the search."""
+    from modules.guided_mcts import GuidedMCTSPolicy
+
+    config, greedy = load_agent(checkpoint)
+    return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations), seed)
+
+
+def register_qmcts_opponent() -> None:
+    """Make ``qmcts:N:CHECKPOINT`` (MCTS guided by a trained agent's Q-network) a valid opponent name."""
+    from envs.opponents import register_opponent
+    from modules.guided_mcts import QMCTSOpponent, parse_qmcts
+
+    def factory(arg, *, game, free_move, seed):
+        simulations, checkpoint = parse_qmcts(arg)
+        config, search = load_guided_search(checkpoint, simulations, free_move)
+        if config.env.game != game:
+            raise ValueError(f"qmcts checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
+        return QMCTSOpponent(search, game, free_move, seed)
+
+    register_opponent("qmcts", factory, usage="qmcts:N:CHECKPOINT")

@@ -1,0 +1,53 @@
+"""What `ncbot robot play` can change: the robot game's configuration, checked before any scene is built."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from robot_sim.human import HumanConfig
+from robot_sim.scene import check_game
+
+STARTS_CHOICES = ("robot", "human", "alternate", "random")
+
+
+@dataclass
+class RobotPlayConfig:
+    """Everything `ncbot robot play` can change; defaults are the paper's set-up on our simulator."""
+
+    game: str = "standard"
+    games: int = 1
+    seed: int = 0
+    #: Who opens each game (the env's option): robot (the paper's demo), human, alternate, random.
+    starts: str = "robot"
+    free_move: str = "anywhere"
+    camera_width: int = 640
+    camera_height: int = 480
+    #: Simulated seconds between two logged camera frames while the robot moves. Rendering is most of a turn's
+    #: cost: 1.0 s gives ~5 frames per move (1.5-1.75 s wall per move on the shared 2-core machine), 0.5 s ~10
+    #: (2.4-3.0 s). The human's turn is watched at `human.frame_period` regardless.
+    robot_frame_period: float = 1.0
+    human: HumanConfig = field(default_factory=HumanConfig)
+    #: Ultimate: False = as in the paper, the robot points and says its move and the human draws it.
+    ultimate_robot_draws: bool = False
+    #: Frames the recogniser may take after the human withdrew before the move counts as unseen.
+    max_perception_frames: int = 20
+    #: Motion threshold tau of Algorithm 1 (gray levels). Rendered frames carry no sensor noise (a still scene
+    #: gives 0), so a far lower tau than a real camera needs (vision's default 12) lets even a pen moving over
+    #: the sheet count as "a hand is drawing".
+    recogniser_tau: float = 1.5
+    #: The robot accepts a move once the recogniser reported the same cell and mark this many frames in a row.
+    confirm_frames: int = 2
+    jpeg_quality: int = 80
+    #: Speak through espeak-ng into WAV files (only if installed).
+    audio: bool = False
+    agent_name: str = "lookahead"
+    #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
+    meshes_dir: str | None = None
+
+    def validate(self) -> None:
+        check_game(self.game)
+        if self.games < 1:
+            raise ValueError(f"games must be at least 1; got {self.games}")
+        if self.starts not in STARTS_CHOICES:
+            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {self.starts!r}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")

@@ -1,0 +1,81 @@
+"""What one robot game did (`GameRecord`, judged on the true board) and the JSON report of `ncbot robot play`."""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fileio import atomic_write_text
+from robot_sim.game_config import RobotPlayConfig
+
+
+@dataclass
+class GameRecord:
+    """What happened in one game, judged on the true board."""
+
+    index: int
+    outcome: str                      # win | draw | loss | unfinished (robot's view of the true game)
+    robot_first: bool
+    actions: int
+    misrecognised_moves: int = 0
+    unseen_moves: int = 0
+    human_moves: int = 0
+    robot_moves: int = 0
+    robot_move_seconds: list[float] = field(default_factory=list)
+    #: CPU time of the process (all threads, incl. lavapipe's) per robot move: the cost without other jobs' load.
+    robot_move_cpu_seconds: list[float] = field(default_factory=list)
+    dialogue_act_seconds: list[float] = field(default_factory=list)
+    human_turn_seconds: list[float] = field(default_factory=list)
+    frames: int = 0
+    snapshot: str | None = None
+    ik_failures: int = 0
+    #: Largest distance (m) between where the robot believed its target cell was and where it really was.
+    cell_localisation_error: float = 0.0
+    #: Robot moves whose fresh mark the robot's own look at the sheet did not read.
+    own_mark_misreads: int = 0
+
+
+def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
+    """The JSON report of `ncbot robot play` (first keys as in the issue, then details)."""
+    moves = [s for r in records for s in r.robot_move_seconds]
+    moves_cpu = [s for r in records for s in r.robot_move_cpu_seconds]
+    acts = [s for r in records for s in r.dialogue_act_seconds]
+    human = [s for r in records for s in r.human_turn_seconds]
+
+    def mean(values: list[float]) -> float | None:
+        return round(float(np.mean(values)), 3) if values else None
+
+    return {
+        "games": len(records),
+        "wins": sum(r.outcome == "win" for r in records),
+        "draws": sum(r.outcome == "draw" for r in records),
+        "losses": sum(r.outcome == "loss" for r in records),
+        "misrecognised_moves": sum(r.misrecognised_moves for r in records),
+        "seconds_per_robot_turn": mean(moves),
+        "unfinished": sum(r.outcome == "unfinished" for r in records),
+        "unseen_moves": sum(r.unseen_moves for r in records),
+        "human_moves": sum(r.human_moves for r in records),
+        "robot_moves": sum(r.robot_moves for r in records),
+        "own_mark_misread": sum(r.own_mark_misreads for r in records),
+        "max_seconds_per_robot_turn": round(max(moves), 3) if moves else None,
+        "cpu_seconds_per_robot_turn": mean(moves_cpu),
+        "load_average": round(os.getloadavg()[0], 2),
+        "seconds_per_dialogue_act": mean(acts),
+        "seconds_per_human_turn": mean(human),
+        "frames": sum(r.frames for r in records),
+        "ik_failures": sum(r.ik_failures for r in records),
+        "max_cell_localisation_error_mm": round(1000 * max((r.cell_localisation_error for r in records), default=0.0), 2),
+        "game": config.game,
+        "agent": config.agent_name,
+        "seed": config.seed,
+        "snapshots": [r.snapshot for r in records if r.snapshot],
+    }
+
+
+def write_report(report: dict[str, Any], out_dir: str | Path) -> Path:
+    """`report.json` in `out_dir`, written atomically."""
+    return atomic_write_text(json.dumps(report, indent=2), Path(out_dir) / "report.json")
