@@ -26,9 +26,6 @@ ALLOWED = {
     "robot_sim": {"envs", "modules", "vision", "logs", "fileio"},
     "pipelines": {"envs", "modules", "vision", "logs", "robot_sim", "fileio"},
 }
-#: Cycles another branch removes (issue 13, the game-core split). Remove the entry when that branch is merged;
-#: `test_no_import_cycle_in_envs` (strict xfail) fails as soon as the cycle is gone, as a reminder.
-KNOWN_UNTIL_MERGE = {frozenset({"envs", "envs.dialogue_env"})}
 
 
 def _module_name(path: Path) -> str:
@@ -123,15 +120,7 @@ def test_the_walker_sees_every_kind_of_import() -> None:
 
 def test_no_import_cycles() -> None:
     graph = import_edges()
-    cycles = [c for c in import_cycles(graph) if frozenset(c) not in KNOWN_UNTIL_MERGE]
-    assert not cycles, "import cycles:\n" + "\n".join(_describe(c, graph) for c in cycles)
-
-
-@pytest.mark.xfail(strict=True, reason="envs <-> envs.dialogue_env is removed on the game-core branch (issue 13); "
-                                       "at merge delete this test and empty KNOWN_UNTIL_MERGE")
-def test_no_import_cycle_in_envs() -> None:
-    graph = import_edges()
-    cycles = [c for c in import_cycles(graph) if c[0].split(".")[0] == "envs"]
+    cycles = [c for c in import_cycles(graph)]
     assert not cycles, "import cycles:\n" + "\n".join(_describe(c, graph) for c in cycles)
 
 
