@@ -68,11 +68,11 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     import modules.deep_lookahead  # noqa: F401  (registers k1..k5)
-    from tqdm import tqdm
+    from pipelines.progress import progress_bar
 
     results = []
     jobs = [(g, r) for g in args.games for r in args.rules]
-    bar = tqdm(jobs, desc="look-ahead cost", unit="rule")
+    bar = progress_bar(jobs, desc="look-ahead cost", unit="rule")
     cache: dict = {}
     for spec, rule in bar:
         game, _, free_move = spec.partition(":")

@@ -5,6 +5,8 @@ grouped by the `env_steps` they were run at and give one point each (mean over t
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import os
 import tempfile
 from collections import defaultdict
@@ -84,7 +86,7 @@ def _moving(values: np.ndarray, size: int) -> np.ndarray:
 
 
 def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200,
-                        progress: bool = False) -> dict[str, dict[str, Any]]:
+                        progress: Callable[..., Any] | None = None) -> dict[str, dict[str, Any]]:
     """Draw task success, reward per step and dialogue length against env steps into a PNG (atomically)."""
     import matplotlib
 

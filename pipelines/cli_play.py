@@ -94,11 +94,12 @@ def match_command(
     from envs.opponents import make_opponent
     from envs.opponents.arena import play_match
     from pipelines.ladder import register_agent_opponent
+    from pipelines.progress import progress_bar
 
     torch.set_num_threads(1)
     register_agent_opponent()
     players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
-    result = play_match(players[0], players[1], games, seed=seed, progress=True)
+    result = play_match(players[0], players[1], games, seed=seed, progress=progress_bar)
     typer.echo(f"| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
     typer.echo("|---|---|---|---|---|---|---|---|")
     typer.echo(f"| {first} | {second} | {games} | {result.first_wins} | {result.draws} | {result.second_wins} | "

@@ -65,6 +65,7 @@ def play(
 
     from robot_sim.human import HumanConfig
     from robot_sim.play import RobotPlayConfig, play_robot_games
+    from pipelines.progress import progress_bar
     from robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
@@ -84,7 +85,7 @@ def play(
         meshes_dir=None if meshes is None else str(meshes))
     try:
         with torch.no_grad():
-            report = play_robot_games(config, policy, out_dir=out, progress=progress)
+            report = play_robot_games(config, policy, out_dir=out, progress=progress_bar if progress else None)
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     if rrd and out is not None:
