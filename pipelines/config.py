@@ -299,6 +299,10 @@ def _one_line(error: ValidationError) -> str:
     if kind == "too_short" and typing.get_origin(annotation) is not Literal:
         return f"config key '{key}' must be a non-empty list, got {value!r}"
     bounds = _bounds(annotation, field)
+    members = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else ()
+    if bounds and type(None) in members:  # `Positive | None`: "an integer > 0 or null"
+        kind_name = _type_name(next(a for a in members if a is not type(None)))
+        return f"config key '{key}' must be {kind_name} {bounds} or null, got {value!r}"
     return f"config key '{key}' must be {_type_name(annotation)}{' ' + bounds if bounds else ''}, got {value!r}"
 
 

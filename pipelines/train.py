@@ -81,8 +81,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     started = time.monotonic()
     out_dir = Path(out_dir)
     state = latest_training_state(out_dir) if resume else None
-    out_dir.mkdir(parents=True, exist_ok=True)
     scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
+    out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(dump_config(config), out_dir / "config.yaml")
     torch.set_num_threads(config.train.num_threads)
     seed = config.train.seed
