@@ -186,20 +186,20 @@ class SelfPlayConfig(Section):
 
 
 class RunConfig(Section):
-    """One training run: every section of the YAML file."""
+    """One training run: every section of the YAML file (pydantic copies each default section per instance)."""
 
-    env: EnvConfig = Field(default_factory=EnvConfig)
-    agent: AgentConfig = Field(default_factory=AgentConfig)
-    collector: CollectorConfig = Field(default_factory=CollectorConfig)
-    buffer: BufferConfig = Field(default_factory=BufferConfig)
-    optim: OptimConfig = Field(default_factory=OptimConfig)
-    schedule: ScheduleConfig = Field(default_factory=ScheduleConfig)
-    loss: LossConfig = Field(default_factory=LossConfig)
-    train: TrainConfig = Field(default_factory=TrainConfig)
-    eval: EvalConfig = Field(default_factory=EvalConfig)
-    logger: LoggerConfig = Field(default_factory=LoggerConfig)
-    checkpoint: CheckpointConfig = Field(default_factory=CheckpointConfig)
-    selfplay: SelfPlayConfig = Field(default_factory=SelfPlayConfig)
+    env: EnvConfig = EnvConfig()
+    agent: AgentConfig = AgentConfig()
+    collector: CollectorConfig = CollectorConfig()
+    buffer: BufferConfig = BufferConfig()
+    optim: OptimConfig = OptimConfig()
+    schedule: ScheduleConfig = ScheduleConfig()
+    loss: LossConfig = LossConfig()
+    train: TrainConfig = TrainConfig()
+    eval: EvalConfig = EvalConfig()
+    logger: LoggerConfig = LoggerConfig()
+    checkpoint: CheckpointConfig = CheckpointConfig()
+    selfplay: SelfPlayConfig = SelfPlayConfig()
 
     @model_validator(mode="after")
     def _check_across_sections(self) -> RunConfig:

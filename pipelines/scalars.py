@@ -34,9 +34,11 @@ class ScalarLog:
         from torchrl.record.loggers import get_logger
 
         kwargs: dict[str, Any] = {}
-        if backend == "wandb":
-            kwargs["wandb_kwargs"] = {"project": "ncbot", "dir": str(run_dir)}
-        self.logger = get_logger(backend, logger_name=str(run_dir), experiment_name=EXPERIMENT, **kwargs)
+        experiment = EXPERIMENT
+        if backend == "wandb":  # files under the run folder; the W&B run is named after it
+            kwargs["wandb_kwargs"] = {"project": "ncbot"}
+            experiment = Path(run_dir).name
+        self.logger = get_logger(backend, logger_name=str(run_dir), experiment_name=experiment, **kwargs)
 
     def log(self, values: dict[str, float], step: int) -> None:
         for name, value in values.items():
