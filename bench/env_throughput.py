@@ -22,9 +22,9 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDict
-from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tree's envs, not an installed copy
+from pipelines.progress import progress_bar  # noqa: E402
 
 
 def steps_per_second(env, reset_td, seconds: float, label: str) -> tuple[float, float]:
@@ -37,7 +37,7 @@ def steps_per_second(env, reset_td, seconds: float, label: str) -> tuple[float, 
         td = env.rand_action(td)
         _, td = env.step_and_maybe_reset(td)
     steps, start, cpu_start = 0, time.perf_counter(), time.process_time()
-    with tqdm(desc=label, unit="step", unit_scale=True, leave=False, mininterval=1.0) as bar:
+    with progress_bar(desc=label, unit="step", unit_scale=True, leave=False) as bar:
         while time.perf_counter() - start < seconds:
             td = env.rand_action(td)
             _, td = env.step_and_maybe_reset(td)

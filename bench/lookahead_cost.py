@@ -67,11 +67,11 @@ def main() -> None:
     parser.add_argument("--png", default=None, help="also draw CPU ms per decision as a bar chart")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    from tqdm import tqdm
+    from pipelines.progress import progress_bar
 
     results = []
     jobs = [(g, r) for g in args.games for r in args.rules]
-    bar = tqdm(jobs, desc="look-ahead cost", unit="rule")
+    bar = progress_bar(jobs, desc="look-ahead cost", unit="rule")
     cache: dict = {}
     for spec, rule in bar:
         game, _, free_move = spec.partition(":")

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from pipelines.progress import progress_bar  # noqa: E402
 
 
 def median_ms(fn, repeats: int) -> float:
@@ -94,7 +95,7 @@ def main() -> None:
                              camera_height=args.height)
     with tempfile.TemporaryDirectory() as tmp, EpisodeLogger(tmp, run_info={"bench": "robot_turn"}) as logger:
         runner = RobotGameRunner(config, LookaheadOnlyPolicy(seed=args.seed), out_dir=None, logger=logger)
-        report = runner.run(progress=True)
+        report = runner.run(progress=progress_bar)
     for key in ("games", "wins", "draws", "losses", "misrecognised_moves", "robot_moves", "seconds_per_robot_turn",
                 "max_seconds_per_robot_turn", "cpu_seconds_per_robot_turn", "seconds_per_dialogue_act", "seconds_per_human_turn", "frames"):
         figures[key] = report[key]

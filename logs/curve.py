@@ -5,6 +5,7 @@ grouped by the `env_steps` they were run at and give one point each (mean over t
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -83,7 +84,7 @@ def _moving(values: np.ndarray, size: int) -> np.ndarray:
 
 
 def plot_learning_curve(path: str | Path, output: str | Path, window: int = 200,
-                        progress: bool = False) -> dict[str, dict[str, Any]]:
+                        progress: Callable[..., Any] | None = None) -> dict[str, dict[str, Any]]:
     """Draw task success, reward per step and dialogue length against env steps into a PNG (atomically)."""
     import matplotlib
 

@@ -11,7 +11,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import logs.packed as packed
 import logs.schemas as schemas
@@ -97,9 +97,11 @@ class LogReader:
     `scans` holds the per-file findings and `require_ncbot()` rejects a foreign MCAP.
     """
 
-    def __init__(self, path: str | Path, progress: bool = False) -> None:
+    def __init__(self, path: str | Path, progress: Callable[..., Any] | None = None) -> None:
         self.path = Path(path)
-        self.progress = progress  # a tqdm bar (bytes read, rate, ETA) for logs of PROGRESS_MIN_BYTES or more
+        # a bar factory with tqdm's signature (the CLI passes pipelines.progress.progress_bar): bytes read, rate and
+        # ETA for logs of PROGRESS_MIN_BYTES or more; None = silent
+        self.progress = progress
         self.files = list_log_files(path)
         for file in self.files:
             check_mcap_file(file)
@@ -109,12 +111,15 @@ class LogReader:
         """Every message on `topics` (all if None), file by file in log order; JSON is decoded."""
         wanted = None if topics is None else frozenset(topics)
         total = sum(file.stat().st_size for file in self.files)
-        from tqdm import tqdm
-
-        with tqdm(total=total, unit="B", unit_scale=True, desc=f"reading {self.path.name}", leave=False,
-                  disable=not self.progress or total < PROGRESS_MIN_BYTES) as bar:
+        bar = None
+        if self.progress is not None and total >= PROGRESS_MIN_BYTES:
+            bar = self.progress(total=total, unit="B", unit_scale=True, desc=f"reading {self.path.name}", leave=False)
+        try:
             for file in self.files:
                 yield from self._file_messages(file, wanted, bar)
+        finally:
+            if bar is not None:
+                bar.close()
 
     def scan(self) -> list[FileScan]:
         """Read everything once (counts, time span, truncation) without keeping messages."""
@@ -165,7 +170,8 @@ class LogReader:
                 except Exception as error:  # a cut-off record: stop here, keep what was complete
                     scan.error = f"{type(error).__name__}: {error}".strip()
                     break
-                bar.update(handle.tell() - scan.good_bytes)
+                if bar is not None:
+                    bar.update(handle.tell() - scan.good_bytes)
                 scan.good_bytes = handle.tell()
                 for item in inner:
                     if isinstance(item, Message):
@@ -212,7 +218,8 @@ def _decoder(channel: tuple[str, str, str], schema_of: dict) -> Any:
 
 
 # --------------------------------------------------------------------------- convenience readers
-def read_episodes(path: str | Path, require_ncbot: bool = True, progress: bool = False) -> list[dict[str, Any]]:
+def read_episodes(path: str | Path, require_ncbot: bool = True,
+                  progress: Callable[..., Any] | None = None) -> list[dict[str, Any]]:
     """All `/episode` summaries of a file or run directory, in log order (ValueError on a foreign MCAP)."""
     reader = LogReader(path, progress=progress)
     episodes = [message.data for message in reader.messages([schemas.EPISODE_TOPIC])]

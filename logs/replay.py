@@ -1,6 +1,9 @@
 """`ncbot logs show`: an episode replayed as text — utterances, boards, and each robot decision."""
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from pathlib import Path
 
 from logs.board_image import board_text
@@ -8,7 +11,8 @@ from logs.names import NameTables
 from logs.reader import EpisodeRecord, LogReader, read_episode_records
 
 
-def load_episode(path: str | Path, episode_id: int, progress: bool = False) -> tuple[EpisodeRecord, NameTables]:
+def load_episode(path: str | Path, episode_id: int,
+                 progress: Callable[..., Any] | None = None) -> tuple[EpisodeRecord, NameTables]:
     """The logged record of one episode and the name tables stored with it; ValueError if absent."""
     reader = LogReader(path, progress=progress)
     records = read_episode_records(path, [episode_id], reader=reader)

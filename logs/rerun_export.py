@@ -7,6 +7,7 @@ joint states, which are not tied to a step).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -38,7 +39,7 @@ def parse_episode_spec(spec: str | None) -> set[int] | None:
 
 
 def export_to_rerun(path: str | Path, output: str | Path, episodes: Iterable[int] | None = None,
-                    max_episodes: int = 200, progress: bool = False) -> dict[str, Any]:
+                    max_episodes: int = 200, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
     """Write the chosen episodes (default: the last `max_episodes`) and any camera/joint/tf messages in their
     time range to `output` (.rrd, atomically). Returns counts of what was written."""
     import rerun as rr

@@ -111,7 +111,7 @@ def _ray_available() -> bool:
 def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
                  out: str | Path | None = None, only: str | None = None) -> dict[str, Any]:
     """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
-    from tqdm import tqdm
+    from pipelines.progress import progress_bar
 
     if backend not in ("local", "ray"):
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
@@ -124,7 +124,7 @@ def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, bac
         planned = [run for run in planned if only in run.name]
     todo = [run for run in planned if not run.finished]
     failed: list[str] = []
-    bar = tqdm(total=len(todo), unit="run", desc="ablate")
+    bar = progress_bar(total=len(todo), unit="run", desc="ablate")
     if backend == "local":
         with ThreadPoolExecutor(max_workers=workers) as pool:
             for future in as_completed([pool.submit(_run_local, run) for run in todo]):

@@ -58,7 +58,8 @@ def eval_command(
     checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
     games: int = typer.Option(3000, "--games", help="Number of greedy test games."),
     opponent: str = typer.Option("random", "--opponent", help="Simulated user's move policy (envs.opponents name)."),
-    seat: str = typer.Option("alternate", "--seat", help="The robot's seat: first | second | alternate."),
+    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot | human | alternate (default alternate)."),
+    seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling of --first: first | second | alternate."),
     seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
     mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
@@ -67,6 +68,9 @@ def eval_command(
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
+    from pipelines.cli_first import ROBOT_SEAT, resolve_first
+
+    seat = ROBOT_SEAT[resolve_first(first, seat, allowed=("robot", "human", "alternate"), default="alternate")]
     import torch
 
     from pipelines.evaluate import evaluate_checkpoint

@@ -11,6 +11,8 @@ from typing import Optional
 
 import typer
 
+from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
+
 logs_app = typer.Typer(help="Inspect, replay, plot and export the MCAP episode logs of a run.",
                        no_args_is_help=True)
 
@@ -24,7 +26,7 @@ def inspect_log(path: Path = typer.Argument(..., help=PATH_HELP),
     from logs.reader import LogReader
     from logs.summary import format_summary, summarize
 
-    summary = summarize(path, LogReader(path, progress=True))
+    summary = summarize(path, LogReader(path, progress=progress_bar))
     typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
 
 
@@ -42,7 +44,7 @@ def list_episodes(path: Path = typer.Argument(..., help=PATH_HELP),
         raise ValueError(f"--phase must be one of {', '.join(PHASES)}, got {phase!r}")
     if outcome is not None and outcome not in OUTCOMES:
         raise ValueError(f"--outcome must be one of {', '.join(OUTCOMES)}, got {outcome!r}")
-    reader = LogReader(path, progress=True)
+    reader = LogReader(path, progress=progress_bar)
     episodes = [m.data for m in reader.messages([EPISODE_TOPIC])]
     reader.require_ncbot()
     matches = [e for e in episodes if (phase is None or e.get("phase") == phase)
@@ -68,7 +70,7 @@ def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
     """Replay one dialogue: utterances, the board after each move, Q-values and masks of each robot decision."""
     from logs.replay import format_episode, load_episode
 
-    record, names = load_episode(path, episode_id, progress=True)
+    record, names = load_episode(path, episode_id, progress=progress_bar)
     typer.echo(format_episode(record, names, max_q=max_q))
 
 
@@ -79,7 +81,7 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
     """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
     from logs.curve import plot_learning_curve
 
-    series = plot_learning_curve(path, output, window, progress=True)
+    series = plot_learning_curve(path, output, window, progress=progress_bar)
     for label, entry in series.items():
         last = []
         if "train" in entry and len(entry["train"]["x"]):
@@ -100,7 +102,7 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
     """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
     from logs.rerun_export import export_to_rerun, parse_episode_spec
 
-    counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=True)
+    counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=progress_bar)
     typer.echo(f"wrote {output} ({counts['bytes']} bytes): {counts['episodes']} episodes, {counts['steps']} steps, "
                f"{counts['camera_frames']} camera frames, {counts['joint_states']} joint states, "
                f"{counts['transforms']} transforms; open with `rerun {output}`")

@@ -12,7 +12,8 @@ def play_command(
     game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate (default: the checkpoint's, else standard)."),
     checkpoint: Optional[str] = typer.Option(None, "--checkpoint", help="checkpoint.pt of a trained agent; without it "
                                              "the robot uses the look-ahead masks alone, choosing at random inside them."),
-    seat: str = typer.Option("second", "--seat", help="Your seat: first (you draw the first mark) | second."),
+    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default) | human (you draw the first mark)."),
+    seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling: your seat, first | second."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     seed: int = typer.Option(0, "--seed", help="Seed of the robot's random choices (look-ahead policy) and the env."),
     log_dir: str = typer.Option("runs/play", "--log-dir", help="Folder for the MCAP log of the game."),
@@ -21,8 +22,10 @@ def play_command(
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None and game not in ("standard", "ultimate"):
         raise ValueError(f"--game must be standard or ultimate, got {game!r}")
-    if seat not in ("first", "second"):
-        raise ValueError(f"--seat must be first or second, got {seat!r}")
+    from pipelines.cli_first import resolve_first
+
+    first = resolve_first(first, seat, allowed=("robot", "human"), default="robot", seat_is_robot=False)
+    seat = "first" if first == "human" else "second"  # play_dialogue takes the person's seat
     if free_move is not None and free_move not in ("anywhere", "open_subgrids"):
         raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
     from pipelines.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
@@ -91,11 +94,12 @@ def match_command(
     from envs.opponents import make_opponent
     from envs.opponents.arena import play_match
     from pipelines.agents import register_agent_opponent
+    from pipelines.progress import progress_bar
 
     torch.set_num_threads(1)
     register_agent_opponent()
     players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
-    result = play_match(players[0], players[1], games, seed=seed, progress=True)
+    result = play_match(players[0], players[1], games, seed=seed, progress=progress_bar)
     typer.echo(f"| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
     typer.echo("|---|---|---|---|---|---|---|---|")
     typer.echo(f"| {first} | {second} | {games} | {result.first_wins} | {result.draws} | {result.second_wins} | "

@@ -29,7 +29,8 @@ def play(
     seed: int = typer.Option(0, help="Seed of the env, the simulated human and the robot's marks."),
     out: Optional[Path] = typer.Option(None, help="Folder for the MCAP log, PNG snapshots and report.json."),
     rrd: bool = typer.Option(False, help="Also export the run to OUT/run.rrd (rerun)."),
-    starts: str = typer.Option("robot", help="Who opens: robot, human, alternate, random."),
+    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default), human, alternate, random."),
+    starts: Optional[str] = typer.Option(None, "--starts", hidden=True, help="Old spelling of --first."),
     opponent: str = typer.Option("random", help="The simulated human's opponent model (random, rule, minimax, mcts:N)."),
     width: int = typer.Option(640, help="Mouth camera width (pixels)."),
     height: int = typer.Option(480, help="Mouth camera height (pixels)."),
@@ -43,6 +44,13 @@ def play(
     progress: bool = typer.Option(True, help="Show a progress bar."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
+    if first is not None and starts is not None:
+        raise ValueError("give --first only (--starts is its old spelling)")
+    if starts is not None:
+        typer.echo(f"ncbot: note: --starts {starts} is the old spelling of --first {starts}", err=True)
+    first = starts or first or "robot"
+    if first not in ("robot", "human", "alternate", "random"):
+        raise ValueError(f"--first must be one of robot, human, alternate, random, got {first!r}")
     if out is None and rrd:
         raise ValueError("--rrd needs --out DIR (the recording is exported from the run's MCAP log)")
     if checkpoint is not None and not checkpoint.is_file():
@@ -57,6 +65,7 @@ def play(
 
     from robot_sim.human import HumanConfig
     from robot_sim.play import RobotPlayConfig, play_robot_games
+    from pipelines.progress import progress_bar
     from robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
@@ -69,14 +78,14 @@ def play(
             raise ValueError(f"checkpoint {checkpoint} was trained on {agent_config.env.game!r}, not {game!r}; pass --game {agent_config.env.game}")
         agent_name = f"{agent_config.agent.name}:{checkpoint}"
     config = RobotPlayConfig(
-        game=game, games=games, seed=seed, starts=starts, camera_width=width, camera_height=height,
+        game=game, games=games, seed=seed, first=first, camera_width=width, camera_height=height,
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
         meshes_dir=None if meshes is None else str(meshes))
     try:
         with torch.no_grad():
-            report = play_robot_games(config, policy, out_dir=out, progress=progress)
+            report = play_robot_games(config, policy, out_dir=out, progress=progress_bar if progress else None)
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     if rrd and out is not None:

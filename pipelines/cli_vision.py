@@ -12,6 +12,8 @@ from typing import Optional
 
 import typer
 
+from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
+
 vision_app = typer.Typer(help="Visual perception: read game sheets, classify cells, train/evaluate the CNN, generate data.",
                          no_args_is_help=True)
 
@@ -114,7 +116,7 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
     config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9,
                              seed=TRAIN_SEED if data_seed is None else data_seed,
                              train=TrainConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
-    model, meta = train_default(config, progress=True)
+    model, meta = train_default(config, progress=progress_bar)
     path = save_weights(model, out or DEFAULT_WEIGHTS, meta)
     typer.echo(f"wrote {path} ({meta['n_training_cells']} training cells)")
 
@@ -141,7 +143,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
     _setup_threads()
     written = []
     if "paper" in parts:
-        results = ex.paper_experiments(progress=True, loo_folds=loo_folds)
+        results = ex.paper_experiments(progress=progress_bar, loo_folds=loo_folds)
         written += ex.write_report(results, out, "paper_experiments")
         typer.echo(ex.markdown(results))
     classifier = _classifier(weights) if {"cells", "reading", "recogniser"} & set(parts) else None
@@ -150,7 +152,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         written += ex.write_report(results, out, "heldout_cells")
         typer.echo(ex.markdown(results))
     if "reading" in parts:
-        results = [ex.reading(grid, frames, styles, classifier, progress=True)
+        results = [ex.reading(grid, frames, styles, classifier, progress=progress_bar)
                    for grid in (3, 9) for styles in (("pen",), ("sketch", "hershey"))]
         written += ex.write_report(results, out, "reading")
         typer.echo(ex.markdown(results))
@@ -158,7 +160,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         from vision import recogniser_eval as rx
 
         base = rx.HELDOUT_SEED if seed_set == "heldout" else rx.TUNING_SEED
-        sets = [rx.evaluate_sequences(grid, n, base + offset, styles, classifier, progress=True)
+        sets = [rx.evaluate_sequences(grid, n, base + offset, styles, classifier, progress=progress_bar)
                 for grid, n in ((3, sequences), (9, sequences9))
                 for offset, styles in ((0, ("pen",)), (100_000, ("sketch", "hershey")))]
         written += rx.write_report(sets, out, "recogniser" if seed_set == "heldout" else "recogniser_tuning")

@@ -1,167 +1,219 @@
-"""Typed run configuration, grouped by concern like TorchRL's sota configs, loaded from YAML and validated.
+"""Typed run configuration, grouped by concern like TorchRL's sota configs, loaded from YAML and validated by pydantic.
 
 Every hyper-parameter is named and documented here, in one place (CleanRL style). `load_config(path, overrides)`
 reads a YAML file, applies `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key
-and what is allowed; the CLI turns that into exit code 2.
+and what is allowed; the CLI turns that into exit code 2. Validation is pydantic's (strict types, `extra="forbid"`,
+range constraints on the fields); this module only turns pydantic's error list into that one line.
+
+Importing this module stays light (pydantic and yaml, no torch): the CLI and tools read configs without paying
+for torch.
 """
 from __future__ import annotations
 
-import dataclasses
 import types
 import typing
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-
-from pipelines.selfplay import SelfPlayConfig
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
+from pydantic.fields import FieldInfo
 
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
+FIRST = ("robot", "human", "alternate", "random")  # who opens a game (one name everywhere: `first`)
 
 
-@dataclass
-class EnvConfig:
+def _yaml_number(value: Any) -> Any:
+    """YAML 1.1 reads 5e-4 (no dot) as a string: accept it where a number is expected."""
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            return value
+    return value
+
+
+Number = Annotated[float, BeforeValidator(_yaml_number)]
+Positive = Annotated[int, Field(gt=0)]
+Fraction = Annotated[Number, Field(ge=0.0, le=1.0)]
+
+
+class Section(BaseModel):
+    """One YAML section: strict types (no "3" for 3, no 1.5 for an int), unknown keys rejected."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class EnvConfig(Section):
     """The dialogue game the robot learns (envs.make_env)."""
 
     game: Literal["standard", "ultimate"] = "standard"
     temporal: bool = True  # the paper's 9/81 temporal features
     free_move: Literal["anywhere", "open_subgrids"] = "anywhere"  # ultimate rule variant
-    batch_size: int = 128  # games played in parallel by one batched env
-    first: str = "alternate"  # who starts while training: robot | human | alternate | random
+    batch_size: Positive = 128  # games played in parallel by one batched env
+    first: Literal["robot", "human", "alternate", "random"] = "alternate"  # who opens the training games
     opponent: str = "random"  # envs.opponents name of the simulated user's move policy
-    max_steps: int = 100  # actions per dialogue before truncation (paper: 100)
-    options: dict[str, Any] = field(default_factory=dict)  # extra keyword arguments for envs.make_env
+    max_steps: Positive = 100  # actions per dialogue before truncation (paper: 100)
+    options: dict[str, Any] = Field(default_factory=dict)  # extra keyword arguments for envs.make_env
 
 
-@dataclass
-class AgentConfig:
+class AgentConfig(Section):
     """Which learner: the paper's three agents, each with its own look-ahead masks."""
 
     name: Literal["dqn_original", "dqn_variant", "proposed"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
-    hidden: list[int] = field(default_factory=lambda: [100, 100, 100])  # paper: 3 x 100 (or 150 on ultimate)
+    # paper: 3 x 100 (or 150 on ultimate)
+    hidden: Annotated[list[Positive], Field(min_length=1)] = Field(default_factory=lambda: [100, 100, 100])
 
 
-@dataclass
-class CollectorConfig:
+class CollectorConfig(Section):
     """How experience is gathered (TorchRL Collector) and how exploration anneals."""
 
-    frames_per_batch: int = 1024  # env frames (robot actions) per collected batch
-    total_frames: int = 100_000  # training length in frames (paper: 400K steps)
-    init_random_frames: int = 1_000  # burn-in: updates start once the buffer holds this many frames
-    eps_init: float = 1.0
-    eps_end: float = 0.005  # paper: minimum epsilon 0.005
-    annealing_frames: int = 20_000  # frames over which epsilon decays linearly
+    frames_per_batch: Positive = 1024  # env frames (robot actions) per collected batch
+    total_frames: Positive = 100_000  # training length in frames (paper: 400K steps)
+    init_random_frames: Annotated[int, Field(ge=0)] = 1_000  # burn-in: updates start once the buffer holds this many frames
+    eps_init: Fraction = 1.0
+    eps_end: Fraction = 0.005  # paper: minimum epsilon 0.005
+    annealing_frames: Positive = 20_000  # frames over which epsilon decays linearly
 
 
-@dataclass
-class BufferConfig:
+class BufferConfig(Section):
     """Experience replay (TensorDictReplayBuffer over LazyTensorStorage)."""
 
-    size: int = 10_000  # paper: 10,000
-    batch_size: int = 128  # sampled transitions per update (paper: 2)
+    size: Positive = 10_000  # paper: 10,000
+    batch_size: Positive = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
 
 
-@dataclass
-class OptimConfig:
+class OptimConfig(Section):
     """Adam on the Q-network; the paper does not state these, so they are ours."""
 
-    lr: float = 1e-3
-    updates_per_batch: int = 8  # gradient updates per collected batch
-    max_grad_norm: float = 10.0
-    weight_decay: float = 0.0
+    lr: Annotated[Number, Field(gt=0)] = 1e-3
+    updates_per_batch: Positive = 8  # gradient updates per collected batch
+    max_grad_norm: Number = 10.0
+    weight_decay: Number = 0.0
     # matrix products of the learner's forward/backward: fp32, or bf16 (CPU autocast, float32 weights, gradients and
     # loss kept); bf16 changes the numbers of a seed, hence off by default (docs/learner-speed.md)
     precision: Literal["fp32", "bf16"] = "fp32"
 
 
-@dataclass
-class ScheduleConfig:
+class ScheduleConfig(Section):
     """Learning-rate schedule over the training frames (optim.lr is the start value)."""
 
-    lr_end: float | None = None  # decay lr linearly to this by collector.total_frames; quiets Q near convergence
+    # decay lr linearly to this (> 0, <= optim.lr) by collector.total_frames; quiets Q near convergence
+    lr_end: Annotated[Number, Field(gt=0)] | None = None
 
 
-@dataclass
-class LossConfig:
+class LossConfig(Section):
     """Competitive DQN target and error."""
 
-    gamma: float = 0.7  # paper: 0.7
+    gamma: Fraction = 0.7  # paper: 0.7
     reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.rewards); metrics use paper
     # outcome reward for a lost game (paper scale: -5). Against the random user a -5 loss is worth risking for a
     # likelier fast win (exact expectimax robot-second: 0.9291 wins, 0.0042 losses); <= -15 makes the optimum
     # loss-free (0.9164 wins, zero losses), which is what task success 1.000 asks for.
-    loss_reward: float = -5.0  # used with reward: outcome only
+    loss_reward: Annotated[Number, Field(lt=0)] = -5.0  # used with reward: outcome only
     loss_function: Literal["l2", "huber"] = "l2"  # paper: squared error
     double_dqn: bool = False
     target_update: Literal["hard", "soft"] = "hard"  # paper: hard copy every C updates
-    target_period: int = 50  # C, in gradient updates (hard)
-    tau: float = 0.005  # soft update rate
+    target_period: Positive = 50  # C, in gradient updates (hard)
+    tau: Fraction = 0.005  # soft update rate
     # n-step returns (modules/nstep.py): the target sums n discounted rewards before bootstrapping with gamma**n;
     # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
-    n_step: int = 1
+    n_step: Positive = 1
     # which next actions the TD target maximises over (modules/bootstrap.py): every available one (the paper) or
     # only the agent's greedy set, the actions it can actually play; untrained actions outside it inflate targets
     bootstrap: Literal["available", "greedy"] = "available"
 
 
-@dataclass
-class TrainConfig:
+class TrainConfig(Section):
     """Run-level settings."""
 
     seed: int = 0
-    episodes: int | None = None  # stop after this many finished training dialogues (paper: 20K games); None = frames
-    eval_every_frames: int = 10_000  # periodic greedy evaluation (logged with its wall time)
-    num_threads: int = 1  # torch threads: small tensors are fastest on one thread
+    episodes: Positive | None = None  # stop after this many finished training dialogues (paper: 20K games); None = frames
+    eval_every_frames: Positive = 10_000  # periodic greedy evaluation (logged with its wall time)
+    num_threads: Positive = 1  # torch threads: small tensors are fastest on one thread
 
 
-@dataclass
-class EvalConfig:
+class EvalConfig(Section):
     """Greedy test games against the simulated user (paper: 3000)."""
 
-    games: int = 3000  # final evaluation
-    periodic_games: int = 500  # each periodic evaluation during training
-    seat: Literal["first", "second", "alternate"] = "alternate"
+    games: Positive = 3000  # final evaluation
+    periodic_games: Positive = 500  # each periodic evaluation during training
+    # who opens the test games: robot | human | alternate (older configs and checkpoints say seat: first|second)
+    first: Literal["robot", "human", "alternate"] = "alternate"
     opponent: str = "random"
 
+    @model_validator(mode="before")
+    @classmethod
+    def _old_seat_spelling(cls, data: Any) -> Any:
+        """`seat: first|second|alternate` (the robot's seat) is the old spelling of `first: robot|human|alternate`."""
+        if isinstance(data, dict) and "seat" in data and "first" not in data:
+            data = dict(data)
+            seat = data.pop("seat")
+            data["first"] = {"first": "robot", "second": "human"}.get(seat, seat)
+        return data
 
-@dataclass
-class LoggerConfig:
+
+class LoggerConfig(Section):
     """What a run records besides checkpoints."""
 
     mcap: bool = True  # every episode to MCAP (logs package)
-    progress: bool = True  # tqdm bar
+    progress: bool = True  # progress bar on a terminal, a plain line every ~10 % when piped (pipelines/progress.py)
+    # scalars (train/loss, train/epsilon, ..., eval/task_success, ...) through TorchRL's loggers into the run folder:
+    # csv (RUN/scalars/scalars/*.csv) | tensorboard | wandb | mlflow (each when installed) | none
+    backend: Literal["csv", "tensorboard", "wandb", "mlflow", "none"] = "csv"
 
 
-@dataclass
-class CheckpointConfig:
+class CheckpointConfig(Section):
     """Periodic checkpoints (atomic write + rename) that `--resume` continues from."""
 
-    every_frames: int = 10_000
-    keep: int = 2  # periodic checkpoints kept on disk
+    every_frames: Positive = 10_000
+    keep: Positive = 2  # periodic checkpoints kept on disk
     save_buffer: bool = True  # include the replay buffer so a resumed run continues with the same experience
 
 
-@dataclass
-class RunConfig:
-    """One training run: every section of the YAML file."""
+class SelfPlayConfig(Section):
+    """Self-play option of a run (section ``selfplay``; pipelines/selfplay.py): the user's moves by frozen snapshots."""
 
-    env: EnvConfig = field(default_factory=EnvConfig)
-    agent: AgentConfig = field(default_factory=AgentConfig)
-    collector: CollectorConfig = field(default_factory=CollectorConfig)
-    buffer: BufferConfig = field(default_factory=BufferConfig)
-    optim: OptimConfig = field(default_factory=OptimConfig)
-    schedule: ScheduleConfig = field(default_factory=ScheduleConfig)
-    loss: LossConfig = field(default_factory=LossConfig)
-    train: TrainConfig = field(default_factory=TrainConfig)
-    eval: EvalConfig = field(default_factory=EvalConfig)
-    logger: LoggerConfig = field(default_factory=LoggerConfig)
-    checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
-    selfplay: SelfPlayConfig = field(default_factory=SelfPlayConfig)  # pipelines/selfplay.py
+    enabled: bool = False
+    pool_size: Positive = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
+    snapshot_every_frames: Positive = 5_000  # a snapshot of the learning Q-network every this many frames
+    random_share: Fraction = 0.2  # share of the user's moves still made by the paper's uniformly random user
+    epsilon: Fraction = 0.05  # random moves of a snapshot (keeps self-play games diverse)
+
+
+class RunConfig(Section):
+    """One training run: every section of the YAML file (pydantic copies each default section per instance)."""
+
+    env: EnvConfig = EnvConfig()
+    agent: AgentConfig = AgentConfig()
+    collector: CollectorConfig = CollectorConfig()
+    buffer: BufferConfig = BufferConfig()
+    optim: OptimConfig = OptimConfig()
+    schedule: ScheduleConfig = ScheduleConfig()
+    loss: LossConfig = LossConfig()
+    train: TrainConfig = TrainConfig()
+    eval: EvalConfig = EvalConfig()
+    logger: LoggerConfig = LoggerConfig()
+    checkpoint: CheckpointConfig = CheckpointConfig()
+    selfplay: SelfPlayConfig = SelfPlayConfig()
+
+    @model_validator(mode="after")
+    def _check_across_sections(self) -> RunConfig:
+        """The checks one field cannot express alone."""
+        lr_end = self.schedule.lr_end
+        if lr_end is not None and lr_end > self.optim.lr:
+            raise ValueError(f"config key 'schedule.lr_end' must be > 0 and <= optim.lr ({self.optim.lr}), got {lr_end}")
+        if self.agent.lookahead is not None:
+            from modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
+
+            if self.agent.lookahead not in LOOKAHEAD_RULES:
+                raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
+                                 f"got {self.agent.lookahead!r}")
+        return self
 
     @property
     def lookahead(self) -> str:
@@ -171,11 +223,16 @@ class RunConfig:
         return self.agent.lookahead or AGENT_LOOKAHEAD[self.agent.name]
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """Plain nested dict (checkpoints and config.yaml store it)."""
+        return self.model_dump()
 
+
+# --- pydantic's error list -> one line naming the key and what is allowed ------------------------------------------
 
 def _type_name(annotation: Any) -> str:
     origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _type_name(typing.get_args(annotation)[0])
     if origin is Literal:
         return "one of " + ", ".join(repr(v) for v in typing.get_args(annotation))
     if origin in (typing.Union, types.UnionType):
@@ -189,126 +246,67 @@ def _type_name(annotation: Any) -> str:
     return {int: "an integer", float: "a number", bool: "true/false", str: "a string"}.get(annotation, str(annotation))
 
 
-def _coerce(value: Any, annotation: Any, key: str) -> Any:
-    """Check `value` against `annotation`; ints are accepted where floats are expected. One-line error otherwise."""
-    origin = typing.get_origin(annotation)
-    wrong = ValueError(f"config key '{key}' must be {_type_name(annotation)}, got {value!r}")
-    if origin is Literal:
-        if value not in typing.get_args(annotation):
-            raise wrong
-        return value
-    if origin in (typing.Union, types.UnionType):
-        for option in typing.get_args(annotation):
-            try:
-                return _coerce(value, option, key)
-            except ValueError:
-                continue
-        raise wrong
-    if annotation is type(None):
-        if value is not None:
-            raise wrong
-        return None
-    if origin is list:
-        if not isinstance(value, list):
-            raise wrong
-        (item,) = typing.get_args(annotation)
-        return [_coerce(v, item, f"{key}[{i}]") for i, v in enumerate(value)]
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise wrong
-        return dict(value)
-    if annotation is bool:
-        if not isinstance(value, bool):
-            raise wrong
-        return value
-    if annotation is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise wrong
-        return value
-    if annotation is float:
-        if isinstance(value, str):  # YAML 1.1 reads 5e-4 (no dot) as a string
-            try:
-                return float(value)
-            except ValueError:
-                raise wrong from None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise wrong
-        return float(value)
-    if annotation is str:
-        if not isinstance(value, str):
-            raise wrong
-        return value
-    raise wrong
+def _bounds(annotation: Any, field: FieldInfo | None = None) -> str:
+    """The range constraints of a field, e.g. '> 0' or 'between 0 and 1'."""
+    metadata = list(field.metadata) if field is not None else []
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):  # `Positive | None`: the number's bounds
+        annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
+    while typing.get_origin(annotation) is Annotated:
+        annotation, *extra = typing.get_args(annotation)
+        metadata += [m for item in extra for m in (item.metadata if isinstance(item, FieldInfo) else [item])]
+    limits = {key: getattr(m, key) for m in metadata for key in ("gt", "ge", "lt", "le") if getattr(m, key, None) is not None}
+    if "ge" in limits and "le" in limits:
+        return f"between {limits['ge']:g} and {limits['le']:g}"
+    symbols = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+    return " and ".join(f"{symbols[key]} {value:g}" for key, value in limits.items())
 
 
-def _build(cls: type, data: Any, prefix: str) -> Any:
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise ValueError(f"config section '{prefix or 'root'}' must be a mapping, got {data!r}")
-    hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
-    kwargs = {}
-    for key, value in data.items():
-        full = f"{prefix}.{key}" if prefix else str(key)
-        if key not in names:
-            raise ValueError(f"unknown config key '{full}'; allowed: {', '.join(names)}")
-        annotation = hints[key]
-        if dataclasses.is_dataclass(annotation):
-            kwargs[key] = _build(annotation, value, full)
-        else:
-            kwargs[key] = _coerce(value, annotation, full)
-    return cls(**kwargs)
+def _describe(loc: tuple[Any, ...]) -> tuple[str, Any, FieldInfo | None, type[BaseModel]]:
+    """Walk an error location through the models: (dotted key, its annotation, its field, the model holding it)."""
+    model: type[BaseModel] = RunConfig
+    key, annotation, field = "", None, None
+    for part in loc:
+        if annotation is None:
+            if part not in model.model_fields:
+                return f"{key}.{part}" if key else str(part), None, None, model
+            field = model.model_fields[part]
+            key = f"{key}.{part}" if key else str(part)
+            annotation = field.annotation
+            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+                model, annotation, field = annotation, None, None
+        elif isinstance(part, int):
+            while typing.get_origin(annotation) is Annotated:
+                annotation = typing.get_args(annotation)[0]
+            if typing.get_origin(annotation) is not list:
+                break
+            key, annotation, field = f"{key}[{part}]", typing.get_args(annotation)[0], None
+    return key, annotation, field, model
 
 
-def _check_values(config: RunConfig) -> None:
-    """Range checks the types cannot express."""
-    positive = {
-        "env.batch_size": config.env.batch_size,
-        "env.max_steps": config.env.max_steps,
-        "collector.frames_per_batch": config.collector.frames_per_batch,
-        "collector.total_frames": config.collector.total_frames,
-        "collector.annealing_frames": config.collector.annealing_frames,
-        "buffer.size": config.buffer.size,
-        "buffer.batch_size": config.buffer.batch_size,
-        "optim.updates_per_batch": config.optim.updates_per_batch,
-        "loss.target_period": config.loss.target_period,
-        "loss.n_step": config.loss.n_step,
-        "train.eval_every_frames": config.train.eval_every_frames,
-        "train.num_threads": config.train.num_threads,
-        "eval.games": config.eval.games,
-        "eval.periodic_games": config.eval.periodic_games,
-        "checkpoint.every_frames": config.checkpoint.every_frames,
-        "checkpoint.keep": config.checkpoint.keep,
-    }
-    for key, value in positive.items():
-        if value <= 0:
-            raise ValueError(f"config key '{key}' must be > 0, got {value}")
-    if config.train.episodes is not None and config.train.episodes <= 0:
-        raise ValueError(f"config key 'train.episodes' must be > 0 or null, got {config.train.episodes}")
-    if config.agent.hidden and any(h <= 0 for h in config.agent.hidden) or not config.agent.hidden:
-        raise ValueError(f"config key 'agent.hidden' must be a non-empty list of positive integers, got {config.agent.hidden}")
-    for key, value in {"collector.eps_init": config.collector.eps_init, "collector.eps_end": config.collector.eps_end,
-                       "loss.gamma": config.loss.gamma, "loss.tau": config.loss.tau}.items():
-        if not 0.0 <= value <= 1.0:
-            raise ValueError(f"config key '{key}' must be between 0 and 1, got {value}")
-    if config.optim.lr <= 0:
-        raise ValueError(f"config key 'optim.lr' must be > 0, got {config.optim.lr}")
-    if config.loss.loss_reward >= 0:
-        raise ValueError(f"config key 'loss.loss_reward' must be < 0, got {config.loss.loss_reward}")
-    if config.schedule.lr_end is not None and not 0 < config.schedule.lr_end <= config.optim.lr:
-        raise ValueError(f"config key 'schedule.lr_end' must be > 0 and <= optim.lr ({config.optim.lr}), "
-                         f"got {config.schedule.lr_end}")
-    if config.collector.init_random_frames < 0:
-        raise ValueError(f"config key 'collector.init_random_frames' must be >= 0, got {config.collector.init_random_frames}")
-    if config.env.first not in ("robot", "human", "alternate", "random"):
-        raise ValueError(f"config key 'env.first' must be one of 'robot', 'human', 'alternate', 'random', got {config.env.first!r}")
-    config.selfplay.check()
-    from modules.masks import LOOKAHEAD_RULES
+def _one_line(error: ValidationError) -> str:
+    """The first problem pydantic found, as the one line the CLI prints."""
+    first = error.errors(include_url=False)[0]
+    kind, loc, value = first["type"], first["loc"], first.get("input")
+    if kind == "value_error":  # raised by a validator above with its own sentence
+        return str(first["ctx"]["error"])
+    key, annotation, field, model = _describe(loc)
+    if kind == "extra_forbidden":
+        return f"unknown config key '{key}'; allowed: {', '.join(model.model_fields)}"
+    if annotation is None:  # a whole section has the wrong type
+        return f"config section '{key or 'root'}' must be a mapping, got {value!r}"
+    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        return f"config key '{key}' must be {_bounds(annotation, field)}, got {value!r}"
+    if kind == "too_short" and typing.get_origin(annotation) is not Literal:
+        return f"config key '{key}' must be a non-empty list, got {value!r}"
+    bounds = _bounds(annotation, field)
+    members = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else ()
+    if bounds and type(None) in members:  # `Positive | None`: "an integer > 0 or null"
+        kind_name = _type_name(next(a for a in members if a is not type(None)))
+        return f"config key '{key}' must be {kind_name} {bounds} or null, got {value!r}"
+    return f"config key '{key}' must be {_type_name(annotation)}{' ' + bounds if bounds else ''}, got {value!r}"
 
-    if config.agent.lookahead is not None and config.agent.lookahead not in LOOKAHEAD_RULES:
-        raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, got {config.agent.lookahead!r}")
 
+# --- loading -----------------------------------------------------------------------------------------------------
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """`section.key=value` -> (["section", "key"], YAML-parsed value)."""
@@ -343,9 +341,13 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
 
 def config_from_dict(data: dict[str, Any]) -> RunConfig:
     """Validate a nested mapping into a RunConfig (one-line ValueError on any problem)."""
-    config = _build(RunConfig, data, "")
-    _check_values(config)
-    return config
+    if not isinstance(data, dict):
+        raise ValueError(f"config must be a mapping of sections (env, agent, ...), got {data!r}")
+    data = {key: {} if value is None else value for key, value in data.items()}  # an empty section means defaults
+    try:
+        return RunConfig.model_validate(data)
+    except ValidationError as error:
+        raise ValueError(_one_line(error)) from None
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:

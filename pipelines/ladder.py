@@ -52,9 +52,9 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     pairs = [(name, seat, who, chooser) for name in names for seat in SEATS for who, chooser in policies]
     bar = None
     if progress:
-        from tqdm import tqdm
+        from pipelines.progress import progress_bar
 
-        bar = tqdm(pairs, desc="ladder", unit="match")
+        bar = progress_bar(total=len(pairs), desc="ladder", unit="match")
     for index, (name, seat, who, chooser) in enumerate(pairs):
         if bar is not None:
             bar.set_postfix_str(f"{who} vs {name} ({seat})")

@@ -136,7 +136,7 @@ class HeardReplies:
         return min(ids, key=lambda u: len(self.model.utterance_texts[u]))
 
 
-def _build(game: str | None, checkpoint: str | None, free_move: str | None, starts: str, seed: int, human_factory):
+def _build(game: str | None, checkpoint: str | None, free_move: str | None, first: str, seed: int, human_factory):
     """(env, policy, agent name) from a checkpoint (its own game and features) or the look-ahead policy."""
     from envs import make_env
     from modules.masks import LookaheadOnlyPolicy
@@ -145,7 +145,7 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, star
         game = game or "standard"
         free_move = free_move or "anywhere"
         human = human_factory(game, free_move)
-        env = make_env(game, batch_size=(1,), temporal=True, free_move=free_move, seed=seed, starts=starts,
+        env = make_env(game, batch_size=(1,), temporal=True, free_move=free_move, seed=seed, first=first,
                        opponent=human, asr_confidence=(1.0, 1.0))
         return env, LookaheadOnlyPolicy(seed), "lookahead"
     from pipelines.agents import load_agent
@@ -160,7 +160,7 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, star
         raise ValueError(f"--free-move {free_move} does not match the checkpoint's {config.env.free_move}")
     config.env.options = {**config.env.options, "asr_confidence": (1.0, 1.0)}
     human = human_factory(config.env.game, config.env.free_move)
-    env = make_run_env(config.env, batch_size=1, seed=seed, first=starts, opponent=human)
+    env = make_run_env(config.env, batch_size=1, seed=seed, first=first, opponent=human)
     return env, policy, config.agent.name
 
 
@@ -177,7 +177,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, sea
     if seat not in ("first", "second"):
         raise ValueError(f"seat must be first or second (the person's seat), got {seat!r}")
     console = console or Console()
-    starts = "human" if seat == "first" else "robot"
+    first = "human" if seat == "first" else "robot"
     symbols = {1: "o", 2: "x"} if seat == "first" else {1: "x", 2: "o"}
     human = None
 
@@ -187,7 +187,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, sea
         return human
 
     torch.set_num_threads(1)
-    env, policy, agent = _build(game, checkpoint, free_move, starts, seed, human_factory)
+    env, policy, agent = _build(game, checkpoint, free_move, first, seed, human_factory)
     replies = HeardReplies(env)
     rules = human.rules
     logger = None

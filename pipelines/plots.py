@@ -26,6 +26,22 @@ def pyplot():
     return plt
 
 
+def frames_label(value: float, _position: Any = None) -> str:
+    """Short tick labels for env-frame axes: 0, 250K, 1.5M (full numbers ran together on narrow panels)."""
+    for factor, suffix in ((1e6, "M"), (1e3, "K")):
+        if abs(value) >= factor:
+            return f"{value / factor:.3g}{suffix}"
+    return f"{value:.0f}"
+
+
+def frames_axis(ax) -> None:
+    """At most 6 ticks on an env-frames x axis, labelled 100K-style."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]))
+    ax.xaxis.set_major_formatter(FuncFormatter(frames_label))
+
+
 def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
     """Save a figure (PNG, or the format of the suffix) atomically so a crash never leaves half a picture; closes
     the figure."""
@@ -56,6 +72,7 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
                 ax.set_yscale("log")
             if key == "task_success":
                 ax.axhline(0.995, color="grey", linestyle="--", linewidth=0.8)
+    frames_axis(axes[-1, 0])  # sharex: the bottom axis sets the column's ticks
     axes[-1, 0].set_xlabel("env frames (robot actions)")
     axes[-1, 1].set_xlabel("wall time (s, shared 2-core machine)")
     fig.suptitle(title or "learning curve (greedy evaluation vs random user)")
@@ -79,6 +96,7 @@ def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str |
             (line,) = ax.plot(frames, values.mean(0), label=name)
             ax.fill_between(frames, values.min(0), values.max(0), alpha=0.2, color=line.get_color())
     for ax, label in zip(axes, ("task success", "avg reward / action")):
+        frames_axis(ax)
         ax.set_xlabel("env frames")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)

@@ -21,7 +21,7 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
         temporal=env_config.temporal,
         free_move=env_config.free_move,
         seed=int(seed),
-        starts=first or env_config.first,
+        first=first or env_config.first,
         opponent=opponent or env_config.opponent,
         max_actions=env_config.max_steps,
         **env_config.options,

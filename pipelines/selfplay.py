@@ -22,8 +22,6 @@ memory, so a resumed run restarts its pool from the resumed weights.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
@@ -31,27 +29,7 @@ from envs.opponents.base import Opponent
 from envs.opponents.bitboards import make_bits
 from modules.deep_lookahead import win_in_one
 from modules.guided_mcts import TurnFeatures
-
-
-@dataclass
-class SelfPlayConfig:
-    """Self-play option of a run (section ``selfplay`` of the YAML config)."""
-
-    enabled: bool = False
-    pool_size: int = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
-    snapshot_every_frames: int = 5_000  # a snapshot of the learning Q-network every this many frames
-    random_share: float = 0.2  # share of the user's moves still made by the paper's uniformly random user
-    epsilon: float = 0.05  # random moves of a snapshot (keeps self-play games diverse)
-
-    def check(self) -> None:
-        if self.pool_size < 1:
-            raise ValueError(f"config key 'selfplay.pool_size' must be >= 1, got {self.pool_size}")
-        if self.snapshot_every_frames < 1:
-            raise ValueError(f"config key 'selfplay.snapshot_every_frames' must be >= 1, got {self.snapshot_every_frames}")
-        for key in ("random_share", "epsilon"):
-            value = getattr(self, key)
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"config key 'selfplay.{key}' must be between 0 and 1, got {value}")
+from pipelines.config import SelfPlayConfig
 
 
 class SnapshotPool(Opponent):
@@ -61,7 +39,6 @@ class SnapshotPool(Opponent):
 
     def __init__(self, game: str, free_move: str, temporal: bool, settings: SelfPlayConfig, seed: int = 0) -> None:
         super().__init__(game, free_move, seed)
-        settings.check()
         self.settings = settings
         self.features = TurnFeatures(game, temporal, free_move)
         self.engine = make_bits(game, free_move)

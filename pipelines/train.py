@@ -65,7 +65,6 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
 def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> dict[str, Any]:
     """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json)."""
     from torchrl.collectors import Collector
-    from tqdm import tqdm
 
     from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
     from modules.policy import make_policies
@@ -75,12 +74,15 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     from pipelines.evaluate import evaluate_agent
     from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
+    from pipelines.progress import progress_bar
+    from pipelines.scalars import eval_scalars, open_scalar_log
     from pipelines.run_env import make_run_env
 
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     started = time.monotonic()
     out_dir = Path(out_dir)
     state = latest_training_state(out_dir) if resume else None
+    scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(dump_config(config), out_dir / "config.yaml")
     torch.set_num_threads(config.train.num_threads)
@@ -150,6 +152,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
                   "wall_time": round(counters["wall_offset"] + time.monotonic() - started, 3),
                   "train_loss": recent_loss, "epsilon": float(agent.egreedy.eps), **result.to_dict()}
         history.append(record)
+        if scalar_log is not None:
+            scalar_log.log(eval_scalars(record), step=counters["frames"])
         return record
 
     def training_state() -> dict[str, Any]:
@@ -166,9 +170,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
     next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
     bar_total = config.train.episodes if stop_on_episodes else config.collector.total_frames
-    bar = tqdm(total=bar_total, initial=counters["episodes"] if stop_on_episodes else counters["frames"],
-               unit="game" if stop_on_episodes else "frame", disable=not config.logger.progress,
-               dynamic_ncols=True, desc=f"train {config.env.game} {config.agent.name}")
+    bar = progress_bar(total=bar_total, initial=counters["episodes"] if stop_on_episodes else counters["frames"],
+                       unit="game" if stop_on_episodes else "frame", unit_scale=not stop_on_episodes,
+                       disable=not config.logger.progress, desc=f"train {config.env.game} {config.agent.name}")
+    batch_started = time.monotonic()
     losses: list[float] = []
     last_eval = history[-1] if history else None
     with mcap_logger or nullcontext():
@@ -196,6 +201,15 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
                 step_losses = learner.update_many(buffer, config.optim.updates_per_batch)
                 counters["updates"] += len(step_losses)
                 losses.append(float(torch.stack(step_losses).mean()))
+            if scalar_log is not None:
+                now = time.monotonic()
+                seconds, batch_started = max(now - batch_started, 1e-9), now
+                updated = len(buffer) >= config.collector.init_random_frames
+                scalar_log.log({
+                    "train/loss": losses[-1] if updated else None, "train/epsilon": float(agent.egreedy.eps),
+                    "train/lr": learner.optimizer.param_groups[0]["lr"], "train/frames_per_s": frames / seconds,
+                    "train/updates_per_s": config.optim.updates_per_batch / seconds if updated else 0.0,
+                }, step=counters["frames"])
 
             # --- periodic greedy evaluation and checkpoint --------------------------------------------------------
             finished = (counters["episodes"] >= config.train.episodes) if stop_on_episodes else \

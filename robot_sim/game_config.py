@@ -3,10 +3,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from envs.core import FIRST_CHOICES
 from robot_sim.human import HumanConfig
 from robot_sim.scene import check_game
-
-STARTS_CHOICES = ("robot", "human", "alternate", "random")
 
 
 @dataclass
@@ -17,7 +16,7 @@ class RobotPlayConfig:
     games: int = 1
     seed: int = 0
     #: Who opens each game (the env's option): robot (the paper's demo), human, alternate, random.
-    starts: str = "robot"
+    first: str = "robot"
     free_move: str = "anywhere"
     camera_width: int = 640
     camera_height: int = 480
@@ -47,7 +46,7 @@ class RobotPlayConfig:
         check_game(self.game)
         if self.games < 1:
             raise ValueError(f"games must be at least 1; got {self.games}")
-        if self.starts not in STARTS_CHOICES:
-            raise ValueError(f"starts must be one of {', '.join(STARTS_CHOICES)}; got {self.starts!r}")
+        if self.first not in FIRST_CHOICES:
+            raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {self.first!r}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")

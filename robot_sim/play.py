@@ -212,10 +212,10 @@ class RobotGameRunner:
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
         self._mark_rng = np.random.default_rng(seed + 17)
         opponent = PerceivedHumanOpponent(self._perceive_human_move)
-        starts = cfg.starts
-        if starts == "alternate":
-            starts = "robot" if index % 2 == 0 else "human"
-        env = make_env(cfg.game, batch_size=(1,), seed=seed, starts=starts, free_move=cfg.free_move, opponent=opponent)
+        first = cfg.first
+        if first == "alternate":
+            first = "robot" if index % 2 == 0 else "human"
+        env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent)
         td = env.reset()
         robot_first = bool(td["robot_first"].item())
         self._robot_mark = 1 if robot_first else 2
@@ -295,13 +295,17 @@ class RobotGameRunner:
         return image
 
     # ------------------------------------------------------------------ many games
-    def run(self, progress: bool = True) -> dict[str, Any]:
-        from tqdm import tqdm
-
-        bar = tqdm(range(self.config.games), desc="robot games", unit="game", disable=not progress)
-        for index in bar:
+    def run(self, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
+        """Play every game; `progress` is a bar factory with tqdm's signature (pipelines.progress.progress_bar)."""
+        bar = progress(total=self.config.games, desc="robot games", unit="game") if progress else None
+        for index in range(self.config.games):
             self.records.append(self.play_game(index))
-            bar.set_postfix(outcome=self.records[-1].outcome, misrec=sum(r.misrecognised_moves for r in self.records))
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(outcome=self.records[-1].outcome,
+                                misrec=sum(r.misrecognised_moves for r in self.records))
+        if bar is not None:
+            bar.close()
         return self.report()
 
     def report(self) -> dict[str, Any]:
@@ -310,7 +314,7 @@ class RobotGameRunner:
 
 
 def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
-                     log_mcap: bool = True, progress: bool = True) -> dict[str, Any]:
+                     log_mcap: bool = True, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
     """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
     from modules.masks import LookaheadOnlyPolicy
 

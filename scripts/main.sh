@@ -5,5 +5,5 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 out="${1:-runs/default}"
 ncbot train pipelines/configs/default.yaml --out "$out"
-ncbot eval "$out/checkpoint.pt" --games 3000 --seat first
-ncbot eval "$out/checkpoint.pt" --games 3000 --seat second
+ncbot eval "$out/checkpoint.pt" --games 3000 --first robot
+ncbot eval "$out/checkpoint.pt" --games 3000 --first human

@@ -55,6 +55,15 @@ def test_overrides_set_nested_keys_with_yaml_types(tmp_path: Path) -> None:
         ({"loss": {"gamma": 1.5}}, "'loss.gamma' must be between 0 and 1"),
         ({"buffer": {"size": 0}}, "'buffer.size' must be > 0"),
         ({"env": 3}, "section 'env' must be a mapping"),
+        ({"env": {"first": "me"}}, "'env.first' must be one of 'robot', 'human', 'alternate', 'random', got 'me'"),
+        ({"env": {"batch_size": "3"}}, "'env.batch_size' must be an integer > 0, got '3'"),
+        ({"train": {"episodes": 0}}, "'train.episodes' must be > 0, got 0"),
+        ({"train": {"episodes": 2.5}}, "'train.episodes' must be an integer > 0 or null, got 2.5"),
+        ({"agent": {"hidden": []}}, "'agent.hidden' must be a non-empty list"),
+        ({"selfplay": {"random_share": 2}}, "'selfplay.random_share' must be between 0 and 1, got 2"),
+        ({"schedule": {"lr_end": 0.1}}, "'schedule.lr_end' must be > 0 and <= optim.lr (0.001), got 0.1"),
+        ({"logger": {"backend": "tb"}}, "'logger.backend' must be one of 'csv', 'tensorboard', 'wandb', 'mlflow', 'none'"),
+        ({"collector": {"init_random_frames": -1}}, "'collector.init_random_frames' must be >= 0, got -1"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_key(data: dict, message: str) -> None:
@@ -86,3 +95,27 @@ def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path
     result = _ncbot("train", str(tmp_path / "missing.yaml"), cwd=tmp_path)
     assert result.returncode == 2 and "not found" in result.stderr and "Traceback" not in result.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_importing_the_config_does_not_import_torch() -> None:
+    """The CLI and tools read configs without paying the ~3 s of importing torch."""
+    code = "import pipelines.config, sys; assert 'torch' not in sys.modules, 'torch was imported'"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+def test_old_eval_seat_key_is_read_as_eval_first() -> None:
+    """Checkpoints and configs written before `eval.first` say `eval.seat: first|second|alternate`."""
+    assert config_from_dict({"eval": {"seat": "first"}}).eval.first == "robot"
+    assert config_from_dict({"eval": {"seat": "second"}}).eval.first == "human"
+    assert "seat" not in config_from_dict({"eval": {"seat": "alternate"}}).to_dict()["eval"]
+
+
+def test_numbers_from_yaml_and_plain_dicts_for_checkpoints(tmp_path: Path) -> None:
+    """5e-4 (a YAML 1.1 string) is a number; to_dict() is plain data that YAML and torch.save store."""
+    config = load_config(CONFIGS / "default.yaml", ["optim.lr=5e-4", "loss.loss_reward=-20"])
+    assert config.optim.lr == 5e-4 and isinstance(config.loss.loss_reward, float)
+    data = config.to_dict()
+    assert data["selfplay"]["pool_size"] == 5 and data["logger"]["backend"] == "csv"
+    assert config_from_dict(data) == config
+    assert dump_config(config).startswith("env:\n  game: standard\n")

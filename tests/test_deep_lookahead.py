@@ -99,7 +99,7 @@ def test_owners_from_move_order_take_the_first_line():
 def test_masks_match_brute_force_on_real_env_positions(game, free_move, plies):
     """Random dialogues in the real env: at every robot move the k-step mask equals the brute-force search."""
     torch.manual_seed(0)
-    env = make_env(game, batch_size=(8,), temporal=True, free_move=free_move, seed=3, starts="alternate")
+    env = make_env(game, batch_size=(8,), temporal=True, free_move=free_move, seed=3, first="alternate")
     rule = LOOKAHEAD_RULES[f"k{plies}" + ("_open" if free_move == "open_subgrids" else "")]
     rules = make_game(game, free_move)
     td = env.reset()
@@ -184,7 +184,7 @@ def test_lookahead_only_baseline_accepts_k_rules():
     """`ncbot ladder --baseline` / `ncbot play` without a checkpoint: the masks alone, k5 included."""
     from modules.masks import LookaheadOnlyPolicy
 
-    env = make_env("standard", batch_size=(16,), seed=0, starts="human", opponent="minimax")
+    env = make_env("standard", batch_size=(16,), seed=0, first="human", opponent="minimax")
     policy = LookaheadOnlyPolicy(0, "k5")
     td = env.reset()
     for _ in range(30):

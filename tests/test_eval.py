@@ -68,3 +68,17 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, checkpoint: Path) -> N
         evaluate_checkpoint(checkpoint, games=5, seat="third")
     with pytest.raises(ValueError, match="games must be a positive number"):
         evaluate_checkpoint(checkpoint, games=0)
+
+
+def test_first_is_the_new_name_of_seat(checkpoint: Path) -> None:
+    """`--first human` plays the same games as the old `--seat second`, which still works with a one-line note."""
+    new = ncbot("eval", str(checkpoint), "--games", "30", "--first", "human", "--seed", "2", "--json")
+    old = ncbot("eval", str(checkpoint), "--games", "30", "--seat", "second", "--seed", "2", "--json")
+    assert new.returncode == 0 and old.returncode == 0, new.stderr + old.stderr
+    assert json.loads(new.stdout) == json.loads(old.stdout)
+    assert "old spelling" not in new.stderr
+    assert "ncbot: note: --seat second is the old spelling of --first human" in old.stderr.splitlines()
+    both = ncbot("eval", str(checkpoint), "--first", "robot", "--seat", "first")
+    assert both.returncode == 2 and both.stderr.strip() == "ncbot: error: give --first only (--seat is its old spelling)"
+    bad = ncbot("eval", str(checkpoint), "--first", "pepper")
+    assert bad.returncode == 2 and "--first must be one of robot, human, alternate" in bad.stderr

@@ -33,7 +33,7 @@ def test_snapshots_are_frozen_copies_taken_on_schedule():
     assert not any(p.requires_grad for p in pool.snapshots[0].parameters())
     pool.maybe_add(qnet, 250)
     assert len(pool.snapshots) == 2 and pool.added == 3  # the oldest was dropped
-    with pytest.raises(ValueError, match="selfplay.random_share"):
+    with pytest.raises(ValueError, match="random_share"):
         SnapshotPool("standard", "anywhere", True, SelfPlayConfig(random_share=1.5))
 
 

@@ -6,12 +6,14 @@ tested on the one left out. Every result comes with a confusion matrix as markdo
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from fileio import atomic_path, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
@@ -53,11 +55,12 @@ def _result(name: str, truth: np.ndarray, predicted: np.ndarray, **extra) -> Res
 
 
 def leave_one_out(images: np.ndarray, labels: np.ndarray, config: TrainConfig = PAPER_TRAIN,
-                  progress: bool = False) -> np.ndarray:
+                  progress: Callable[..., Any] | None = None) -> np.ndarray:
     """Prediction for each cell by a CNN trained on all the others (exact LOO: n trainings)."""
     predicted = np.empty(len(images), np.int64)
     keep = np.ones(len(images), bool)
-    for i in tqdm(range(len(images)), desc="leave-one-out", unit="fold", disable=not progress):
+    folds = range(len(images))
+    for i in progress(folds, desc="leave-one-out", unit="fold") if progress else folds:
         keep[i] = False
         model = CellClassifier(fit(images[keep], labels[keep], config))
         predicted[i] = model.predict(images[i:i + 1])[0]
@@ -65,7 +68,7 @@ def leave_one_out(images: np.ndarray, labels: np.ndarray, config: TrainConfig = 
     return predicted
 
 
-def paper_experiments(config: TrainConfig = PAPER_TRAIN, progress: bool = False,
+def paper_experiments(config: TrainConfig = PAPER_TRAIN, progress: Callable[..., Any] | None = None,
                       loo_folds: int | None = None) -> list[Result]:
     """LOO on clean, clean -> noisy, noisy -> clean (loo_folds < 109 runs only the first folds: tests)."""
     clean, clean_labels = make_cells(N_CLEAN, CLEAN_SEED)
@@ -97,12 +100,13 @@ def heldout_cells(classifier: CellClassifier | None = None, n: int = 600, seed: 
 
 
 def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellClassifier | None = None,
-            seed: int = TEST_SEED + 50_000, progress: bool = False) -> Result:
+            seed: int = TEST_SEED + 50_000, progress: Callable[..., Any] | None = None) -> Result:
     """Read n generated photos: per-cell confusion, plus boards read entirely right and read failures."""
     classifier = classifier or load_classifier()
     truth, predicted, whole, failures = [], [], 0, 0
     name = "+".join(styles)
-    for i in tqdm(range(n_frames), desc=f"read {grid}x{grid} {name}", unit="photo", disable=not progress, leave=False):
+    frames = range(n_frames)
+    for i in progress(frames, desc=f"read {grid}x{grid} {name}", unit="photo", leave=False) if progress else frames:
         frame = make_frame(grid, seed + i, styles=styles)
         labels = [LABELS.index({"x": "cross", "o": "nought", "": "nothing"}[s]) for s in frame.board]
         try:

@@ -8,13 +8,15 @@ the last hand frame by more than tau), so "within 3 clean frames" is the target.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from fileio import atomic_path, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
@@ -63,7 +65,7 @@ class SequenceSet:
 
 
 def evaluate_sequences(grid: int, n: int, seed: int = HELDOUT_SEED, styles: tuple[str, ...] = ("pen",),
-                       classifier: CellClassifier | None = None, progress: bool = False) -> SequenceSet:
+                       classifier: CellClassifier | None = None, progress: Callable[..., Any] | None = None) -> SequenceSet:
     """Run the recogniser over n seeded drawing sequences (seeds seed .. seed + n - 1)."""
     from vision.data.sequences import make_move_sequence
     from vision.recogniser import MoveRecogniser
@@ -74,7 +76,8 @@ def evaluate_sequences(grid: int, n: int, seed: int = HELDOUT_SEED, styles: tupl
     out = SequenceSet(grid, tuple(styles), seed, n)
     hand_status, clean_status = Counter(), Counter()
     name = "+".join(styles)
-    for i in tqdm(range(n), desc=f"recognise {grid}x{grid} {name}", unit="sequence", disable=not progress, leave=False):
+    indices = range(n)
+    for i in progress(indices, desc=f"recognise {grid}x{grid} {name}", unit="sequence", leave=False) if progress else indices:
         seq = make_move_sequence(grid, seed + i, before=3, drawing=4, after=5, still_hand=i % 3, styles=styles)
         rec.reset()
         last_hand = max(j for j, h in enumerate(seq.hand) if h)

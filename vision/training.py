@@ -9,10 +9,12 @@ Reproduce: `ncbot vision train --out vision/weights/cell_cnn.pt` (defaults below
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from tqdm import tqdm
 
 from vision.classifier.model import CellCNN
 from vision.classifier.train import TrainConfig, fit
@@ -34,10 +36,11 @@ class DefaultTraining:
     train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
 
 
-def frame_cells(grid: int, n_frames: int, seed: int, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def frame_cells(grid: int, n_frames: int, seed: int, progress: Callable[..., Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cells cut by the reading pipeline from n generated photos, with their true labels."""
     images, labels = [], []
-    for i in tqdm(range(n_frames), desc=f"{grid}x{grid} photos", unit="photo", disable=not progress, leave=False):
+    frames = range(n_frames)
+    for i in progress(frames, desc=f"{grid}x{grid} photos", unit="photo", leave=False) if progress else frames:
         frame = make_frame(grid, seed + i)
         try:
             view = extract_cells(frame.image, grid)
@@ -50,7 +53,7 @@ def frame_cells(grid: int, n_frames: int, seed: int, progress: bool = False) -> 
     return np.concatenate(images), np.array(labels, np.int64)
 
 
-def training_set(config: DefaultTraining, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def training_set(config: DefaultTraining, progress: Callable[..., Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """All training cells of the shipped weights (deterministic in config.seed)."""
     cells, labels = make_cells(config.n_cells, config.seed, noisy_fraction=0.6)
     f3, l3 = frame_cells(3, config.n_frames_3, config.seed + 100_000, progress)
@@ -58,7 +61,7 @@ def training_set(config: DefaultTraining, progress: bool = False) -> tuple[np.nd
     return np.concatenate([cells, f3, f9]), np.concatenate([labels, l3, l9])
 
 
-def train_default(config: DefaultTraining = DefaultTraining(), progress: bool = False) -> tuple[CellCNN, dict]:
+def train_default(config: DefaultTraining = DefaultTraining(), progress: Callable[..., Any] | None = None) -> tuple[CellCNN, dict]:
     """Train the shipped classifier; returns it and the metadata stored with the weights."""
     images, labels = training_set(config, progress)
     model = fit(images, labels, config.train, progress=progress, description="train default CNN")

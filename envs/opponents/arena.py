@@ -6,6 +6,9 @@ opponent: an illegal choice raises at once instead of skewing the statistics.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import time
 from dataclasses import dataclass
 
@@ -38,7 +41,8 @@ class MatchResult:
 
 
 def play_match(first: Opponent, second: Opponent, n_games: int, seed: int = 0, game: str | None = None,
-               free_move: str | None = None, batch_size: int = 256, progress: bool = False) -> MatchResult:
+               free_move: str | None = None, batch_size: int = 256,
+               progress: Callable[..., Any] | None = None) -> MatchResult:
     """``n_games`` games with ``first`` moving first (board code 1) and ``second`` (code 2), in batches."""
     game = game or first.game
     free_move = free_move or first.free_move
@@ -52,10 +56,8 @@ def play_match(first: Opponent, second: Opponent, n_games: int, seed: int = 0, g
     marks = 0
     seconds = [0.0, 0.0]
     bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=n_games, desc=f"{first.name} vs {second.name}", unit="game")
+    if progress is not None:  # a bar factory with tqdm's signature (pipelines.progress.progress_bar)
+        bar = progress(total=n_games, desc=f"{first.name} vs {second.name}", unit="game")
     for start in range(0, n_games, batch_size):
         states = [rules.new() for _ in range(min(batch_size, n_games - start))]
         ply = 0

@@ -6,11 +6,13 @@ only 109 / 201 photos).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from dataclasses import dataclass
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from vision.classifier.model import CellCNN, svm_loss
 from vision.classifier.preprocess import to_input
@@ -38,7 +40,7 @@ def _augment(x: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
 
 
 def fit(images: np.ndarray, labels: np.ndarray, config: TrainConfig = TrainConfig(),
-        progress: bool = False, description: str = "train cells") -> CellCNN:
+        progress: Callable[..., Any] | None = None, description: str = "train cells") -> CellCNN:
     """Train a fresh CellCNN on uint8 (N, 40, 40) cells and int labels (N,); same seed -> same weights."""
     if len(images) != len(labels) or len(images) == 0:
         raise ValueError(f"need as many labels as images (and at least one); got {len(images)} images, {len(labels)} labels")
@@ -52,7 +54,8 @@ def fit(images: np.ndarray, labels: np.ndarray, config: TrainConfig = TrainConfi
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, config.epochs * steps_per_epoch, eta_min=config.lr * 0.05)
     loss_fn = svm_loss()
     model.train()
-    for _ in tqdm(range(config.epochs), desc=description, unit="epoch", disable=not progress, leave=False):
+    epochs = range(config.epochs)
+    for _ in progress(epochs, desc=description, unit="epoch", leave=False) if progress else epochs:
         order = torch.randperm(len(inputs), generator=generator)
         for start in range(0, len(inputs), config.batch_size):
             batch = order[start:start + config.batch_size]
