@@ -104,3 +104,28 @@ def test_alignment_counts_substitutions_deletions_and_insertions():
     assert word_errors("yes".split(), "yes please".split()) == 1
     assert word_errors("well done".split(), []) == 2
     assert align(["a", "b"], ["b"]) == [(0, None), (1, 0)]
+
+
+def test_audio_round_trips_through_an_mcap_file_and_a_wav(tmp_path):
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+    from mcap_protobuf.writer import Writer
+
+    from speech.audio import AUDIO_TOPICS, raw_audio, read_wav, samples_from_raw_audio, write_wav
+
+    said = {"robot": speak("your turn", ROBOT_VOICE), "user": speak("this one", PERSON_VOICE)}
+    with open(tmp_path / "game.mcap", "wb") as stream:
+        writer = Writer(stream)
+        for speaker, samples in said.items():
+            writer.write_message(AUDIO_TOPICS[speaker], raw_audio(samples), log_time=1, publish_time=1)
+        writer.finish()
+    with open(tmp_path / "game.mcap", "rb") as stream:
+        messages = list(make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
+    assert {m.channel.topic for m in messages} == set(AUDIO_TOPICS.values())
+    for message in messages:
+        assert message.schema.name == "foxglove.RawAudio"
+        speaker = next(s for s, t in AUDIO_TOPICS.items() if t == message.channel.topic)
+        assert np.array_equal(samples_from_raw_audio(message.decoded_message), said[speaker])
+    assert np.array_equal(read_wav(write_wav(tmp_path / "user.wav", said["user"])), said["user"])
+    with pytest.raises(ValueError, match="int16"):
+        raw_audio(np.zeros(10))
