@@ -6,4 +6,26 @@ Layer: imports ``envs`` (the example dialogues) only. Audio is always 16 kHz mon
 """
 from __future__ import annotations
 
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO
+
 SAMPLE_RATE = 16_000
+
+
+def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
+    """Write a file through ``write(binary_stream)`` into a temporary file beside ``path``, then rename it over
+    ``path``: readers never see a half-written channel model or WAV."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            write(stream)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path

@@ -7,14 +7,12 @@ encoding in every message.
 """
 from __future__ import annotations
 
-import os
-import tempfile
 import wave
 from pathlib import Path
 
 import numpy as np
 
-from speech import SAMPLE_RATE
+from speech import SAMPLE_RATE, atomic_write
 
 AUDIO_FORMAT = "pcm-s16"  # signed 16-bit little-endian PCM, interleaved (one channel here)
 AUDIO_TOPICS = {"robot": "/audio/robot", "user": "/audio/user"}
@@ -39,20 +37,16 @@ def samples_from_raw_audio(message) -> np.ndarray:
 
 def write_wav(path: str | Path, samples: np.ndarray) -> Path:
     """Write ``samples`` as a 16 kHz mono 16-bit WAV atomically (temporary file, then renamed)."""
-    path, samples = Path(path), _checked(samples)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as out, wave.open(out, "wb") as writer:
+    samples = _checked(samples)
+
+    def write(stream) -> None:
+        with wave.open(stream, "wb") as writer:
             writer.setnchannels(1)
             writer.setsampwidth(2)
             writer.setframerate(SAMPLE_RATE)
             writer.writeframes(samples.astype("<i2").tobytes())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    return path
+
+    return atomic_write(path, write)
 
 
 def read_wav(path: str | Path) -> np.ndarray:

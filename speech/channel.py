@@ -13,8 +13,6 @@ A query SNR between two fitted levels draws each game's level from the two neigh
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -24,6 +22,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from speech import atomic_write
 from speech.align import align
 from speech.asr import Heard
 from speech.noise import NOISE_KINDS
@@ -123,8 +122,6 @@ class ChannelModel:
     # ------------------------------------------------------------------------------------------- save / load
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON atomically (a temporary file in the same folder, then renamed)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         data = {
             "format": FORMAT,
             "words": list(self.words),
@@ -136,15 +133,7 @@ class ChannelModel:
         for name in ("substitutions", "insertions", "correct_confidence", "substituted_confidence",
                      "inserted_confidence", "utterances"):
             data[name] = getattr(self, name).tolist()
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        try:
-            with os.fdopen(handle, "w") as out:
-                json.dump(data, out, separators=(",", ":"))
-            os.replace(temporary, path)
-        except BaseException:
-            Path(temporary).unlink(missing_ok=True)
-            raise
-        return path
+        return atomic_write(path, lambda stream: stream.write(json.dumps(data, separators=(",", ":")).encode()))
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_CHANNEL) -> ChannelModel:
