@@ -5,7 +5,6 @@ TTS audio is cached per (text, voice): noise and decoding vary, the clean speech
 """
 from __future__ import annotations
 
-import resource
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -14,7 +13,7 @@ import numpy as np
 
 from speech.asr import Heard, Recogniser
 from speech.noise import add_noise
-from speech.tts import Voice, speak
+from speech.tts import Voice, speak, speak_timed
 
 
 @dataclass(frozen=True)
@@ -33,7 +32,7 @@ class RoundTrip:
     trial: Trial
     said: tuple[str, ...]
     heard: Heard
-    tts_cpu_s: float  # CPU of the TTS engine (child process); 0 when the audio came from the cache
+    tts_cpu_s: float  # CPU of the TTS, engine subprocess included; 0 when the audio came from the cache
     asr_cpu_s: float
 
 
@@ -50,10 +49,7 @@ class RoundTripper:
         key = (text, voice)
         if key in self._audio:
             return self._audio[key][0], 0.0
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        samples = speak(text, voice)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+        samples, cpu = speak_timed(text, voice)
         self._audio[key] = (samples, cpu)
         return samples, cpu
 

@@ -7,6 +7,7 @@ recognised); the simulated person with flite voices (the recogniser decodes them
 from __future__ import annotations
 
 import io
+import resource
 import shutil
 import subprocess
 import wave
@@ -70,6 +71,17 @@ def speak(text: str, voice: Voice = PERSON_VOICE) -> np.ndarray:
         rng = np.random.default_rng(zlib.crc32(f"{voice}|{text}".encode()))
         samples = white_noise_at(samples, ESPEAK_FLOOR_DB, rng)
     return samples
+
+
+def speak_timed(text: str, voice: Voice = PERSON_VOICE) -> tuple[np.ndarray, float]:
+    """``speak`` and the CPU seconds it cost, the engine's subprocess included."""
+    def cpu() -> float:
+        own, child = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime + child.ru_utime + child.ru_stime
+
+    before = cpu()
+    samples = speak(text, voice)
+    return samples, cpu() - before
 
 
 def resample(samples: np.ndarray, rate: int, target: int) -> np.ndarray:
