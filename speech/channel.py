@@ -119,6 +119,26 @@ class ChannelModel:
                 else:
                     self.substituted_confidence[k, s, bin_] += 1
 
+    def summary(self) -> list[dict[str, Any]]:
+        """Per (kind, level): round trips, words said, word error rate, deletion and insertion rates, and the
+        mean confidence of correctly heard words (bin centres), as fitted."""
+        v, centres = len(self.words), (np.arange(BINS) + 0.5) / BINS
+        rows = []
+        for k, kind in enumerate(self.kinds):
+            for s, snr in enumerate(self.snr_db):
+                counts = self.substitutions[k, s]
+                said = int(counts.sum())
+                correct = int(np.trace(counts[:, :v]))
+                inserted = int(self.insertions[k, s].sum())
+                histogram = self.correct_confidence[k, s].sum(0)
+                rows.append({
+                    "kind": kind, "snr_db": snr, "round_trips": int(self.utterances[k, s]), "words": said,
+                    "word_error_rate": (said - correct + inserted) / max(said, 1),
+                    "deleted": int(counts[:, v].sum()) / max(said, 1), "inserted": inserted / max(said, 1),
+                    "correct_confidence": float(histogram @ centres / max(histogram.sum(), 1)),
+                })
+        return rows
+
     # ------------------------------------------------------------------------------------------- save / load
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON atomically (a temporary file in the same folder, then renamed)."""

@@ -1,4 +1,5 @@
-"""Fit the ASR channel model from real round trips: ``python -m speech.fit [--out PATH] [--seeds N]``.
+"""Fit the ASR channel model from real round trips: ``python -m speech.fit [--out PATH] [--seeds N]``
+(``--show`` prints the per-level figures of an existing model instead).
 
 The voices, noise seeds and babble talkers used here are kept apart from those bench/speech_asr.py reports on
 (``REPORT_*`` below): the fit hears the person's flite voices slowed and sped up (rate 0.85 / 1.15) with seeds
@@ -51,7 +52,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=DEFAULT_CHANNEL)
     parser.add_argument("--seeds", type=int, default=2, help="noise draws per sentence, voice and noisy level")
+    parser.add_argument("--show", action="store_true", help="print the figures of the model at --out, fit nothing")
     args = parser.parse_args(argv)
+    if args.show:
+        print_summary(ChannelModel.load(args.out))
+        return
     start = time.time()
     recogniser = Recogniser()
     tripper = RoundTripper(recogniser, babble_pool(babble_texts(), FIT_BABBLE_VOICES))
@@ -72,6 +77,17 @@ def main(argv: list[str] | None = None) -> None:
     model.save(args.out)
     levels = Counter((t.trial.kind if t.trial.snr_db is not None else "clean", t.trial.snr_db) for t in trips)
     print(f"fitted {args.out} from {len(trips)} round trips ({dict(levels)}) in {time.time() - start:.0f} s")
+    print_summary(model)
+
+
+def print_summary(model: ChannelModel) -> None:
+    print(f"{'kind':<8}{'SNR dB':>7}{'trips':>7}{'words':>7}{'WER':>7}{'del':>7}{'ins':>7}{'conf ok':>9}")
+    for row in model.summary():
+        if row["snr_db"] is None and row["kind"] != model.kinds[0]:
+            continue  # the clean level is the same round trips in every kind
+        snr = "clean" if row["snr_db"] is None else f"{row['snr_db']:g}"
+        print(f"{row['kind'] if row['snr_db'] is not None else '-':<8}{snr:>7}{row['round_trips']:>7}{row['words']:>7}"
+              f"{row['word_error_rate']:7.3f}{row['deleted']:7.3f}{row['inserted']:7.3f}{row['correct_confidence']:9.3f}")
 
 
 if __name__ == "__main__":
