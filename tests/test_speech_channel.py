@@ -32,6 +32,9 @@ def test_channel_model_fit_save_load_sample(recogniser, tmp_path):
                              recogniser.vocabulary, (None, 5.0), ("white",))
     assert model.utterances.tolist() == [[3, 3]]
     assert model.substitutions[0, 0].sum() == sum(len(s.split()) for s in SENTENCES)
+    clean, noisy = model.summary()
+    assert clean["word_error_rate"] == 0.0 and clean["words"] == 14 and clean["round_trips"] == 3
+    assert noisy["correct_confidence"] < clean["correct_confidence"]
     path = model.save(tmp_path / "channel.json")
     loaded = ChannelModel.load(path)
     assert loaded.words == model.words and loaded.snr_db == (None, 5.0)
