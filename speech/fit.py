@@ -68,8 +68,8 @@ def main(argv: list[str] | None = None) -> None:
         meta={
             "command": f"python -m speech.fit --seeds {args.seeds}",
             "round_trips": len(trips),
-            "voices": [f"{v.engine}:{v.name}@{v.rate}" for v in FIT_VOICES],
-            "babble_voices": [f"{v.engine}:{v.name}" for v in FIT_BABBLE_VOICES],
+            "voices": [v.spec for v in FIT_VOICES],
+            "babble_voices": [v.spec for v in FIT_BABBLE_VOICES],
             "first_seed": FIT_SEED,
             "texts": len({t.text for t in trials}),
         },

@@ -43,6 +43,23 @@ class Voice:
         if not 0.3 <= self.rate <= 3.0:
             raise ValueError(f"voice rate must be in [0.3, 3], got {self.rate}")
 
+    @property
+    def spec(self) -> str:
+        """``engine:name@rate`` (``parse_voice``'s input), for configs and logs."""
+        return f"{self.engine}:{self.name}@{self.rate:g}"
+
+
+def parse_voice(spec: str) -> Voice:
+    """A voice from ``engine:name[@rate]``, e.g. ``flite:slt``, ``espeak-ng:en-us+f3@1.1`` (ValueError if not)."""
+    engine, _, rest = spec.partition(":")
+    name, _, rate = rest.partition("@")
+    if not engine or not name:
+        raise ValueError(f"voice {spec!r} is not engine:name[@rate], e.g. flite:slt or espeak-ng:en-us")
+    try:
+        return Voice(engine, name, float(rate) if rate else 1.0)
+    except ValueError as error:
+        raise ValueError(f"voice {spec!r}: {error}") from None
+
 
 ROBOT_VOICE = Voice("espeak-ng", "en-us")
 PERSON_VOICE = Voice("flite", "slt")

@@ -8,7 +8,7 @@ from speech import SAMPLE_RATE
 from speech.align import align, word_errors
 from speech.asr import Recogniser
 from speech.noise import add_noise, babble_noise_at, mix_at, white_noise_at
-from speech.tts import PERSON_VOICE, ROBOT_VOICE, Voice, speak
+from speech.tts import PERSON_VOICE, ROBOT_VOICE, Voice, parse_voice, speak
 
 SENTENCES = ("hello pepper nice to meet you", "can we play a game", "no thank you")
 
@@ -39,7 +39,13 @@ def test_tts_gives_16khz_mono_int16_and_two_distinct_voices():
     assert np.array_equal(speak("yes", ROBOT_VOICE), speak("yes", ROBOT_VOICE))  # the floor is seeded
 
 
-def test_voice_rejects_unknown_engine_and_flite_voice():
+def test_voice_specs_parse_and_reject_unknown_engines_and_voices():
+    assert parse_voice("flite:slt") == PERSON_VOICE and parse_voice(ROBOT_VOICE.spec) == ROBOT_VOICE
+    assert parse_voice("espeak-ng:en-us+f3@1.2") == Voice("espeak-ng", "en-us+f3", 1.2)
+    with pytest.raises(ValueError, match="engine:name"):
+        parse_voice("slt")
+    with pytest.raises(ValueError, match="rate"):
+        parse_voice("flite:slt@9")
     with pytest.raises(ValueError, match="engine"):
         Voice("festival", "kal")
     with pytest.raises(ValueError, match="flite voice"):
