@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root):
-# the software Vulkan driver SAPIEN renders with, the CPU build of torch from local disk, and ncbot itself.
+# the software Vulkan driver SAPIEN renders with, the TTS engines the robot speaks with (flite, espeak-ng),
+# the CPU build of torch from local disk, and ncbot itself (pocketsphinx, the recogniser, comes from PyPI with it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,6 +25,19 @@ install_lavapipe() {
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
 }
 
+install_tts() {
+  # speech/tts.py runs flite (the simulated person's voices) and espeak-ng (the robot's voice) as subprocesses.
+  if command -v flite >/dev/null && command -v espeak-ng >/dev/null; then
+    log "TTS engines already installed"; return
+  fi
+  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+    log "not root or no apt-get: install flite and espeak-ng yourself (docs/speech.md)"; return
+  fi
+  log "installing the TTS engines flite and espeak-ng"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq flite espeak-ng >/dev/null
+}
+
 install_python() {
   if ! python -c "import torch, sys; sys.exit(0 if torch.__version__.startswith('2.13.0') else 1)" 2>/dev/null; then
     log "installing torch==2.13.0 (CPU build from local disk)"
@@ -40,5 +54,6 @@ install_python() {
 }
 
 install_lavapipe
+install_tts
 install_python
 log "done"

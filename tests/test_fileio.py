@@ -105,7 +105,7 @@ def test_no_other_atomic_write_in_the_packages() -> None:
     root = Path(__file__).resolve().parents[1]
     needles = ("os.replace(", "os.rename(", ".rename(", "mkstemp(", "NamedTemporaryFile(")
     found = [f"{path.relative_to(root)}: {needle}"
-             for package in ("envs", "modules", "vision", "logs", "robot_sim", "pipelines")
+             for package in ("envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
              for path in sorted((root / package).rglob("*.py"))
              for needle in needles if needle in path.read_text()]
     assert not found, "write through fileio (atomic_path / atomic_write_bytes / atomic_write_text) instead:\n" + "\n".join(found)

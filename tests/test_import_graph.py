@@ -14,16 +14,17 @@ from pathlib import Path
 
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("fileio", "envs", "modules", "vision", "logs", "robot_sim", "pipelines")
-#: What each package may import (besides itself): pipelines -> robot_sim -> vision/modules/logs -> envs -> fileio.
+PACKAGES = ("fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
+#: What each package may import (besides itself): pipelines -> robot_sim -> vision/modules/speech/logs -> envs -> fileio.
 ALLOWED = {
     "fileio": set(),
     "envs": {"fileio"},
     "vision": {"fileio"},
     "modules": {"envs", "fileio"},
+    "speech": {"envs", "fileio"},
     "logs": {"envs", "fileio"},
-    "robot_sim": {"envs", "modules", "vision", "logs", "fileio"},
-    "pipelines": {"envs", "modules", "vision", "logs", "robot_sim", "fileio"},
+    "robot_sim": {"envs", "modules", "vision", "speech", "logs", "fileio"},
+    "pipelines": {"envs", "modules", "vision", "speech", "logs", "robot_sim", "fileio"},
 }
 
 
