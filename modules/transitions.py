@@ -60,7 +60,8 @@ def prepare_transitions(batch: TensorDictBase, config: Any,
     `config` is the run's `pipelines.config.RunConfig`; read: loss.reward, loss.loss_reward, loss.bootstrap and
     lookahead. `multistep` is `make_multistep(...)` of the run (it holds the rows' unfinished windows)."""
     if batch.batch_dims != 2:
-        raise ValueError(f"prepare_transitions needs collector batches shaped (env rows, time), got {tuple(batch.shape)}")
+        raise ValueError(f"prepare_transitions needs collector batches shaped (env rows, time), "
+                         f"got {tuple(batch.shape)}")
     loss = config.loss
     transitions = batch.select(*TRANSITION_KEYS, *bootstrap_keys(loss.bootstrap))
     transitions = learning_rewards(transitions, loss.reward, loss_reward=loss.loss_reward)

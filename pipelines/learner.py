@@ -81,7 +81,7 @@ class Learner:
         return turned
 
     def update(self, batch: TensorDictBase) -> torch.Tensor:
-        """One gradient step on a sampled batch, then a target-network step; returns the loss (a 0-d tensor, no sync)."""
+        """One gradient step on a sampled batch, then a target-network step; returns the loss (0-d tensor, no sync)."""
         if self.symmetries is not None:
             batch = self.augmented(batch)
         loss_td = self.loss_module(batch)
