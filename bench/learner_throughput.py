@@ -9,10 +9,11 @@ Every figure is measured per CPU second of this process (`time.process_time`), w
 with other jobs far better than wall time; the learners take turns over `--rounds` rounds and the median round is
 reported, so a burst of load hits both sides alike. Updates are timed on a full replay buffer that takes a fresh
 collected batch every `optim.updates_per_batch` updates (untimed), as in training. Rows for ncbot: the update the
-training loop runs at the config's precision, the same update at the other precision (`optim.precision`), without
-the target-value cache, and through the plain TorchRL calls the learner replaced (TensorDict-indexed
-`LazyTensorStorage` + `loss_module(batch)`; the same numbers bit for bit), so each speed-up is visible on its own. OpenSpiel is a bench-time install only (`pip install open-spiel dm-tree`);
-without it the script says so and prints our figures alone.
+training loop runs (`Learner.update`: `loss_module(td)`, backward, Adam, target updater) at the config's precision,
+the same update at the other precision (`optim.precision`), and the whole loop (collect + updates).
+To compare with another commit, run this script from each tree in turn (docs/learner-speed.md gives the command).
+OpenSpiel is a bench-time install only (`pip install open-spiel dm-tree`); without it the script says so and
+prints our figures alone.
 """
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ def _rate(step: Callable[[], object], seconds: float, warmup: int = 5) -> float:
 
 def _update_rate(update: Callable[[], object], refresh: Callable[[], object], every: int, seconds: float) -> float:
     """Calls of `update()` per CPU second spent in them, with an untimed `refresh()` (new experience) before every
-    `every` updates: the replay buffer turns over as in training, so per-slot caches see realistic hit rates."""
+    `every` updates: the replay buffer turns over as in training."""
     count, spent = 0, 0.0
     while spent < seconds:
         if count % every == 0:
@@ -60,16 +61,15 @@ class Ours:
 
     def __init__(self, config_path: str) -> None:
         from torchrl.collectors import Collector
-        from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
         from modules.policy import make_policies
         from modules.qnet import make_qnet, seeded_init
-        from modules.rewards import learning_rewards
         from modules.symmetry import make_symmetries
+        from modules.transitions import make_multistep, prepare_transitions
         from pipelines.config import load_config
         from pipelines.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train import TRANSITION_KEYS, frames_per_batch
+        from pipelines.train import frames_per_batch
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -85,18 +85,13 @@ class Ours:
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
-        # the plain TorchRL storage the learner used before GatherStorage, filled with the same transitions
-        self.plain_buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(config.buffer.size),
-                                                   batch_size=config.buffer.batch_size)
         self.collector = Collector(self.env, agent.explore, frames_per_batch=self.batch_frames, total_frames=-1,
                                    auto_register_policy_transforms=False)
         batches = iter(self.collector)
+        multistep = make_multistep(config.loss.n_step, config.loss.gamma)
 
-        def collect() -> None:
-            transitions = learning_rewards(next(batches).select(*TRANSITION_KEYS).reshape(-1), config.loss.reward,
-                                           loss_reward=config.loss.loss_reward)
-            self.buffer.extend(transitions)
-            self.plain_buffer.extend(transitions)
+        def collect() -> None:  # what the training loop does with a collected batch before the updates
+            self.buffer.extend(prepare_transitions(next(batches), config, multistep))
 
         self.collect = collect
         while len(self.buffer) < config.buffer.size:  # a full buffer, as for most of a training run
@@ -105,17 +100,6 @@ class Ours:
     def measure(self, seconds: float) -> dict[str, float]:
         config, buffer = self.config, self.buffer
         default = self.learners[config.optim.precision]
-        plain = default.loss_module
-
-        def plain_update() -> None:  # TorchRL calls on TensorDicts end to end, as the learner did before
-            loss = plain(self.plain_buffer.sample())["loss"]
-            default.optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(plain.parameters(), default.max_grad_norm, foreach=True)
-            default.optimizer.step()
-            default.target_updater.step()
-            if default.target_cache is not None and default.target_updater.counter == 0:
-                default.target_cache.clear()  # the target changed behind the cache's back
 
         def train_iteration() -> None:  # what the training loop does per collected batch
             self.collect()
@@ -124,33 +108,16 @@ class Ours:
         def rate(update: Callable[[], object]) -> float:
             return _update_rate(update, self.collect, config.optim.updates_per_batch, seconds)
 
-        def without_cache() -> None:
-            cache, default.target_cache = default.target_cache, None
-            try:
-                default.update(buffer.sample())
-            finally:
-                default.target_cache = cache
-            if cache is not None and default.target_updater.counter == 0:
-                cache.clear()  # the target changed behind the cache's back
-
         iterations = _rate(train_iteration, seconds, warmup=1)
         other = "bf16" if config.optim.precision == "fp32" else "fp32"
-        cache = default.target_cache
-        looked_up, computed = (cache.looked_up, cache.computed) if cache else (0, 0)
-        figures = {"updates_per_s": rate(lambda: default.update(buffer.sample()))}
-        if cache:
-            figures["target_rows_computed"] = (cache.computed - computed) / max(1, cache.looked_up - looked_up)
-        figures.update({
+        return {
+            "updates_per_s": rate(lambda: default.update(buffer.sample())),
             "env_frames_per_s": _rate(self.collect, seconds) * self.batch_frames,
             "other_updates_per_s": rate(lambda: self.learners[other].update(buffer.sample())),
-            "no_cache_updates_per_s": rate(without_cache),
-            "plain_updates_per_s": rate(plain_update),
             "sample_per_s": _rate(buffer.sample, seconds),
-            "plain_sample_per_s": _rate(self.plain_buffer.sample, seconds),
             "loop_frames_per_s": iterations * self.batch_frames,
             "loop_updates_per_s": iterations * config.optim.updates_per_batch,
-        })
-        return figures
+        }
 
     def close(self) -> None:
         self.collector.shutdown()
@@ -267,10 +234,8 @@ def op_counts(config_path: str) -> None:
     faster products (the dtype casts)."""
     from torch.profiler import ProfilerActivity, profile
 
-    from pipelines.learner import WRITE_STAMP_KEY
-
     ours = Ours(config_path)
-    batch = ours.buffer.sample().exclude(WRITE_STAMP_KEY)  # the whole update, target pass included (no cache)
+    batch = ours.buffer.sample()
     for precision, learner in ours.learners.items():
         for _ in range(3):
             learner.update(batch)
@@ -328,17 +293,9 @@ def main() -> None:
           f"{mine['env_frames_per_s']:,.0f} | {mine['updates_per_s']:,.0f} |")
     other = "bf16" if precision == "fp32" else "fp32"
     print(f"| ncbot same update, optim.precision={other} | | {mine['other_updates_per_s']:,.0f} |")
-    print(f"| ncbot same update without the target-value cache ({precision}) | | {mine['no_cache_updates_per_s']:,.0f} |")
-    print(f"| ncbot same update through plain TorchRL calls ({precision}; LazyTensorStorage + loss_module(batch), "
-          f"no cache) | | {mine['plain_updates_per_s']:,.0f} |")
     print(f"| ncbot full training loop (collect + {ours.config.optim.updates_per_batch} updates per "
           f"{ours.batch_frames} frames) | {mine['loop_frames_per_s']:,.0f} | {mine['loop_updates_per_s']:,.0f} |")
-    print(f"replay sampling: {1e6 / mine['sample_per_s']:,.0f} us per batch (GatherStorage) vs "
-          f"{1e6 / mine['plain_sample_per_s']:,.0f} us (LazyTensorStorage)")
-    if "target_rows_computed" in mine:
-        print(f"target-value cache: {mine['target_rows_computed']:.0%} of the sampled rows went through the target "
-              f"network (full buffer of {ours.config.buffer.size:,}, {ours.config.optim.updates_per_batch} updates "
-              f"per collected batch, target copied every {ours.config.loss.target_period} updates)")
+    print(f"replay sampling: {1e6 / mine['sample_per_s']:,.0f} us per batch of {batch}")
     if theirs is not None:
         their = _median(their_rounds)
         print(f"| OpenSpiel PyTorch DQN, tic_tac_toe (rl_environment, 1 game) | {their['env_frames_per_s']:,.0f} | "

@@ -9,9 +9,11 @@ agent lost 0.48 % of the robot-second games exactly; bootstrapping over the gree
 0.01 of exact and the exact loss at 0.07 % (docs/learning.md). `greedy` is the Bellman target of the masked
 policy the agent actually follows (the expectimax the docs compare with).
 
-Mechanics: the greedy mask of the NEXT state is computed from the env's next look-ahead keys with the agent's
-own mask rule and stored in place of ("next", "action_mask"), which is what `CompetitiveDQNLoss` maximises
-over; the two look-ahead keys are then dropped so the replay buffer stays as small as before.
+Mechanics: the mask the target maximises over is stored under its own key, ("next", "bootstrap_mask"), which
+`CompetitiveDQNLoss` reads through `set_keys(bootstrap_mask="bootstrap_mask")`: a copy of the env's
+("next", "action_mask") for `available`, the NEXT state's greedy mask (the agent's own mask rule applied to the
+env's next look-ahead keys) for `greedy`. The two look-ahead keys are then dropped so the replay buffer stays
+small; ("next", "action_mask") keeps the env's meaning.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from modules.masks import lookahead_rule
 
 BOOTSTRAP_CHOICES = ("available", "greedy")
 NEXT_LOOKAHEAD_KEYS = (("next", "lookahead_reward"), ("next", "winning_actions"))
+BOOTSTRAP_MASK_KEY = ("next", "bootstrap_mask")
 
 
 def _check(bootstrap: str) -> None:
@@ -35,11 +38,11 @@ def bootstrap_keys(bootstrap: str) -> tuple[tuple[str, str], ...]:
 
 
 def set_bootstrap_mask(transitions: TensorDictBase, bootstrap: str, lookahead: str) -> TensorDictBase:
-    """With `greedy`, ("next", "action_mask") becomes the next state's greedy mask under the `lookahead` rule;
-    `available` returns the transitions unchanged."""
+    """Write ("next", "bootstrap_mask"): the next state's available actions (`available`) or its greedy mask under
+    the `lookahead` rule (`greedy`); the look-ahead keys `greedy` reads are dropped."""
     _check(bootstrap)
     if bootstrap == "available":
-        return transitions
+        return transitions.set(BOOTSTRAP_MASK_KEY, transitions.get(("next", "action_mask")))
     rule = lookahead_rule(lookahead)
     if getattr(rule, "needs_tensordict", False):
         raise ValueError(f"loss.bootstrap 'greedy' works with the one-step mask rules (none, variant, one_step), "
@@ -49,5 +52,5 @@ def set_bootstrap_mask(transitions: TensorDictBase, bootstrap: str, lookahead: s
         raise ValueError(f"loss.bootstrap 'greedy' needs the transitions' {missing} (add them to the selected keys)")
     _, greedy = rule(transitions.get(("next", "action_mask")), transitions.get(NEXT_LOOKAHEAD_KEYS[0]),
                      transitions.get(NEXT_LOOKAHEAD_KEYS[1]))
-    transitions.set(("next", "action_mask"), greedy)
+    transitions.set(BOOTSTRAP_MASK_KEY, greedy)
     return transitions.exclude(*NEXT_LOOKAHEAD_KEYS)

@@ -4,7 +4,8 @@ Why an alternative: the paper's reward pays +5 for "about to win" (making a thre
 return-maximising agent learns to keep making threats instead of closing the game, and against a random user
 some of those games end in draws. `outcome` rewards pay only for how the game ends (+5 win, +1 draw, -5 loss)
 and keep the -5 for an act outside the action mask; the env, the look-ahead masks and all reported metrics still
-use the paper's rewards.
+use the paper's rewards. The learner's reward goes under its own key, ("next", "learning_reward"), so
+("next", "reward") keeps the env's meaning; the loss reads it through `set_keys(reward="learning_reward")`.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from tensordict import TensorDictBase
 
 OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW = 0, 1, 2, 3
 REWARD_MODES = ("paper", "outcome")
+LEARNING_REWARD_KEY = ("next", "learning_reward")
 
 
 def outcome_rewards(transitions: TensorDictBase, loss_reward: float = -5.0) -> torch.Tensor:
@@ -33,11 +35,14 @@ def outcome_rewards(transitions: TensorDictBase, loss_reward: float = -5.0) -> t
 
 
 def learning_rewards(transitions: TensorDictBase, mode: str, loss_reward: float = -5.0) -> TensorDictBase:
-    """Set ("next", "reward") to the rewards the learner trains on (`paper` leaves the env's rewards;
-    `loss_reward` applies to `outcome` only)."""
+    """Write ("next", "learning_reward"), the reward the learner trains on: the env's ("next", "reward") under
+    `paper`, the game-outcome reward under `outcome` (`loss_reward` applies to `outcome` only). The env's reward
+    itself is left as it is."""
     if mode == "paper":
-        return transitions
-    if mode == "outcome":
-        transitions.set(("next", "reward"), outcome_rewards(transitions, loss_reward))
-        return transitions
-    raise ValueError(f"unknown reward mode {mode!r}; expected one of {', '.join(REWARD_MODES)}")
+        reward = transitions.get(("next", "reward"))
+    elif mode == "outcome":
+        reward = outcome_rewards(transitions, loss_reward)
+    else:
+        raise ValueError(f"unknown reward mode {mode!r}; expected one of {', '.join(REWARD_MODES)}")
+    transitions.set(LEARNING_REWARD_KEY, reward)
+    return transitions

@@ -27,12 +27,6 @@ from fileio import atomic_write_text
 from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, latest_training_state, save_periodic
 from pipelines.config import RunConfig, config_from_dict, dump_config
 
-# Keys a transition needs for the loss; everything else the policy wrote (masks, Q-values) stays out of the buffer.
-TRANSITION_KEYS = (
-    "observation", "action_mask", "action", "outcome", ("next", "outcome"),
-    ("next", "observation"), ("next", "action_mask"), ("next", "reward"),
-    ("next", "done"), ("next", "terminated"), ("next", "truncated"),
-)
 SUCCESS_THRESHOLD = 0.995
 EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
 
@@ -66,11 +60,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json)."""
     from torchrl.collectors import Collector
 
-    from modules.bootstrap import bootstrap_keys, set_bootstrap_mask
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
-    from modules.rewards import learning_rewards
     from modules.symmetry import make_symmetries
+    from modules.transitions import make_multistep, prepare_transitions
     from pipelines.evaluate import evaluate_agent
     from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
@@ -108,14 +101,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     symmetries = make_symmetries(config.buffer.augment, env, seed)
     learner = Learner.from_config(qnet, config, symmetries)
-    nstep = None
-    if config.loss.n_step > 1:  # opt-in n-step returns (modules/nstep.py): the loss then bootstraps with gamma**n
-        from modules.nstep import NStepTransitions
-
-        nstep = NStepTransitions(config.loss.n_step, config.loss.gamma)
-        learner.loss_module.make_value_estimator(gamma=nstep.bootstrap_gamma)
-    extra_keys = bootstrap_keys(config.loss.bootstrap)  # what the TD max's mask is built from (loss.bootstrap)
-    buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)  # index-gather reads, same samples
+    multistep = make_multistep(config.loss.n_step, config.loss.gamma)  # n-step returns when loss.n_step > 1
+    buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
 
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
     history: list[dict[str, Any]] = []
@@ -181,12 +168,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            transitions = learning_rewards(batch.select(*TRANSITION_KEYS, *extra_keys).reshape(-1), config.loss.reward,
-                                           loss_reward=config.loss.loss_reward)
-            transitions = set_bootstrap_mask(transitions, config.loss.bootstrap, config.lookahead)
-            if nstep is not None:
-                transitions = nstep(transitions.reshape(batch.shape))
-            buffer.extend(transitions)
+            # learning reward, bootstrap mask and n-step windows under their own keys (modules/transitions.py)
+            buffer.extend(prepare_transitions(batch, config, multistep))
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)

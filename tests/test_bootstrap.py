@@ -1,11 +1,12 @@
-"""loss.bootstrap: `greedy` stores the next state's greedy mask (the agent's own rule) where the loss maximises."""
+"""loss.bootstrap: ("next", "bootstrap_mask"), where the loss maximises, holds the next state's greedy mask (the agent's
+own rule) under `greedy` and its available actions under `available`; the env's masks keep their meaning."""
 from __future__ import annotations
 
 import pytest
 import torch
 
 from envs import make_env
-from modules.bootstrap import NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
+from modules.bootstrap import BOOTSTRAP_MASK_KEY, NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
 from modules.masks import GREEDY_MASK_KEY, LookaheadMasks
 
 torch.set_num_threads(1)
@@ -31,18 +32,19 @@ def test_greedy_bootstrap_mask_is_the_policy_greedy_mask_of_the_next_state(looka
     next_state = transitions.get("next").clone()
     expected = LookaheadMasks(lookahead)(next_state).get(GREEDY_MASK_KEY)
     result = set_bootstrap_mask(transitions.clone(), "greedy", lookahead)
-    assert torch.equal(result.get(("next", "action_mask")), expected)
+    assert torch.equal(result.get(BOOTSTRAP_MASK_KEY), expected)
     assert not any(key in result.keys(include_nested=True) for key in NEXT_LOOKAHEAD_KEYS)  # buffer stays small
-    assert torch.equal(result.get("action_mask"), transitions.get("action_mask"))  # the root mask is untouched
+    for key in ("action_mask", ("next", "action_mask")):  # the env's masks are untouched
+        assert torch.equal(result.get(key), transitions.get(key))
     if lookahead == "one_step":  # on 3x3 the greedy set really is smaller than the available moves in many states
-        assert bool((result.get(("next", "action_mask")) != transitions.get(("next", "action_mask"))).any())
+        assert bool((result.get(BOOTSTRAP_MASK_KEY) != transitions.get(("next", "action_mask"))).any())
 
 
 def test_available_is_unchanged_and_bad_input_is_named() -> None:
     transitions = rollout_transitions(steps=3, batch=8)
     assert bootstrap_keys("available") == () and bootstrap_keys("greedy") == NEXT_LOOKAHEAD_KEYS
     same = set_bootstrap_mask(transitions.clone(), "available", "one_step")
-    assert torch.equal(same.get(("next", "action_mask")), transitions.get(("next", "action_mask")))
+    assert torch.equal(same.get(BOOTSTRAP_MASK_KEY), transitions.get(("next", "action_mask")))
     with pytest.raises(ValueError, match="unknown loss.bootstrap 'best'; expected one of available, greedy"):
         bootstrap_keys("best")
     with pytest.raises(ValueError, match="needs the transitions'"):

@@ -63,9 +63,13 @@ def test_loss_reward_prices_only_lost_games() -> None:
     none, won, lost, draw = OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW
     batch = _transitions([none, none, none, none, lost, none], [won, lost, draw, none, lost, none],
                          [True, True, True, True, True, False])
-    rewards = learning_rewards(batch, "outcome", loss_reward=-20.0).get(("next", "reward")).flatten()
+    result = learning_rewards(batch, "outcome", loss_reward=-20.0)
+    rewards = result.get(("next", "learning_reward")).flatten()
     # win, loss (re-priced), draw, game goes on, already over, act outside the mask (keeps -5)
     assert rewards.tolist() == [5.0, -20.0, 1.0, 0.0, 0.0, -5.0]
+    assert (result.get(("next", "reward")) == 0).all()  # the env's reward keeps its meaning
+    paper = learning_rewards(batch, "paper").get(("next", "learning_reward"))
+    assert torch.equal(paper, batch.get(("next", "reward")))
 
 
 def test_loss_reward_must_be_negative() -> None:

@@ -160,9 +160,10 @@ def test_unknown_loss_function_is_a_clear_error() -> None:
         CompetitiveDQNLoss(make_qnet(3, N_ACTIONS, [4]), loss_function="l3")
 
 
-# --- speed paths: the same numbers as the plain TorchRL calls, and bf16 as an opt-in ---------------------------------
+# --- the keys training wires, bf16, and the Learner's update -----------------------------------------------------
 
 def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDict:
+    """Transitions as prepare_transitions stores them: learning reward and bootstrap mask under their own keys."""
     generator = torch.Generator().manual_seed(seed)
     next_mask = torch.rand(batch, N_ACTIONS, generator=generator) < 0.5
     next_mask[:, 0] = True
@@ -170,63 +171,72 @@ def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDic
     return TensorDict({
         "observation": torch.rand(batch, n_features, generator=generator),
         "action": torch.randint(0, N_ACTIONS, (batch,), generator=generator),
-        "next": {"observation": torch.rand(batch, n_features, generator=generator), "action_mask": next_mask,
-                 "reward": torch.randn(batch, 1, generator=generator), "terminated": terminated,
-                 "done": terminated.clone()},
+        "next": {"observation": torch.rand(batch, n_features, generator=generator), "bootstrap_mask": next_mask,
+                 "learning_reward": torch.randn(batch, 1, generator=generator), "terminated": terminated,
+                 "done": terminated.clone(), "truncated": torch.zeros(batch, 1, dtype=torch.bool)},
     }, batch_size=[batch])
 
 
 def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
     from modules.qnet import seeded_init
+    from modules.transitions import LOSS_KEYS
 
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
     loss = CompetitiveDQNLoss(qnet, double_dqn=double_dqn, precision=precision)
+    loss.set_keys(**LOSS_KEYS)
     loss.make_value_estimator(gamma=0.9)
     return loss
 
 
-@pytest.mark.parametrize("double_dqn", [False, True])
-def test_plain_tensor_loss_is_the_tensordict_loss_bit_for_bit(double_dqn: bool) -> None:
-    loss = mlp_loss(double_dqn=double_dqn)
-    td = mlp_transitions(64)
-    via_tensordict = loss(td.clone())["loss"]
-    via_tensors, predicted, target = loss.td_loss(*loss.td_loss_inputs(td))
-    assert torch.equal(via_tensors, via_tensordict)
-    # and the target is TorchRL's own TD(0) estimate from the same next value
-    next_value = loss.bootstrap_value(td["next", "observation"], td["next", "action_mask"])
-    expected = loss.value_estimator.value_estimate(td.clone(), next_value=next_value).squeeze(-1)
-    assert torch.equal(target, expected)
+def _expected_target(loss: CompetitiveDQNLoss, td: TensorDict, gamma: float = 0.9) -> torch.Tensor:
+    """y written out by hand: the target network's Q (functional_call on the target weights), masked max."""
+    names = [name for name, _ in loss.value_network[0].module.named_parameters()]
+    target = {name: loss.target_value_network_params.get(("module", "0", "module", *name.split(".")))
+              for name in names}
+    next_q = torch.func.functional_call(loss.value_network[0].module, target, (td["next", "observation"],))
+    best = next_q.masked_fill(~td["next", "bootstrap_mask"], torch.finfo(next_q.dtype).min).max(-1).values
+    return td["next", "learning_reward"].squeeze(-1) + gamma * (~td["next", "terminated"].squeeze(-1)) * best
 
 
-def test_target_pass_by_layers_equals_functional_call_and_follows_hard_updates() -> None:
+def test_set_keys_wires_the_learning_reward_and_the_bootstrap_mask() -> None:
+    """Training reads ("next", "learning_reward") and maximises over ("next", "bootstrap_mask"); the env's
+    ("next", "reward") and ("next", "action_mask"), present with other values, are not read."""
     loss = mlp_loss()
-    updater = make_target_updater(loss, "hard", period=1)
-    observation = mlp_transitions(32)["observation"]
-    target_params = loss.target_value_network_params
+    td = mlp_transitions(64)
+    td["next", "reward"] = torch.full((64, 1), 100.0)
+    td["next", "action_mask"] = torch.ones(64, N_ACTIONS, dtype=torch.bool)
+    out = loss(td)
+    expected = _expected_target(loss, td)
+    assert out["target_mean"].item() == pytest.approx(expected.mean().item(), abs=1e-5)
     with torch.no_grad():
-        for p in loss.value_network_params.values(True, True):
-            p.add_(0.1)
-    swapped = {name: target_params.get(("module", "0", "module", *name.split("."))) for name in loss._qnet_param_names}
-    reference = torch.func.functional_call(loss._qnet_tensor_module, swapped, (observation,))
-    by_layers = loss._q_values(observation, target_params)
-    assert torch.equal(by_layers, reference)
-    online = loss._q_values(observation, loss.value_network_params)
-    assert not torch.allclose(by_layers, online)  # the target still holds the old weights
-    updater.step()
-    assert torch.equal(loss._q_values(observation, target_params), online)
+        q = loss.value_network[0](td.select("observation"))["action_value"]
+    predicted = q.gather(-1, td["action"].unsqueeze(-1)).squeeze(-1)
+    assert torch.allclose(td["td_error"].squeeze(-1), (predicted - expected).abs(), atol=1e-5)
+
+
+def test_steps_to_next_obs_discounts_the_bootstrap_by_gamma_to_the_window_length() -> None:
+    """n-step transitions (TorchRL's MultiStepTransform writes `steps_to_next_obs`) bootstrap with gamma^k."""
+    loss = mlp_loss()
+    td = mlp_transitions(32)
+    td["next", "terminated"] = torch.zeros(32, 1, dtype=torch.bool)
+    one_step = loss(td.clone())["target_mean"]
+    td["steps_to_next_obs"] = torch.full((32,), 3, dtype=torch.long)
+    bootstrap = (_expected_target(loss, td) - td["next", "learning_reward"].squeeze(-1)) / 0.9
+    three_steps = (td["next", "learning_reward"].squeeze(-1) + 0.9 ** 3 * bootstrap).mean()
+    assert loss(td)["target_mean"].item() == pytest.approx(three_steps.item(), abs=1e-5)
+    assert one_step.item() != pytest.approx(three_steps.item(), abs=1e-3)
 
 
 def test_bf16_runs_the_products_in_bfloat16_with_float32_weights_and_gradients() -> None:
     exact, fast = mlp_loss("fp32"), mlp_loss("bf16")
     td = mlp_transitions(256)
-    loss_exact, predicted_exact, _ = exact.td_loss(*exact.td_loss_inputs(td))
-    loss_fast, predicted_fast, _ = fast.td_loss(*fast.td_loss_inputs(td))
-    assert predicted_fast.dtype == torch.float32 and loss_fast.dtype == torch.float32
-    assert not torch.equal(predicted_fast, predicted_exact)  # really computed in bfloat16 ...
-    assert torch.allclose(predicted_fast, predicted_exact, rtol=0.02, atol=0.02)  # ... to bfloat16 accuracy
-    assert loss_fast.item() == pytest.approx(loss_exact.item(), rel=0.02)
-    loss_fast.backward()
+    out_exact, out_fast = exact(td.clone()), fast(td.clone())
+    assert out_fast["loss"].dtype == torch.float32
+    assert out_fast["q_mean"].item() != out_exact["q_mean"].item()  # really computed in bfloat16 ...
+    assert out_fast["q_mean"].item() == pytest.approx(out_exact["q_mean"].item(), rel=0.02, abs=0.02)  # ... roughly
+    assert out_fast["loss"].item() == pytest.approx(out_exact["loss"].item(), rel=0.02)
+    out_fast["loss"].backward()
     for p in fast.value_network_params.values(True, True):
         assert p.dtype == torch.float32 and p.grad is not None and p.grad.dtype == torch.float32
     assert all(p.grad is None for p in fast.target_value_network_params.values(True, True))
@@ -237,60 +247,13 @@ def test_unknown_precision_is_a_clear_error() -> None:
         CompetitiveDQNLoss(make_qnet(3, N_ACTIONS, [4]), precision="fp16")
 
 
-def _filled_buffers(size: int = 300, batch: int = 48):
-    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-
+def _filled_buffer(size: int = 300, batch: int = 48):
     from pipelines.learner import make_replay_buffer
 
-    fast = make_replay_buffer(size, batch)
-    plain = TensorDictReplayBuffer(storage=LazyTensorStorage(size), batch_size=batch)
+    buffer = make_replay_buffer(size, batch)
     for seed in range(3):  # 3 x 128 rows into 300 slots: the ring wraps
-        rows = mlp_transitions(128, seed=seed)
-        fast.extend(rows.clone())
-        plain.extend(rows.clone())
-    return fast, plain
-
-
-def _without_stamps(batch: TensorDict) -> TensorDict:
-    from pipelines.learner import WRITE_STAMP_KEY
-
-    return batch.exclude(WRITE_STAMP_KEY)
-
-
-def test_gather_storage_samples_the_same_batches_as_lazy_tensor_storage() -> None:
-    fast, plain = _filled_buffers()
-    for _ in range(3):
-        torch.manual_seed(7)
-        ours = fast.sample()
-        torch.manual_seed(7)
-        theirs = plain.sample()
-        assert set(_without_stamps(ours).keys(True, True)) == set(theirs.keys(True, True))
-        assert (_without_stamps(ours) == theirs).all()
-    assert (fast[10:20] == plain[10:20]).all()  # slices and other reads go through TorchRL unchanged
-
-
-def test_gather_storage_stamps_each_write_so_rewritten_slots_are_told_apart() -> None:
-    from pipelines.learner import WRITE_STAMP_KEY
-
-    fast, _ = _filled_buffers(size=300)  # writes of 128 rows: slots 0-127, 128-255, 256-299 + 0-83 (wrapped)
-    stamps = fast.storage._write_stamps
-    assert len(set(stamps[:84].tolist())) == 1 and len(set(stamps[84:128].tolist())) == 1
-    assert stamps[0] != stamps[100] and stamps[0] != stamps[200]
-    batch = fast.sample()
-    assert torch.equal(batch[WRITE_STAMP_KEY], stamps[batch["index"]])
-
-
-def test_gather_storage_state_round_trips_for_resume() -> None:
-    from pipelines.learner import make_replay_buffer
-
-    fast, _ = _filled_buffers()
-    restored = make_replay_buffer(300, 48)
-    restored.load_state_dict(fast.state_dict())
-    assert len(restored) == len(fast)
-    torch.manual_seed(3)
-    ours = fast.sample()
-    torch.manual_seed(3)
-    assert (_without_stamps(restored.sample()) == _without_stamps(ours)).all()
+        buffer.extend(mlp_transitions(128, seed=seed))
+    return buffer
 
 
 def _learner(batch_size: int | None = None, **loss_settings):
@@ -308,47 +271,35 @@ def _learner(batch_size: int | None = None, **loss_settings):
     return Learner.from_config(qnet, config)
 
 
-def _plain_torchrl_update(learner, batch: TensorDict) -> None:
-    """The update as TorchRL's calls spell it: loss_module(batch), backward, clip, Adam, target updater."""
-    loss = learner.loss_module(batch)["loss"]
-    learner.optimizer.zero_grad(set_to_none=True)
-    loss.backward()
-    torch.nn.utils.clip_grad_norm_(learner.loss_module.parameters(), learner.max_grad_norm, foreach=True)
-    learner.optimizer.step()
-    learner.target_updater.step()
-
-
 @pytest.mark.parametrize("target_update", ["hard", "soft"])
-def test_learner_update_with_target_cache_matches_the_plain_torchrl_update_bit_for_bit(target_update: str) -> None:
-    """Learner.update on GatherStorage batches (plain tensors, cached bootstrap values across hard updates and slot
-    rewrites) and the TorchRL calls on LazyTensorStorage batches give the same weights, update after update."""
-    fast, plain = _learner(target_period=3, target_update=target_update), _learner(target_period=3,
-                                                                                   target_update=target_update)
-    assert (fast.target_cache is not None) == (target_update == "hard")
-    fast_buffer, plain_buffer = _filled_buffers(size=300, batch=64)
-    for step in range(12):
-        if step % 4 == 3:  # new experience overwrites slots the cache has seen
-            rows = mlp_transitions(100, seed=100 + step)
-            fast_buffer.extend(rows.clone())
-            plain_buffer.extend(rows.clone())
-        torch.manual_seed(step)
-        fast.update(fast_buffer.sample())
-        torch.manual_seed(step)
-        _plain_torchrl_update(plain, plain_buffer.sample())
-        for a, b in zip(fast.loss_module.parameters(), plain.loss_module.parameters()):
+def test_learner_update_is_the_torchrl_update_written_out(target_update: str) -> None:
+    """Learner.update = loss_module(td), backward, clip, Adam, target updater: the same weights, update after update,
+    as those calls written out here (and the target follows the updater)."""
+    learner, reference = _learner(target_period=3, target_update=target_update), \
+        _learner(target_period=3, target_update=target_update)
+    buffer = _filled_buffer(batch=64)
+    for step in range(8):
+        batch = buffer.sample()
+        learner.update(batch.clone())
+        loss = reference.loss_module(batch.clone())["loss"]
+        reference.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(reference.loss_module.parameters(), reference.max_grad_norm, foreach=True)
+        reference.optimizer.step()
+        reference.target_updater.step()
+        for a, b in zip(learner.loss_module.parameters(), reference.loss_module.parameters()):
             assert torch.equal(a, b), f"update {step}"
-    if fast.target_cache is not None:  # the cache did skip target rows (64 samples over 300 slots revisit some)
-        assert 0 < fast.target_cache.computed < fast.target_cache.looked_up == 12 * 64
+    targets = list(learner.loss_module.target_value_network_params.values(True, True))
+    online = list(learner.loss_module.value_network_params.values(True, True))
+    assert not all(torch.equal(a, b) for a, b in zip(targets, online))  # 8 updates: not a copy after the 8th (hard)
 
 
 @pytest.mark.parametrize("batch", [2, 64])
 def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch: int) -> None:
     """One sampling call of count x batch rows split in order = count calls of batch rows: same rows, same weights
-    bit for bit (with the target cache at 64 rows, without it at the paper's batch of 2)."""
+    bit for bit."""
     once, each = _learner(target_period=3, batch_size=batch), _learner(target_period=3, batch_size=batch)
-    assert (once.target_cache is None) == (batch < 64)
-    once_buffer, _ = _filled_buffers(size=300, batch=batch)
-    each_buffer, _ = _filled_buffers(size=300, batch=batch)
+    once_buffer, each_buffer = _filled_buffer(batch=batch), _filled_buffer(batch=batch)
     torch.manual_seed(5)
     losses = once.update_many(once_buffer, 7)
     torch.manual_seed(5)
@@ -357,46 +308,3 @@ def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch
     for a, b in zip(once.loss_module.parameters(), each.loss_module.parameters()):
         assert torch.equal(a, b)
     assert once.update_many(once_buffer, 0) == []
-
-
-def test_target_cache_is_cleared_by_a_hard_update_and_by_loading_a_state() -> None:
-    learner = _learner(target_period=2)
-    buffer, _ = _filled_buffers(size=300, batch=64)
-    cache = learner.target_cache
-    learner.update(buffer.sample())
-    assert (cache.stamps >= 0).any()
-    learner.update(buffer.sample())  # the second step copies the online weights into the target
-    assert (cache.stamps == -1).all()
-    learner.update(buffer.sample())
-    learner.load_state_dict(learner.state_dict())
-    assert (cache.stamps == -1).all()
-
-
-def test_target_cache_refuses_double_dqn() -> None:
-    with pytest.raises(ValueError, match="double_dqn"):
-        from modules.loss import TargetValueCache
-
-        TargetValueCache(mlp_loss(double_dqn=True))
-    assert _learner(double_dqn=True).target_cache is None
-
-
-@pytest.mark.parametrize("stale_rows", [1, 2, 3, 5])
-def test_target_cache_recomputes_a_few_stale_rows_with_the_bits_of_a_full_batch(stale_rows: int) -> None:
-    """A handful of rewritten slots are recomputed alone; their values must equal those of the whole batch (MKL's
-    products of 1-3 rows take another path, hence the padding)."""
-    from modules.loss import TargetValueCache
-
-    loss = mlp_loss()
-    cache = TargetValueCache(loss)
-    batch = mlp_transitions(64, seed=1)
-    slots, stamps = torch.arange(64), torch.zeros(64, dtype=torch.long)
-    next_observation, available = batch["next", "observation"], batch["next", "action_mask"]
-    cache.lookup(slots, stamps, next_observation, available)
-    rewritten = mlp_transitions(64, seed=2)
-    next_observation = next_observation.clone()
-    next_observation[:stale_rows] = rewritten["next", "observation"][:stale_rows]
-    stamps[:stale_rows] = 1
-    before = cache.computed
-    cached = cache.lookup(slots, stamps, next_observation, available)
-    assert cache.computed - before == stale_rows
-    assert torch.equal(cached, loss.bootstrap_value(next_observation, available))
