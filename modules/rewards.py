@@ -12,7 +12,8 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDictBase
 
-OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW = 0, 1, 2, 3
+from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, REWARD_DRAW, REWARD_WIN
+
 REWARD_MODES = ("paper", "outcome")
 LEARNING_REWARD_KEY = ("next", "learning_reward")
 
@@ -26,8 +27,8 @@ def outcome_rewards(transitions: TensorDictBase, loss_reward: float = -5.0) -> t
     after = transitions.get(("next", "outcome")).long()
     ended = (before == OUTCOME_NONE) & (after != OUTCOME_NONE)
     reward = torch.zeros(after.shape, dtype=torch.float32)
-    reward = torch.where(ended & (after == OUTCOME_ROBOT_WON), 5.0, reward)
-    reward = torch.where(ended & (after == OUTCOME_DRAW), 1.0, reward)
+    reward = torch.where(ended & (after == OUTCOME_ROBOT_WON), REWARD_WIN, reward)
+    reward = torch.where(ended & (after == OUTCOME_DRAW), REWARD_DRAW, reward)
     reward = torch.where(ended & (after == OUTCOME_HUMAN_WON), float(loss_reward), reward)
     action = transitions.get("action").unsqueeze(-1)
     refused = ~torch.gather(transitions.get("action_mask"), -1, action)

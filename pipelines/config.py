@@ -120,7 +120,8 @@ class LossConfig(Section):
     target_update: Literal["hard", "soft"] = "hard"  # paper: hard copy every C updates
     target_period: Positive = 50  # C, in gradient updates (hard)
     tau: Fraction = 0.005  # soft update rate
-    # n-step returns (modules/nstep.py): the target sums n discounted rewards before bootstrapping with gamma**n;
+    # n-step returns (modules/transitions.py, TorchRL's MultiStepTransform): the target sums up to n discounted
+    # rewards, then bootstraps with gamma**k (k = the steps the window really spans, fewer at a game's end);
     # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
     n_step: Positive = 1
     # which next actions the TD target maximises over (modules/bootstrap.py): every available one (the paper) or
