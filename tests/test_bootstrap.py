@@ -15,7 +15,7 @@ KEYS = ("observation", "action_mask", "action", ("next", "observation"), ("next"
 
 def rollout_transitions(steps: int = 12, batch: int = 64):
     """Real transitions of random masked play (robot from both seats), flattened like the training loop's."""
-    env = make_env("standard", batch_size=(batch,), seed=4, starts="alternate")
+    env = make_env("standard", batch_size=(batch,), seed=4, first="alternate")
     td = env.reset()
     collected = []
     for _ in range(steps):

@@ -103,7 +103,7 @@ def test_agent_checkpoint_as_an_opponent(tmp_path) -> None:
     legal = boards == 0
     cells = agent.select(boards, torch.tensor([1, 1]), legal, 2, torch.Generator().manual_seed(0))
     assert cells.tolist() == [5, 2]
-    env = make_env("standard", batch_size=(4,), opponent=f"agent:{checkpoint}", starts="human", seed=0)
+    env = make_env("standard", batch_size=(4,), opponent=f"agent:{checkpoint}", first="human", seed=0)
     td = env.reset()
     for _ in range(12):
         td = env.step(env.rand_action(td))["next"]
@@ -167,7 +167,7 @@ def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
     checkpoint = _checkpoint(tmp_path)
     config, policy, robot = load_robot(str(checkpoint), search=3, lookahead="k5", seed=0)
     assert robot == "Q-guided MCTS 3 sims, masks k5" and policy.prune is not None
-    env = make_env("standard", batch_size=(16,), seed=0, starts="alternate")
+    env = make_env("standard", batch_size=(16,), seed=0, first="alternate")
     td, pruned = env.reset(), 0
     for _ in range(60):
         td = policy(td)

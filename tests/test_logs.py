@@ -272,7 +272,7 @@ def test_an_abandoned_episode_is_not_glued_to_the_next_one(tmp_path: Path) -> No
 def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
     from envs import make_env
 
-    env = make_env(game=game, batch_size=(4,), seed=5, starts="alternate")
+    env = make_env(game=game, batch_size=(4,), seed=5, first="alternate")
     generator = torch.Generator().manual_seed(5)
     steps_by_slot: dict[int, list] = {b: [] for b in range(4)}
     finished, ids = [], []

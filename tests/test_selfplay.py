@@ -53,7 +53,7 @@ def test_pool_is_a_legal_reproducible_env_opponent(game):
     def play(seed: int) -> list:
         pool, qnet = _pool(game, random_share=0.2)
         pool.add(qnet)
-        env = make_env(game, batch_size=(8,), seed=seed, starts="alternate", opponent=pool)
+        env = make_env(game, batch_size=(8,), seed=seed, first="alternate", opponent=pool)
         td, boards = env.reset(), []
         for _ in range(40):
             td = env.step(env.rand_action(td))["next"]  # the env raises if the opponent returns an illegal cell
