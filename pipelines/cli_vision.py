@@ -121,21 +121,23 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
 
 @vision_app.command("eval")
 def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
-             what: str = typer.Option("paper,cells,reading,recogniser", help="Comma list of: paper, cells, reading, recogniser."),
-             frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading'."),
+             what: str = typer.Option("paper,cells,reading,recogniser",
+                                      help="Comma list of: paper, cells, reading, recogniser, harsh."),
+             frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading' and 'harsh'."),
              sequences: int = typer.Option(120, min=1, help="'recogniser': 3x3 drawing sequences per mark style set."),
              sequences9: int = typer.Option(40, min=1, help="'recogniser': 9x9 drawing sequences per mark style set."),
-             seed_set: str = typer.Option("heldout", help="'recogniser': heldout (never tuned on) or tuning sequences."),
+             seed_set: str = typer.Option("heldout", help="'recogniser', 'harsh': heldout (never tuned on) or tuning data."),
              weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
              loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
     """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading
-    and the move recogniser (Algorithm 1 on drawing sequences with a hand over the sheet)."""
+    (clean and "harsh" photo conditions) and the move recogniser (Algorithm 1 on drawing sequences with a
+    hand over the sheet)."""
     from vision import experiments as ex
 
     parts = [p.strip() for p in what.split(",") if p.strip()]
-    unknown = set(parts) - {"paper", "cells", "reading", "recogniser"}
+    unknown = set(parts) - {"paper", "cells", "reading", "recogniser", "harsh"}
     if unknown or not parts:
-        raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser; got {what!r}")
+        raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser, harsh; got {what!r}")
     if seed_set not in ("heldout", "tuning"):
         raise ValueError(f"--seed-set must be heldout or tuning; got {seed_set!r}")
     _setup_threads()
@@ -144,7 +146,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         results = ex.paper_experiments(progress=True, loo_folds=loo_folds)
         written += ex.write_report(results, out, "paper_experiments")
         typer.echo(ex.markdown(results))
-    classifier = _classifier(weights) if {"cells", "reading", "recogniser"} & set(parts) else None
+    classifier = _classifier(weights) if {"cells", "reading", "recogniser", "harsh"} & set(parts) else None
     if "cells" in parts:
         results = ex.heldout_cells(classifier)
         written += ex.write_report(results, out, "heldout_cells")
@@ -153,6 +155,10 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         results = [ex.reading(grid, frames, styles, classifier, progress=True)
                    for grid in (3, 9) for styles in (("pen",), ("sketch", "hershey"))]
         written += ex.write_report(results, out, "reading")
+        typer.echo(ex.markdown(results))
+    if "harsh" in parts:
+        results = ex.harsh_reading(frames, seed_set, classifier, progress=True)
+        written += ex.write_report(results, out, "reading_harsh" if seed_set == "heldout" else "reading_harsh_tuning")
         typer.echo(ex.markdown(results))
     if "recogniser" in parts:
         from vision import recogniser_eval as rx

@@ -14,9 +14,9 @@ import cv2
 import numpy as np
 
 from vision.classifier.inference import CellClassifier, load_classifier
-from vision.illumination import non_paper
+from vision.illumination import balance_frame, non_paper
 from vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
-from vision.page import check_frame, locate_page
+from vision.page import check_frame, locate_balanced_page
 from vision.sheet import check_grid
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
@@ -171,7 +171,8 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     rho = rho or DEFAULT_RHO[grid]
     if rho < 16:
         raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
-    corners, paper_mask = locate_page(frame)
+    frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
+    corners, paper_mask = locate_balanced_page(frame)
     if corners is None:
         raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
     page_side = PAGE_SIDE[grid]

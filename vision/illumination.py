@@ -88,3 +88,28 @@ def non_paper(page_bgr: np.ndarray, seed_mask: np.ndarray, dark: float = DARK_RA
     """
     brightness, off_hue = shade_and_hue(page_bgr, seed_mask)
     return (brightness < dark) | (off_hue > hue)
+
+
+WHITE_TOP = 0.05         # the brightest 5% of a thumbnail are taken to be paper when white-balancing a frame
+WHITE_TARGET = 225.0     # a dim frame is brightened until that paper reads this bright
+MAX_GAIN = 4.0           # ... but no channel is amplified more than this (a dark frame stays dark, not noise)
+
+
+def balance_frame(frame: np.ndarray) -> np.ndarray:
+    """The frame white-balanced and brightened so the brightest paper-like pixels read neutral and bright.
+
+    A tungsten or fluorescent cast makes paper orange or green (saturated, so not "white"), and dim light
+    pushes it towards the table's level; both break any fixed test of "bright and unsaturated". The page is
+    the largest bright thing in view, so the brightest few percent of the picture (a thumbnail: cheap, less
+    noise) are mostly paper: their per-channel median is the light's colour and level. Channels are only
+    ever gained up (a clean, neutral frame comes back nearly unchanged).
+    """
+    thumb = cv2.resize(frame, (160, 120), interpolation=cv2.INTER_AREA).reshape(-1, 3).astype(np.float32)
+    level = thumb.sum(axis=1)
+    top = thumb[level >= np.quantile(level, 1 - WHITE_TOP)]
+    reference = np.maximum(np.median(top, axis=0), 1.0)
+    gains = np.clip(max(float(reference.max()), WHITE_TARGET) / reference, 1.0, MAX_GAIN)
+    if (gains < 1.02).all():
+        return frame
+    lut = np.clip(np.arange(256, dtype=np.float32)[:, None] * gains[None, :], 0, 255).astype(np.uint8)
+    return cv2.LUT(frame, lut.reshape(256, 1, 3))
