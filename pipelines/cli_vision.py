@@ -158,7 +158,11 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         typer.echo(ex.markdown(results))
     if "harsh" in parts:
         results = ex.harsh_reading(frames, seed_set, classifier, progress=True)
-        written += ex.write_report(results, out, "reading_harsh" if seed_set == "heldout" else "reading_harsh_tuning")
+        stem = "reading_harsh" if seed_set == "heldout" else "reading_harsh_tuning"
+        written += ex.write_report(results, out, stem)
+        if seed_set == "heldout":
+            ex.harsh_frames_png(out / "reading_harsh_frames.png", classifier=classifier)
+            written.append(out / "reading_harsh_frames.png")
         typer.echo(ex.markdown(results))
     if "recogniser" in parts:
         from vision import recogniser_eval as rx
@@ -180,10 +184,13 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
              grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
              hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
-             style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey.")) -> None:
+             style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey."),
+             conditions: str = typer.Option("clean", help="frames/sequence: photo conditions, clean or harsh "
+                                                           "(shadow, colour cast, dim, lens, blur, JPEG).")) -> None:
     """Write generated data to disk to look at or to feed other tools."""
     import cv2
 
+    from vision.data.conditions import check_conditions
     from vision.sheet import check_grid
     from vision.strokes import STYLES
 
@@ -193,6 +200,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     if kind not in ("cells", "frames", "sequence"):
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
     check_grid(grid)
+    check_conditions(conditions)
     out.mkdir(parents=True, exist_ok=True)
     records = []
     if kind == "cells":
@@ -208,7 +216,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         from vision.data.frames import make_frame
 
         for i in range(n):
-            frame = make_frame(grid, seed + i, hand=hand, styles=styles)
+            frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=conditions)
             name = f"frame_{grid}x{grid}_{seed + i}.png"
             cv2.imwrite(str(out / name), frame.image)
             records.append({"image": name, "cells": frame.board, "hand": hand,
@@ -216,7 +224,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     else:
         from vision.data.sequences import make_move_sequence
 
-        seq = make_move_sequence(grid, seed, styles=styles)
+        seq = make_move_sequence(grid, seed, styles=styles, conditions=conditions)
         for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):
             name = f"seq_{seed}_{i:03d}.png"
             cv2.imwrite(str(out / name), image)

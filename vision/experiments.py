@@ -147,6 +147,35 @@ def harsh_reading(n_frames: int, split: str = "heldout", classifier: CellClassif
             for grid, styles, seed in sets]
 
 
+def harsh_frames_png(path: Path, seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), classifier: CellClassifier | None = None) -> None:
+    """A few held-out harsh photos (3x3 then 9x9) with the true page (red), the page found (green), the
+    grid found (blue) and how many cells were read right, so people can look at what the reader does."""
+    import cv2
+
+    classifier = classifier or load_classifier()
+    tiles = []
+    for k, offset in enumerate(seeds):
+        grid = 3 if k < len(seeds) // 2 else 9
+        frame = make_frame(grid, HARSH_HELDOUT_SEED + 100_000 * grid + offset, styles=("sketch", "hershey"),
+                           conditions="harsh")
+        image = frame.image.copy()
+        cv2.polylines(image, [np.round(frame.page_corners).astype(np.int32)], True, (0, 0, 255), 1, cv2.LINE_AA)
+        try:
+            r = read_page(frame.image, grid, classifier)
+        except ValueError as error:
+            cv2.putText(image, str(error)[:60], (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1, cv2.LINE_AA)
+        else:
+            cv2.polylines(image, [np.round(r.page_corners).astype(np.int32)], True, (0, 255, 0), 2, cv2.LINE_AA)
+            cv2.polylines(image, [np.round(r.grid_corners).astype(np.int32)], True, (255, 128, 0), 2, cv2.LINE_AA)
+            wrong = [i for i, (a, b) in enumerate(zip(r.cells, frame.board)) if a != b]
+            cv2.putText(image, f"{grid}x{grid}: {grid * grid - len(wrong)}/{grid * grid} cells right", (8, 20),
+                        cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 255, 0) if not wrong else (0, 0, 255), 2, cv2.LINE_AA)
+        tiles.append(cv2.resize(image, (400, 300), interpolation=cv2.INTER_AREA))
+    columns = len(seeds) // 2
+    mosaic = np.vstack([np.hstack(tiles[:columns]), np.hstack(tiles[columns:2 * columns])])
+    _atomic(Path(path), lambda tmp: cv2.imwrite(tmp + ".png", mosaic) and os.replace(tmp + ".png", tmp))
+
+
 def markdown(results: list[Result]) -> str:
     """A table of accuracies and one confusion matrix per result (row-normalised percentages)."""
     lines = ["| experiment | n | accuracy | extra |", "|---|---|---|---|"]

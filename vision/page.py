@@ -1,8 +1,11 @@
 """Finding the paper sheet in a camera frame and warping it flat (steps 2-3 of the paper's Algorithm 1).
 
-The page is the largest bright, unsaturated region (colour-based, threshold chosen per frame by Otsu so
-uneven light does not matter much); its convex hull is simplified to four corners, ordered as the camera
-sees them (top-left first), so a sheet rotated by less than 45 degrees keeps its cell numbering.
+The frame is white-balanced first (vision.illumination.balance_frame: a colour cast or dim light). The page
+is then the largest bright, unsaturated region (colour-based, threshold chosen per frame by Otsu so uneven
+light does not matter much), grown over the parts of the same sheet that lie in a soft shadow (grey, not
+too dark, and not across a sharp brightness step: the sheet's own edge); its convex hull is simplified to
+four corners, ordered as the camera sees them (top-left first), so a sheet rotated by less than 45
+degrees keeps its cell numbering.
 """
 from __future__ import annotations
 
@@ -128,7 +131,7 @@ def _grow_into_shadow(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
     touching[np.unique(edge)] = False
     touching[0] = False
     grown = touching[labels]
-    if grown.sum() > 1.5 * seed.sum():  # more "shadowed paper" than lit paper: a grey table, not trusted
+    if grown.sum() > 3 * seed.sum():  # mostly "shadowed paper" around a small lit piece: a grey table
         return body
     grown = grown.astype(np.uint8) * 255
     return cv2.bitwise_or(body, cv2.resize(grown, (w, h), interpolation=cv2.INTER_NEAREST))
