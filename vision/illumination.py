@@ -126,8 +126,9 @@ def flatten(gray: np.ndarray, stroke: int, level: float = 220.0) -> np.ndarray:
     ink keeps its contrast to the paper right next to it, wherever the light falls.
     """
     k = max(3, stroke | 1)
-    small = cv2.resize(gray, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    shade = cv2.morphologyEx(small, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k // 2 | 1, k // 2 | 1)))
-    shade = cv2.GaussianBlur(shade, (0, 0), max(1.0, k / 4))
+    f = 4 if k >= 24 else 2  # the shade is smooth: estimate it small (a wide blur costs milliseconds)
+    small = cv2.resize(gray, (max(1, gray.shape[1] // f), max(1, gray.shape[0] // f)), interpolation=cv2.INTER_AREA)
+    shade = cv2.morphologyEx(small, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k // f | 1, k // f | 1)))
+    shade = cv2.GaussianBlur(shade, (0, 0), max(1.0, k / (2 * f)))
     shade = cv2.resize(shade, (gray.shape[1], gray.shape[0]), interpolation=cv2.INTER_LINEAR).astype(np.float32)
     return np.clip(gray.astype(np.float32) * (level / np.maximum(shade, 8.0)), 0, 255).astype(np.uint8)
