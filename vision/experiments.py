@@ -170,7 +170,7 @@ def harsh_frames_png(path: Path, seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), cl
             wrong = [i for i, (a, b) in enumerate(zip(r.cells, frame.board)) if a != b]
             cv2.putText(image, f"{grid}x{grid}: {grid * grid - len(wrong)}/{grid * grid} cells right", (8, 20),
                         cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 255, 0) if not wrong else (0, 0, 255), 2, cv2.LINE_AA)
-        tiles.append(cv2.resize(image, (400, 300), interpolation=cv2.INTER_AREA))
+        tiles.append(cv2.resize(image, (360, 270), interpolation=cv2.INTER_AREA))
     columns = len(seeds) // 2
     mosaic = np.vstack([np.hstack(tiles[:columns]), np.hstack(tiles[columns:2 * columns])])
     _atomic(Path(path), lambda tmp: cv2.imwrite(tmp + ".png", mosaic) and os.replace(tmp + ".png", tmp))
