@@ -123,21 +123,23 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
 
 @vision_app.command("eval")
 def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
-             what: str = typer.Option("paper,cells,reading,recogniser", help="Comma list of: paper, cells, reading, recogniser."),
-             frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading'."),
+             what: str = typer.Option("paper,cells,reading,recogniser",
+                                      help="Comma list of: paper, cells, reading, recogniser, harsh."),
+             frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading' and 'harsh'."),
              sequences: int = typer.Option(120, min=1, help="'recogniser': 3x3 drawing sequences per mark style set."),
              sequences9: int = typer.Option(40, min=1, help="'recogniser': 9x9 drawing sequences per mark style set."),
-             seed_set: str = typer.Option("heldout", help="'recogniser': heldout (never tuned on) or tuning sequences."),
+             seed_set: str = typer.Option("heldout", help="'recogniser', 'harsh': heldout (never tuned on) or tuning data."),
              weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
              loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
     """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading
-    and the move recogniser (Algorithm 1 on drawing sequences with a hand over the sheet)."""
+    (clean and "harsh" photo conditions) and the move recogniser (Algorithm 1 on drawing sequences with a
+    hand over the sheet)."""
     from vision import experiments as ex
 
     parts = [p.strip() for p in what.split(",") if p.strip()]
-    unknown = set(parts) - {"paper", "cells", "reading", "recogniser"}
+    unknown = set(parts) - {"paper", "cells", "reading", "recogniser", "harsh"}
     if unknown or not parts:
-        raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser; got {what!r}")
+        raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser, harsh; got {what!r}")
     if seed_set not in ("heldout", "tuning"):
         raise ValueError(f"--seed-set must be heldout or tuning; got {seed_set!r}")
     _setup_threads()
@@ -146,7 +148,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         results = ex.paper_experiments(progress=progress_bar, loo_folds=loo_folds)
         written += ex.write_report(results, out, "paper_experiments")
         typer.echo(ex.markdown(results))
-    classifier = _classifier(weights) if {"cells", "reading", "recogniser"} & set(parts) else None
+    classifier = _classifier(weights) if {"cells", "reading", "recogniser", "harsh"} & set(parts) else None
     if "cells" in parts:
         results = ex.heldout_cells(classifier)
         written += ex.write_report(results, out, "heldout_cells")
@@ -155,6 +157,14 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         results = [ex.reading(grid, frames, styles, classifier, progress=progress_bar)
                    for grid in (3, 9) for styles in (("pen",), ("sketch", "hershey"))]
         written += ex.write_report(results, out, "reading")
+        typer.echo(ex.markdown(results))
+    if "harsh" in parts:
+        results = ex.harsh_reading(frames, seed_set, classifier, progress=progress_bar)
+        stem = "reading_harsh" if seed_set == "heldout" else "reading_harsh_tuning"
+        written += ex.write_report(results, out, stem)
+        if seed_set == "heldout":
+            ex.harsh_frames_png(out / "reading_harsh_frames.png", classifier=classifier)
+            written.append(out / "reading_harsh_frames.png")
         typer.echo(ex.markdown(results))
     if "recogniser" in parts:
         from vision import recogniser_eval as rx
@@ -176,10 +186,13 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
              grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
              hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
-             style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey.")) -> None:
+             style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey."),
+             conditions: str = typer.Option("clean", help="frames/sequence: photo conditions, clean or harsh "
+                                                           "(shadow, colour cast, dim, lens, blur, JPEG).")) -> None:
     """Write generated data to disk to look at or to feed other tools."""
     import cv2
 
+    from vision.data.conditions import check_conditions
     from vision.sheet import check_grid
     from vision.strokes import STYLES
 
@@ -189,6 +202,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     if kind not in ("cells", "frames", "sequence"):
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
     check_grid(grid)
+    check_conditions(conditions)
     out.mkdir(parents=True, exist_ok=True)
     records = []
     if kind == "cells":
@@ -204,7 +218,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         from vision.data.frames import make_frame
 
         for i in range(n):
-            frame = make_frame(grid, seed + i, hand=hand, styles=styles)
+            frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=conditions)
             name = f"frame_{grid}x{grid}_{seed + i}.png"
             cv2.imwrite(str(out / name), frame.image)
             records.append({"image": name, "cells": frame.board, "hand": hand,
@@ -212,7 +226,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     else:
         from vision.data.sequences import make_move_sequence
 
-        seq = make_move_sequence(grid, seed, styles=styles)
+        seq = make_move_sequence(grid, seed, styles=styles, conditions=conditions)
         for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):
             name = f"seq_{seed}_{i:03d}.png"
             cv2.imwrite(str(out / name), image)

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_path, atomic_write_text
+from fileio import atomic_path, atomic_write_bytes, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
 from vision.classifier.train import TrainConfig, fit
-from vision.data import CLEAN_SEED, N_CLEAN, N_NOISY, NOISY_SEED, TEST_SEED
+from vision.data import CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, N_CLEAN, N_NOISY, NOISY_SEED, TEST_SEED
 from vision.data.cells import make_cells
 from vision.data.frames import make_frame
 from vision.grid import read_page
@@ -100,30 +100,87 @@ def heldout_cells(classifier: CellClassifier | None = None, n: int = 600, seed: 
 
 
 def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellClassifier | None = None,
-            seed: int = TEST_SEED + 50_000, progress: Callable[..., Any] | None = None) -> Result:
-    """Read n generated photos: per-cell confusion, plus boards read entirely right and read failures."""
+            seed: int = TEST_SEED + 50_000, progress: Callable[..., Any] | None = None,
+            conditions: str = "clean") -> Result:
+    """Read n generated photos: per-cell confusion, plus boards read entirely right and read failures
+    (no sheet found / no grid found on it, counted apart)."""
     classifier = classifier or load_classifier()
     truth, predicted, whole, failures = [], [], 0, 0
+    missing = {"no_page": 0, "no_grid": 0}
     name = "+".join(styles)
     frames = range(n_frames)
     for i in progress(frames, desc=f"read {grid}x{grid} {name}", unit="photo", leave=False) if progress else frames:
-        frame = make_frame(grid, seed + i, styles=styles)
+        frame = make_frame(grid, seed + i, styles=styles, conditions=conditions)
         labels = [LABELS.index({"x": "cross", "o": "nought", "": "nothing"}[s]) for s in frame.board]
         try:
             probs = read_page(frame.image, grid, classifier).probabilities
             guess = probs.argmax(axis=1).tolist()
-        except ValueError:
+        except ValueError as error:
             failures += 1
+            missing["no_page" if "no paper sheet" in str(error) else "no_grid"] += 1
             guess = [-1] * len(labels)
         whole += guess == labels
         truth.extend(labels)
         predicted.extend(guess)
     truth_a, pred_a = np.array(truth), np.array(predicted)
     read = pred_a >= 0
-    result = _result(f"read {grid}x{grid} photos, {name} marks", truth_a[read], pred_a[read],
-                     photos=n_frames, boards_right=whole / n_frames, read_failures=failures)
+    where = "" if conditions == "clean" else f" {conditions}"
+    result = _result(f"read {grid}x{grid}{where} photos, {name} marks", truth_a[read], pred_a[read],
+                     photos=n_frames, boards_right=whole / n_frames, read_failures=failures, **missing, seed=seed)
     result.accuracy = float((truth_a == pred_a).mean())  # failures count as wrong cells
     return result
+
+
+def harsh_reading(n_frames: int, split: str = "heldout", classifier: CellClassifier | None = None,
+                  progress: Callable[..., Any] | None = None) -> list[Result]:
+    """Reading under the "harsh" photo conditions (vision.data.conditions), 3x3 and 9x9.
+
+    split "tuning": the photos the reader was tuned on ("pen" marks only). split "heldout": other seeds
+    (other shadows, casts, lenses) and the held-out "sketch" + "hershey" handwriting (the figures), with
+    "pen" marks on held-out seeds beside them.
+    """
+    if split not in ("heldout", "tuning"):
+        raise ValueError(f"split must be heldout or tuning; got {split!r}")
+    if split == "tuning":
+        sets = [(grid, ("pen",), HARSH_TUNING_SEED + 100_000 * grid) for grid in (3, 9)]
+    else:
+        sets = [(grid, styles, HARSH_HELDOUT_SEED + 100_000 * grid + offset)
+                for grid in (3, 9) for offset, styles in ((0, ("sketch", "hershey")), (50_000, ("pen",)))]
+    classifier = classifier or load_classifier()
+    return [reading(grid, n_frames, styles, classifier, seed, progress, conditions="harsh")
+            for grid, styles, seed in sets]
+
+
+def harsh_frames_png(path: Path, seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), classifier: CellClassifier | None = None) -> None:
+    """A few held-out harsh photos (3x3 then 9x9) with the true page (red), the page found (green), the
+    grid found (blue) and how many cells were read right, so people can look at what the reader does."""
+    import cv2
+
+    classifier = classifier or load_classifier()
+    tiles = []
+    for k, offset in enumerate(seeds):
+        grid = 3 if k < len(seeds) // 2 else 9
+        frame = make_frame(grid, HARSH_HELDOUT_SEED + 100_000 * grid + offset, styles=("sketch", "hershey"),
+                           conditions="harsh")
+        image = frame.image.copy()
+        cv2.polylines(image, [np.round(frame.page_corners).astype(np.int32)], True, (0, 0, 255), 1, cv2.LINE_AA)
+        try:
+            r = read_page(frame.image, grid, classifier)
+        except ValueError as error:
+            cv2.putText(image, str(error)[:60], (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1, cv2.LINE_AA)
+        else:
+            cv2.polylines(image, [np.round(r.page_corners).astype(np.int32)], True, (0, 255, 0), 2, cv2.LINE_AA)
+            cv2.polylines(image, [np.round(r.grid_corners).astype(np.int32)], True, (255, 128, 0), 2, cv2.LINE_AA)
+            wrong = [i for i, (a, b) in enumerate(zip(r.cells, frame.board)) if a != b]
+            cv2.putText(image, f"{grid}x{grid}: {grid * grid - len(wrong)}/{grid * grid} cells right", (8, 20),
+                        cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 255, 0) if not wrong else (0, 0, 255), 2, cv2.LINE_AA)
+        tiles.append(cv2.resize(image, (360, 270), interpolation=cv2.INTER_AREA))
+    columns = len(seeds) // 2
+    mosaic = np.vstack([np.hstack(tiles[:columns]), np.hstack(tiles[columns:2 * columns])])
+    ok, png = cv2.imencode(".png", mosaic)
+    if not ok:
+        raise ValueError(f"could not encode the harsh-frames figure for {path}")
+    atomic_write_bytes(png.tobytes(), path)
 
 
 def markdown(results: list[Result]) -> str:

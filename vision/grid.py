@@ -1,10 +1,13 @@
 """Reading a whole board from a camera frame: page -> grid -> grid-line removal -> n x n cells -> CNN.
 
-The sheet layout is not assumed: after the page is warped square, the grid's long straight ink lines are
-found by morphological opening, their ends give the grid's extent (grids with or without an outer frame)
-and the inner lines give the cell boundaries (hand-drawn grids are rarely even). The grid square is then
-warped again straight from the frame at rho pixels per cell, so small 9x9 cells keep the camera's detail.
-All cells go through the CNN in one batch.
+The frame is first white-balanced and brightened against its brightest paper-like pixels (a tungsten or
+fluorescent cast, dim light: vision.illumination). The sheet layout is not assumed: after the page is
+warped square and its shading divided out (a shadow's edge), the grid's long straight ink lines are found
+by morphological opening, their ends (or the outer frame lines, when there are n+1 evenly spaced ones)
+give the grid's extent and the inner lines give the cell boundaries (hand-drawn grids are rarely even).
+On a 9x9 grid the lines' bow (a wide-angle lens) is then measured and each cell resampled between its
+own four grid-line crossings (vision.lattice), straight from the frame at rho pixels per cell, so small
+9x9 cells keep the camera's detail. All cells go through the CNN in one batch.
 """
 from __future__ import annotations
 
@@ -14,9 +17,10 @@ import cv2
 import numpy as np
 
 from vision.classifier.inference import CellClassifier, load_classifier
-from vision.illumination import non_paper
+from vision.illumination import balance_frame, flatten, non_paper
 from vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
-from vision.page import check_frame, locate_page
+from vision.lattice import lattice, remap_cells
+from vision.page import check_frame, locate_balanced_page
 from vision.sheet import check_grid
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
@@ -26,6 +30,10 @@ FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
 OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
 RIM_OPEN = 5                   # pixels (of the 160 px warp): thinner non-paper at the rim is ink, not an arm
 MARK_EXTENT = 0.85             # blobs narrower and shorter than this many cells are marks (bold ink), not hands
+NOISE_FREE = 3.0              # median neighbour step (gray levels) of the grid warp up to which nothing is smoothed
+NOISE_BLUR = 0.35             # Gaussian sigma per gray level of step beyond that ...
+NOISE_BLUR_MAX = 1.2          # ... up to this many pixels
+CELL_FLATTEN = 1.0             # of a cell: the paper shade under the cells is a grey closing this wide (no mark fits)
 
 
 @dataclass
@@ -99,8 +107,14 @@ def _snap(start: float, stop: float, n: int, found: list[float]) -> np.ndarray:
 
 def locate_grid(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Grid boundaries in a square page warp: (xs, ys), each n+1 increasing pixel positions, or None."""
+    found = _grid_lines(page_gray, grid)
+    return None if found is None else found[:2]
+
+
+def _grid_lines(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(xs, ys, ink mask of the page warp) or None: the straight grid first, the lattice bends it later."""
     side = page_gray.shape[0]
-    ink = _ink(page_gray, side // 12)
+    ink = _ink(flatten(page_gray, side // 16), side // 12)
     min_length = side / 5
     thicken = max(3, side // 50) | 1  # hand-drawn grid lines slant and bow by a few pixels
     horizontal = _line_mask(ink, int(min_length), True, thicken)
@@ -109,7 +123,21 @@ def locate_grid(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarra
     cols, y0, y1 = _lines(vertical.T, min_length)
     if not rows or not cols or x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
         return None
-    return _snap(x0, x1, grid, cols), _snap(y0, y1, grid, rows)
+    x0, x1 = _framed(cols, grid, (x0, x1))
+    y0, y1 = _framed(rows, grid, (y0, y1))
+    return _snap(x0, x1, grid, cols), _snap(y0, y1, grid, rows), ink
+
+
+def _framed(centres: list[float], grid: int, ends: tuple[float, float]) -> tuple[float, float]:
+    """The grid's extent along one axis: its outer frame lines when exactly n+1 evenly spaced lines were
+    found (a mark sitting on a frame line or a shadow breaks the lines' ends, never their centres), else
+    the median ends of the lines."""
+    if len(centres) != grid + 1:
+        return ends
+    gaps = np.diff(np.sort(centres))
+    if gaps.min() < 0.6 * gaps.mean() or gaps.max() > 1.4 * gaps.mean():
+        return ends
+    return float(min(centres)), float(max(centres))
 
 
 def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
@@ -122,6 +150,17 @@ def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
     out = gray.copy()
     out[lines > 0] = paper[lines > 0]
     return out
+
+
+def _denoise(gray: np.ndarray) -> np.ndarray:
+    """A grainy grid warp (dim light amplified, JPEG) smoothed just enough that empty cells look empty.
+
+    The noise is measured on the warp itself (the median absolute step between neighbouring pixels, which
+    ink edges barely move), so a clean photo is left alone."""
+    noise = float(np.median(np.abs(np.diff(gray[::2].astype(np.int16), axis=1))))
+    if noise <= NOISE_FREE:
+        return gray
+    return cv2.GaussianBlur(gray, (0, 0), min(NOISE_BLUR_MAX, NOISE_BLUR * (noise - NOISE_FREE)))
 
 
 def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_step: float) -> tuple[np.ndarray, float]:
@@ -171,7 +210,8 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     rho = rho or DEFAULT_RHO[grid]
     if rho < 16:
         raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
-    corners, paper_mask = locate_page(frame)
+    frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
+    corners, paper_mask = locate_balanced_page(frame)
     if corners is None:
         raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
     page_side = PAGE_SIDE[grid]
@@ -179,10 +219,10 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     to_page = cv2.getPerspectiveTransform(corners, square)
     page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
                              cv2.COLOR_BGR2GRAY)
-    bounds = locate_grid(page_gray, grid)
-    if bounds is None:
+    found = _grid_lines(page_gray, grid)
+    if found is None:
         raise ValueError(f"no {grid}x{grid} grid found on the sheet (expected dark grid lines across the page)")
-    xs, ys = bounds
+    xs, ys, ink = found
     # hands are big: look for them on a small warp of the page (cheap), boundaries scaled to it
     scale = FOREIGN_SIDE / page_side
     to_small = np.diag([scale, scale, 1.0]) @ to_page
@@ -190,16 +230,14 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     foreign, edge_fraction = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
                                       cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid,
                                       cell_step=scale * min(xs[-1] - xs[0], ys[-1] - ys[0]) / grid)
-    grid_page = np.array([[xs[0], ys[0]], [xs[-1], ys[0]], [xs[-1], ys[-1]], [xs[0], ys[-1]]], np.float32)
-    grid_frame = cv2.perspectiveTransform(grid_page[None], np.linalg.inv(to_page))[0]
-    side = grid * rho
-    target = np.array([[0, 0], [side, 0], [side, side], [0, side]], np.float32)
-    grid_bgr = cv2.warpPerspective(frame, cv2.getPerspectiveTransform(grid_frame, target), (side, side),
-                                   flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    gray = _remove_lines(cv2.cvtColor(grid_bgr, cv2.COLOR_BGR2GRAY), rho)
-    # inner boundaries found on the page map linearly into the grid warp
-    gx = (xs - xs[0]) / (xs[-1] - xs[0]) * side
-    gy = (ys - ys[0]) / (ys[-1] - ys[0]) * side
+    # the grid-line crossings as they really lie (bowed by the lens, wandering if hand-drawn), in the frame
+    from_page = np.linalg.inv(to_page)
+    crossings = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), from_page).reshape(grid + 1, grid + 1, 2)
+    grid_frame = crossings[[0, 0, -1, -1], [0, -1, -1, 0]].astype(np.float32)
+    gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
+    gray = _remove_lines(_denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
+    # each cell is rho x rho in this warp: the lattice already holds the uneven boundaries
+    gx = gy = np.arange(grid + 1, dtype=np.float64) * rho
     cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
     for r in range(grid):
         for c in range(grid):

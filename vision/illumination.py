@@ -88,3 +88,47 @@ def non_paper(page_bgr: np.ndarray, seed_mask: np.ndarray, dark: float = DARK_RA
     """
     brightness, off_hue = shade_and_hue(page_bgr, seed_mask)
     return (brightness < dark) | (off_hue > hue)
+
+
+WHITE_TOP = 0.05         # the brightest 5% of a thumbnail are taken to be paper when white-balancing a frame
+WHITE_TARGET = 225.0     # a dim frame is brightened until that paper reads this bright
+PAPER_CONTRAST = 1.6     # the brightest pixels must be this much brighter than the darker 30% to count as paper
+MAX_GAIN = 4.0           # ... but no channel is amplified more than this (a dark frame stays dark, not noise)
+
+
+def balance_frame(frame: np.ndarray) -> np.ndarray:
+    """The frame white-balanced and brightened so the brightest paper-like pixels read neutral and bright.
+
+    A tungsten or fluorescent cast makes paper orange or green (saturated, so not "white"), and dim light
+    pushes it towards the table's level; both break any fixed test of "bright and unsaturated". The page is
+    the largest bright thing in view, so the brightest few percent of the picture (a thumbnail: cheap, less
+    noise) are mostly paper: their per-channel median is the light's colour and level. Channels are only
+    ever gained up (a clean, neutral frame comes back nearly unchanged).
+    """
+    thumb = cv2.resize(frame, (160, 120), interpolation=cv2.INTER_AREA).reshape(-1, 3).astype(np.float32)
+    level = thumb.sum(axis=1)
+    top = thumb[level >= np.quantile(level, 1 - WHITE_TOP)]
+    reference = np.maximum(np.median(top, axis=0), 1.0)
+    brightest = float(reference.max())
+    # brighten only when something stands out as paper: a dim uniform table is not made into a white page
+    target = WHITE_TARGET if 3 * brightest > PAPER_CONTRAST * float(np.quantile(level, 0.3)) else brightest
+    gains = np.clip(max(brightest, target) / reference, 1.0, MAX_GAIN)
+    if (gains < 1.02).all():
+        return frame
+    lut = np.clip(np.arange(256, dtype=np.float32)[:, None] * gains[None, :], 0, 255).astype(np.uint8)
+    return cv2.LUT(frame, lut.reshape(256, 1, 3))
+
+
+def flatten(gray: np.ndarray, stroke: int, level: float = 220.0) -> np.ndarray:
+    """A gray page or grid warp divided by its own paper shade, so a shadow's edge or a dim corner is gone.
+
+    The paper shade is a grey closing wider than any pen stroke or grid line (`stroke` pixels), smoothed:
+    ink keeps its contrast to the paper right next to it, wherever the light falls.
+    """
+    k = max(3, stroke | 1)
+    f = 4 if k >= 24 else 2  # the shade is smooth: estimate it small (a wide blur costs milliseconds)
+    small = cv2.resize(gray, (max(1, gray.shape[1] // f), max(1, gray.shape[0] // f)), interpolation=cv2.INTER_AREA)
+    shade = cv2.morphologyEx(small, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k // f | 1, k // f | 1)))
+    shade = cv2.GaussianBlur(shade, (0, 0), max(1.0, k / (2 * f)))
+    shade = cv2.resize(shade, (gray.shape[1], gray.shape[0]), interpolation=cv2.INTER_LINEAR).astype(np.float32)
+    return np.clip(gray.astype(np.float32) * (level / np.maximum(shade, 8.0)), 0, 255).astype(np.uint8)

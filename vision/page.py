@@ -1,15 +1,18 @@
 """Finding the paper sheet in a camera frame and warping it flat (steps 2-3 of the paper's Algorithm 1).
 
-The page is the largest bright, unsaturated region (colour-based, threshold chosen per frame by Otsu so
-uneven light does not matter much); its convex hull is simplified to four corners, ordered as the camera
-sees them (top-left first), so a sheet rotated by less than 45 degrees keeps its cell numbering.
+The frame is white-balanced first (vision.illumination.balance_frame: a colour cast or dim light). The page
+is then the largest bright, unsaturated region (colour-based, threshold chosen per frame by Otsu so uneven
+light does not matter much), grown over the parts of the same sheet that lie in a soft shadow (grey, not
+too dark, and not across a sharp brightness step: the sheet's own edge); its convex hull is simplified to
+four corners, ordered as the camera sees them (top-left first), so a sheet rotated by less than 45
+degrees keeps its cell numbering.
 """
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-from vision.illumination import shade_and_hue
+from vision.illumination import balance_frame, shade_and_hue
 
 MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
 MAX_PAGE_FRACTION = 0.92  # a "page" filling the whole frame is a uniform image (its corners are not seen)
@@ -18,6 +21,9 @@ MIN_WHITENESS = 90        # value - 1.5 x saturation of paper: darker than this 
 PAPER_RATIO = 0.66        # paper is at least this fraction of the median paper whiteness (uneven light)
 PAGE_HUE_RATIO = 0.1      # against the fitted paper colour, a channel off grey by more: not the page (pastel clutter) ...
 PAGE_BRIGHT_RATIO = 0.8   # ... if also about as bright as the paper (ink blurred into paper is darker)
+SHADOW_LEVEL = 0.22       # paper in a shadow: at least this fraction of the lit paper's brightness ...
+SHADOW_CHROMA = 0.2       # ... and about as grey (channel spread / brightness below this, once white-balanced)
+SHARP_EDGE = 0.1          # log-brightness step per half-resolution pixel: the page's own edge, not a soft shadow
 
 
 def check_frame(frame: np.ndarray) -> np.ndarray:
@@ -61,13 +67,18 @@ def find_page(frame: np.ndarray) -> np.ndarray | None:
 
 def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     """(corners or None, paper mask of the frame): the mask also tells where a hand covers the page."""
-    frame = check_frame(frame)
+    return locate_balanced_page(balance_frame(check_frame(frame)))
+
+
+def locate_balanced_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """locate_page on a frame already white-balanced by vision.illumination.balance_frame."""
     mask = page_mask(frame)
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     # bridge thin dark lines (a grid line drawn to the page edge) that would cut the page in two, and cut
     # off thin bright things touching it (a white pen) that would pull the page's hull out of shape
     body = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
     body = cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((11, 11), np.uint8))
+    body = _grow_into_shadow(frame, body)
     without_clutter = _cut_pastel_clutter(frame, body)
     corners = _page_quad(without_clutter, frame.shape[0] * frame.shape[1])
     if corners is None and without_clutter is not body:
@@ -77,6 +88,56 @@ def locate_page(frame: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         h, w = mask.shape
         corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], np.float32)
     return corners, mask
+
+
+def _grow_into_shadow(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """The paper body extended over the parts of the same sheet that lie in a soft shadow.
+
+    The whiteness test only keeps the lit part of a sheet half in shadow (shadowed paper can be darker
+    than a lit table). Paper in shadow is still grey and not very dark, and a shadow's edge is soft while
+    the sheet's own edge is sharp whatever the light (paper and table darken together): so the body grows
+    through grey, not-too-dark pixels, but never across a sharp brightness step. Done at half resolution
+    after a grey closing (thin ink and grid lines are neither steps nor holes), a few milliseconds.
+    """
+    if not body.any():
+        return body
+    h, w = body.shape
+    small = cv2.resize(frame, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+    small = cv2.morphologyEx(small, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    seed = cv2.resize(body, (w // 2, h // 2), interpolation=cv2.INTER_NEAREST) > 0
+    # channel mean (numpy's per-pixel channel reductions cost ~20 ms here; cv2.transform does not)
+    level = cv2.transform(small.astype(np.float32), np.full((1, 3), 1 / 3, np.float32))
+    paper = float(np.median(level[seed])) if seed.any() else 0.0
+    if paper < 20:
+        return body
+    b, g, r = cv2.split(small)
+    spread = cv2.subtract(cv2.max(cv2.max(b, g), r), cv2.min(cv2.min(b, g), r))
+    chroma = spread.astype(np.float32) / np.maximum(level, 1.0)
+    log = cv2.GaussianBlur(np.log(level + 0.03 * paper), (0, 0), 1.0)
+    step = np.hypot(cv2.Sobel(log, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(log, cv2.CV_32F, 0, 1, ksize=3)) / 8
+    free = ((level > SHADOW_LEVEL * paper) & (chroma < SHADOW_CHROMA) & (step < SHARP_EDGE)) | seed
+    count, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=4)
+    keep = np.zeros(count, bool)
+    keep[np.unique(labels[seed])] = True
+    keep[0] = False
+    # shadowed paper is a broad piece along the shadow's edge; bits of a grey table that leak in through a
+    # gap in the page's edge are speckled and joined by thin links: an opening cuts those off
+    extra = (keep[labels] & ~seed).astype(np.uint8)
+    extra = cv2.morphologyEx(extra, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9)))
+    if not extra.any():
+        return body
+    count, labels = cv2.connectedComponents(extra, connectivity=4)
+    touching = np.zeros(count, bool)
+    touching[np.unique(labels[cv2.dilate(seed.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0])] = True
+    # a piece running off the picture is table (the sheet is wholly in view, or its corners are not)
+    edge = np.r_[labels[0], labels[-1], labels[:, 0], labels[:, -1]]
+    touching[np.unique(edge)] = False
+    touching[0] = False
+    grown = touching[labels]
+    if grown.sum() > 3 * seed.sum():  # mostly "shadowed paper" around a small lit piece: a grey table
+        return body
+    grown = grown.astype(np.uint8) * 255
+    return cv2.bitwise_or(body, cv2.resize(grown, (w, h), interpolation=cv2.INTER_NEAREST))
 
 
 def _cut_pastel_clutter(frame: np.ndarray, body: np.ndarray) -> np.ndarray:

@@ -10,3 +10,8 @@ NOISY_SEED = 201_000      # the "noisy" set (paper: 201 images)
 TRAIN_SEED = 1_000_000    # the large varied set the shipped weights are trained on
 TEST_SEED = 9_000_000     # held-out cells and frames used by tests and the reading figures
 N_CLEAN, N_NOISY = 109, 201
+# "harsh" photo conditions (vision.data.conditions): the reader was tuned on TUNING photos with "pen" marks
+# only; its figures come from HELDOUT photos (other seeds, so other shadows, casts, lenses) with the held-out
+# "sketch" and "hershey" handwriting, never looked at while tuning
+HARSH_TUNING_SEED = TEST_SEED + 2_000_000
+HARSH_HELDOUT_SEED = TEST_SEED + 3_000_000

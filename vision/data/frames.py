@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from vision.data.cells import random_ink
+from vision.data.conditions import Harsh, check_conditions, distort_points, draw_harsh, lens_maps
 from vision.sheet import check_grid, draw_sheet, grid_box
 from vision.strokes import draw_mark
 
@@ -53,6 +54,7 @@ class Scene:
     styles: tuple[str, ...]
     mark_seed: int
     marks: dict[int, Mark] = field(default_factory=dict)
+    harsh: Harsh | None = None       # the "harsh" condition set's shadow, cast, lens, blur (None: clean)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -62,7 +64,12 @@ class Scene:
         """Page corners in the frame (TL, TR, BR, BL of the page), float32 (4, 2)."""
         h, w = self.page.shape[:2]
         pts = np.array([[0, 0], [w, 0], [w, h], [0, h]], np.float32)[None]
-        return cv2.perspectiveTransform(pts, self.homography)[0]
+        return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0])
+
+    def _through_lens(self, points: np.ndarray) -> np.ndarray:
+        if self.harsh is None:
+            return points
+        return distort_points(points, self.harsh.lens_k, *self.size)
 
     def cell_in_frame(self, cell: int) -> tuple[float, float]:
         """Frame pixel of a cell's centre (where a hand drawing there puts the pen)."""
@@ -70,7 +77,7 @@ class Scene:
         row, col = divmod(cell, self.grid)
         step = side / self.grid
         p = np.array([[[left + (col + 0.5) * step, top + (row + 0.5) * step]]], np.float32)
-        return tuple(float(v) for v in cv2.perspectiveTransform(p, self.homography)[0, 0])
+        return tuple(float(v) for v in self._through_lens(cv2.perspectiveTransform(p, self.homography)[0])[0])
 
     def mark(self, cell: int, symbol: str) -> Mark:
         """The mark a person draws in `cell` in this scene (fixed per cell and symbol)."""
@@ -168,9 +175,11 @@ def _camera_homography(rng: np.random.Generator, page_w: int, page_h: int, width
 
 
 def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: int = 480,
-                 styles: tuple[str, ...] = ("pen",)) -> Scene:
-    """Draw a random set-up: page shape and grid, pose, table, clutter, lighting, pens."""
+                 styles: tuple[str, ...] = ("pen",), conditions: str = "clean") -> Scene:
+    """Draw a random set-up: page shape and grid, pose, table, clutter, lighting, pens; "harsh" conditions
+    add a shadow, a colour cast, dim light, lens distortion, motion blur and JPEG (vision.data.conditions)."""
     check_grid(grid)
+    check_conditions(conditions)
     # a 9x9 grid is only readable when it fills the view: the robot leans in (bigger page, less margin)
     aspect = float(rng.choice([1.0, 1.0, 1.414, 1 / 1.414, 1.2] if grid == 3 else [1.0, 1.1, 1 / 1.1]))
     page_w = 560 if aspect <= 1 else int(560 / aspect)
@@ -205,11 +214,14 @@ def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: 
     same_pen = rng.random() < 0.3
     ink_o = random_ink(rng)
     inks = (ink_o, ink_o if same_pen else random_ink(rng))
-    return Scene(grid, page, (x0 + left, y0 + top, side), homography, background, light.astype(np.float32),
-                 noise_sigma=float(rng.uniform(1, 7)),
-                 jpeg_quality=int(rng.integers(55, 96)) if rng.random() < 0.5 else None,
-                 blur_sigma=float(rng.uniform(0, 1.0)), inks=inks, styles=styles,
-                 mark_seed=int(rng.integers(2**31)))
+    scene = Scene(grid, page, (x0 + left, y0 + top, side), homography, background, light.astype(np.float32),
+                  noise_sigma=float(rng.uniform(1, 7)),
+                  jpeg_quality=int(rng.integers(55, 96)) if rng.random() < 0.5 else None,
+                  blur_sigma=float(rng.uniform(0, 1.0)), inks=inks, styles=styles,
+                  mark_seed=int(rng.integers(2**31)))
+    if conditions == "harsh":  # drawn after everything else: a clean scene of the same seed stays the same
+        scene.harsh = draw_harsh(rng, width, height, scene.page_corners())
+    return scene
 
 
 @dataclass
@@ -303,12 +315,18 @@ def render(scene: Scene, board: list[str], rng: np.random.Generator, partial: tu
     if hand is not None:
         _draw_hand(frame, hand)
     out = frame.astype(np.float32) * scene.light
+    harsh = scene.harsh
+    if harsh is not None:
+        out *= harsh.light
+        out = cv2.remap(out, *lens_maps(harsh.lens_k, width, height), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        out = cv2.filter2D(out, -1, harsh.motion)
     if scene.blur_sigma > 0.3:
         out = cv2.GaussianBlur(out, (0, 0), scene.blur_sigma)
-    out += rng.normal(0, scene.noise_sigma, out.shape).astype(np.float32)
+    out += rng.normal(0, scene.noise_sigma if harsh is None else harsh.noise_sigma, out.shape).astype(np.float32)
     out = np.clip(out, 0, 255).astype(np.uint8)
-    if scene.jpeg_quality is not None:
-        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
+    quality = scene.jpeg_quality if harsh is None else harsh.jpeg_quality
+    if quality is not None:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, quality])
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     return out
 
@@ -337,10 +355,10 @@ class Frame:
 
 
 def make_frame(grid: int, seed: int, width: int = 640, height: int = 480, hand: bool = False,
-               styles: tuple[str, ...] = ("pen",)) -> Frame:
-    """One random photo of a board; same seed -> same pixels."""
+               styles: tuple[str, ...] = ("pen",), conditions: str = "clean") -> Frame:
+    """One random photo of a board; same seed -> same pixels ("harsh": see vision.data.conditions)."""
     rng = np.random.default_rng(seed)
-    scene = random_scene(grid, rng, width, height, styles)
+    scene = random_scene(grid, rng, width, height, styles, conditions)
     board = random_board(grid, rng)
     hand_obj = None
     if hand:

@@ -24,11 +24,11 @@ class MoveSequence:
 
 def make_move_sequence(grid: int, seed: int, before: int = 3, drawing: int = 5, after: int = 5,
                        width: int = 640, height: int = 480, styles: tuple[str, ...] = ("pen",),
-                       still_hand: int = 0) -> MoveSequence:
+                       still_hand: int = 0, conditions: str = "clean") -> MoveSequence:
     """before clean frames, `drawing` frames of the hand drawing (progress rising to 1), `still_hand`
     frames of the hand resting still after the mark is done, then `after` clean frames."""
     rng = np.random.default_rng(seed)
-    scene = random_scene(grid, rng, width, height, styles)
+    scene = random_scene(grid, rng, width, height, styles, conditions)
     board = random_board(grid, rng, fill=rng.uniform(0.0, 0.6))
     empty = [i for i, s in enumerate(board) if not s] or [int(rng.integers(grid * grid))]
     move = int(rng.choice(empty))
