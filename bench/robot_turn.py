@@ -3,7 +3,7 @@
 Target (issue 7): <= 2 s wall per robot turn (policy + speech + drive + draw + return home, with the camera
 frames rendered and logged, and the robot's own look at its mark) on this 2-core CPU machine with lavapipe.
 
-    python bench/robot_turn.py [--games 3] [--game standard] [--width 640 --height 480]
+    python bench/robot_turn.py [--games 3] [--game standard] [--width 640 --height 480] [--conditions atrium]
 
 Figures are noisy when other jobs share the machine: the load average is printed with them.
 """
@@ -39,6 +39,7 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--conditions", default="lab", help="lab, office, atrium, random or a YAML file (robot_sim.conditions)")
     args = parser.parse_args()
 
     import cv2
@@ -56,9 +57,14 @@ def main() -> None:
     from robot_sim.sheet import HUMAN_INK, MarkSpec
     from vision.grid import read_page
 
-    figures: dict[str, float | int | str | None] = {"load_average_start": round(os.getloadavg()[0], 2)}
+    from robot_sim.conditions import load_conditions
+
+    ranges = load_conditions(args.conditions)
+    figures: dict[str, float | int | str | None] = {"load_average_start": round(os.getloadavg()[0], 2),
+                                                    "conditions": args.conditions}
     started = time.perf_counter()
-    scene = PepperScene(SceneConfig(game=args.game, camera_width=args.width, camera_height=args.height))
+    scene = PepperScene(SceneConfig(game=args.game, camera_width=args.width, camera_height=args.height,
+                                    conditions=ranges, conditions_seed=args.seed))
     scene.render()
     figures["first_frame_s"] = round(time.perf_counter() - started, 2)
 
@@ -67,7 +73,8 @@ def main() -> None:
         scene.render()
 
     figures[f"render_{args.width}x{args.height}_ms"] = round(median_ms(render_once, 30), 1)
-    small = PepperScene(SceneConfig(game=args.game, camera_width=320, camera_height=240))
+    small = PepperScene(SceneConfig(game=args.game, camera_width=320, camera_height=240, conditions=ranges,
+                                    conditions_seed=args.seed))
     small.render()
     figures["render_320x240_ms"] = round(median_ms(lambda: (small.step(0.02), small.render()), 30), 1)
 
@@ -92,11 +99,11 @@ def main() -> None:
     figures["vision_read_page_ms"] = round(median_ms(lambda: read_page(frame_bgr, scene.grid), 20), 1)
 
     config = RobotPlayConfig(game=args.game, games=args.games, seed=args.seed, camera_width=args.width,
-                             camera_height=args.height)
+                             camera_height=args.height, conditions=args.conditions)
     with tempfile.TemporaryDirectory() as tmp, EpisodeLogger(tmp, run_info={"bench": "robot_turn"}) as logger:
         runner = RobotGameRunner(config, LookaheadOnlyPolicy(seed=args.seed), out_dir=None, logger=logger)
         report = runner.run(progress=progress_bar)
-    for key in ("games", "wins", "draws", "losses", "misrecognised_moves", "robot_moves", "seconds_per_robot_turn",
+    for key in ("games", "wins", "draws", "losses", "misrecognised_moves", "unseen_moves", "robot_moves", "seconds_per_robot_turn",
                 "max_seconds_per_robot_turn", "cpu_seconds_per_robot_turn", "seconds_per_dialogue_act", "seconds_per_human_turn", "frames"):
         figures[key] = report[key]
     figures["load_average_end"] = round(os.getloadavg()[0], 2)

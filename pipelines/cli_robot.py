@@ -41,7 +41,9 @@ def play(
     robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
     audio: bool = typer.Option(False, help="Speak through espeak-ng into OUT/speech/*.wav when installed."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
+    conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
+    as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
     if first is not None and starts is not None:
@@ -82,7 +84,8 @@ def play(
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
-        meshes_dir=None if meshes is None else str(meshes))
+        meshes_dir=None if meshes is None else str(meshes), conditions=conditions)
+    config.validate()
     try:
         with torch.no_grad():
             report = play_robot_games(config, policy, out_dir=out, progress=progress_bar if progress else None)
@@ -103,9 +106,10 @@ def render(
     width: int = typer.Option(640, help="Camera width."),
     height: int = typer.Option(480, help="Camera height."),
     marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'x4,o0,x8' (mark and cell)."),
-    seed: int = typer.Option(0, help="Seed of the hand-drawn marks."),
+    seed: int = typer.Option(0, help="Seed of the hand-drawn marks and of the conditions."),
     frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
     view: str = typer.Option("mouth", help="mouth (the robot's CameraBottom) or overview (third person, for people)."),
+    conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges; drawn with --seed."),
 ) -> None:
     """Render one mouth-camera (or overview) frame of the home posture to a PNG and print the render cost."""
     import time
@@ -115,19 +119,23 @@ def render(
 
     if view not in ("mouth", "overview"):
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
+    from robot_sim.conditions import load_conditions
     from robot_sim.render_system import SimulatorUnavailable
     from robot_sim.scene import PepperScene, SceneConfig
-    from robot_sim.sheet import HUMAN_INK, MARK_OF_PLAYER, MarkSpec
+    from robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
+    ranges = load_conditions(conditions)
     try:
-        scene = PepperScene(SceneConfig(game=game, camera_width=width, camera_height=height))
+        scene = PepperScene(SceneConfig(game=game, camera_width=width, camera_height=height, conditions=ranges,
+                                        conditions_seed=seed))
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     rng = np.random.default_rng(seed)
     for token in filter(None, (t.strip() for t in marks.split(","))):
         if token[0] not in MARK_OF_PLAYER or not token[1:].isdigit() or int(token[1:]) >= scene.grid ** 2:
             raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell in [0, {scene.grid ** 2}), e.g. x4")
-        scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)), HUMAN_INK), 1.0)
+        scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)),
+                                    scene.conditions.ink_bgr), 1.0)
     grab = scene.render if view == "mouth" else (lambda: scene.render_overview(width, height))
     frame = grab()
     times = []
@@ -140,7 +148,8 @@ def render(
     if not cv2.imwrite(str(output), frame[:, :, ::-1]):
         raise ValueError(f"could not write {output}; expected a writable path ending in .png")
     typer.echo(json.dumps({"output": str(output), "width": width, "height": height,
-                           "ms_per_frame_median": round(1000 * float(np.median(times)), 2)}))
+                           "ms_per_frame_median": round(1000 * float(np.median(times)), 2),
+                           "conditions": scene.conditions.summary()}))
 
 
 @robot_app.command("urdf")

@@ -4,6 +4,9 @@ Modules, each with one job:
 - `pepper_model`: Pepper's kinematic tree from primitives, written as `assets/pepper.urdf`;
 - `render_system`: the one SAPIEN render system per process, and the "no Vulkan device" error;
 - `scene`: floor, table, the textured game sheet, lights, the robot, its mouth camera, the human's arm;
+- `conditions`: the field's conditions (lab, office, atrium, random, or a YAML of ranges) drawn per game
+  from a seed; `dressing` puts them in the scene (lights, surfaces from `textures`, clutter, a bystander),
+  `camera_post` does the camera's part (exposure, white balance, noise, blur, JPEG);
 - `sheet`: the sheet's canvas (grid + hand-drawn marks from `vision`) uploaded as the texture;
 - `ik`, `motion`: position IK for the pen, base driving, gestures, drawing a mark;
 - `localise`: the sheet's pose on the table from a camera frame;

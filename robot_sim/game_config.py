@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from envs.core import FIRST_CHOICES
+from robot_sim.conditions import ConditionRanges, load_conditions
 from robot_sim.human import HumanConfig
 from robot_sim.scene import check_game
 
@@ -41,6 +42,9 @@ class RobotPlayConfig:
     agent_name: str = "lookahead"
     #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
     meshes_dir: str | None = None
+    #: The field's conditions (robot_sim.conditions): lab, office, atrium, random, or a YAML file of ranges;
+    #: drawn afresh for every game from its seed.
+    conditions: str = "lab"
 
     def validate(self) -> None:
         check_game(self.game)
@@ -50,3 +54,8 @@ class RobotPlayConfig:
             raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {self.first!r}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")
+        self.condition_ranges()
+
+    def condition_ranges(self) -> ConditionRanges:
+        """The conditions' ranges (a preset or the YAML file), checked."""
+        return load_conditions(self.conditions)

@@ -97,13 +97,15 @@ class SimulatedHuman:
         self.scene.step(self.config.frame_period)
         sink(self.scene.render(), self.scene.time)
 
-    def draw(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int] = HUMAN_INK,
+    def draw(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int] | None = None,
              drawing_frames: int | None = None) -> MarkSpec:
         """Act out drawing `kind` in `cell`, sending every rendered frame to `sink`; returns the mark drawn.
 
+        `ink` defaults to this person's pen (the scene's conditions: a blue ballpoint in the lab);
         `drawing_frames` overrides how many frames the pen-down part is rendered over (config default).
         """
         cfg = self.config
+        ink = ink or tuple(getattr(getattr(self.scene, "conditions", None), "ink_bgr", HUMAN_INK))
         drawing_frames = drawing_frames or cfg.drawing_frames
         scene = self.scene
         sheet_mm = 1000.0 * self.scene.sheet_side

@@ -81,6 +81,7 @@ class RobotGameRunner:
         from vision.recogniser import MoveRecogniser
 
         self.rules = make_game(config.game, config.free_move)
+        self._ranges = config.condition_ranges()
         self.grid = check_game(config.game)
         self.recogniser = MoveRecogniser(grid=self.grid, tau=config.recogniser_tau)
         self.last_frame: np.ndarray | None = None
@@ -150,15 +151,24 @@ class RobotGameRunner:
             label = found[0].label
             if cell != true_cell or label != ("x" if human_mark == 1 else "o"):
                 record.misrecognised_moves += 1
+                self._keep_evidence(f"misread-{record.human_moves:02d}-true{true_cell}-saw{cell}{label}")
         else:
             # Nothing recognised: the robot asks where the move went and the person answers (ASR).
             record.unseen_moves += 1
+            self._keep_evidence(f"unseen-{record.human_moves:02d}-true{true_cell}")
             self.speaker.say("I could not see your move, where did you draw?")
             cell = true_cell
         if not legal[cell]:  # cannot happen (known marks every illegal cell), kept as a guard for the env
             cell = int(np.flatnonzero(legal)[0])
         record.human_turn_seconds.append(time.perf_counter() - started)
         return cell
+
+    def _keep_evidence(self, what: str) -> None:
+        """With --out, keep the last camera frame of a move the robot got wrong or missed (input for vision)."""
+        if self.out_dir is not None and self.last_frame is not None:
+            path = self.out_dir / f"game-{self._record.index:03d}-{what}.png"
+            _write_png_atomic(path, _rgb_to_bgr(self.last_frame))
+            self._record.evidence.append(str(path))
 
     def _true_digits(self) -> str:
         """True board in the env's convention (1 robot, 2 human) as a digit string."""
@@ -207,7 +217,8 @@ class RobotGameRunner:
         seed = cfg.seed * 1000 + index
         self.scene = PepperScene(SceneConfig(game=cfg.game, camera_width=cfg.camera_width,
                                              camera_height=cfg.camera_height,
-                                             meshes_dir=cfg.meshes_dir))
+                                             meshes_dir=cfg.meshes_dir, conditions=self._ranges,
+                                             conditions_seed=seed))
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
         self._mark_rng = np.random.default_rng(seed + 17)
@@ -222,7 +233,8 @@ class RobotGameRunner:
         self.true_state = self.rules.new()
         self._true_boards: list[str] = []
         self._diverged = False
-        self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0)
+        self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0,
+                                           conditions=self.scene.conditions.summary())
         self._log_frame(self.scene.render(), self.scene.time)
         self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
         if self._sheet_estimate is None:
@@ -283,7 +295,7 @@ class RobotGameRunner:
     def _episode_extra(self, record: GameRecord) -> dict[str, Any]:
         return {"true_boards": list(self._true_boards), "true_outcome": self._true_outcome(),
                 "misrecognised_moves": record.misrecognised_moves, "unseen_moves": record.unseen_moves,
-                "robot_first": record.robot_first}
+                "robot_first": record.robot_first, "conditions": record.conditions}
 
     def _annotated(self, frame: np.ndarray, record: GameRecord) -> np.ndarray:
         import cv2

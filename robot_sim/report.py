@@ -37,6 +37,10 @@ class GameRecord:
     cell_localisation_error: float = 0.0
     #: Robot moves whose fresh mark the robot's own look at the sheet did not read.
     own_mark_misreads: int = 0
+    #: The scene this game was played in (`SceneConditions.summary()`).
+    conditions: dict[str, Any] = field(default_factory=dict)
+    #: Camera frames kept for misrecognised or unseen moves (with --out).
+    evidence: list[str] = field(default_factory=list)
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -56,6 +60,7 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "losses": sum(r.outcome == "loss" for r in records),
         "misrecognised_moves": sum(r.misrecognised_moves for r in records),
         "seconds_per_robot_turn": mean(moves),
+        "conditions": config.conditions,
         "unfinished": sum(r.outcome == "unfinished" for r in records),
         "unseen_moves": sum(r.unseen_moves for r in records),
         "human_moves": sum(r.human_moves for r in records),
@@ -73,6 +78,8 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "agent": config.agent_name,
         "seed": config.seed,
         "snapshots": [r.snapshot for r in records if r.snapshot],
+        "evidence": [path for r in records for path in r.evidence],
+        "game_conditions": [r.conditions for r in records],
     }
 
 

@@ -13,16 +13,20 @@ from pathlib import Path
 
 import numpy as np
 
+from robot_sim.camera_post import CameraPost
+from robot_sim.conditions import PRESETS, ConditionRanges, SceneConditions, sample_conditions
+from robot_sim.dressing import SceneDressing
 from robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
                                     write_pepper_urdf)
 from robot_sim.render_system import new_render_system
 from robot_sim.sheet import SheetCanvas
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
-SKIN = [0.87, 0.68, 0.56, 1.0]
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.
 SHEET_MARGIN = 0.03
-SLEEVE = [0.25, 0.32, 0.45, 1.0]
+
+
+TABLE_DEPTH, TABLE_WIDTH = 0.8, 1.2
 
 
 def check_game(game: str) -> int:
@@ -50,9 +54,20 @@ class SceneConfig:
     #: Optional folder of licensed Pepper meshes (<Link>.dae ...) replacing the primitive visuals.
     meshes_dir: str | None = None
     home_qpos: dict[str, float] = field(default_factory=dict)
+    #: The field's conditions (robot_sim.conditions): a preset's ranges, sampled once per scene with
+    #: `conditions_seed` (lights, surfaces, clutter, the sheet's pose and tint, camera, bystander).
+    conditions: ConditionRanges = PRESETS["lab"]
+    conditions_seed: int = 0
 
     def resolved_sheet_side(self) -> float:
         return self.sheet_side or (0.22 if self.game == "standard" else 0.28)
+
+    def lab_sheet_centre(self) -> tuple[float, float]:
+        """Where the sheet lies in the lab (x, y): at the table's near edge, centred on the robot."""
+        return (self.table_edge_x + SHEET_MARGIN + self.resolved_sheet_side() / 2, 0.0)
+
+    def sample_conditions(self) -> SceneConditions:
+        return sample_conditions(self.conditions, self.conditions_seed, self.resolved_sheet_side(), self.lab_sheet_centre())
 
 
 #: Pepper's rest posture: arms hanging beside the body (the robot's "home").
@@ -76,11 +91,19 @@ class PepperScene:
         render_system = new_render_system()
         self.scene = sapien.Scene([sapien.physx.PhysxCpuSystem(), render_system])
         self.scene.set_timestep(1.0 / self.config.physics_hz)
-        self.scene.set_ambient_light([0.45, 0.45, 0.45])
-        self.scene.add_directional_light([0.4, 0.25, -1.0], [0.75, 0.75, 0.72])
-        self.scene.add_point_light([0.6, 0.4, 2.0], [0.6, 0.6, 0.6])
+        self.conditions = self.config.sample_conditions()
+        cfg = self.config
+        centre = cfg.lab_sheet_centre()
+        self.dressing = SceneDressing(self.scene, self.conditions, cfg.table_height, cfg.table_edge_x + TABLE_DEPTH / 2,
+                                      np.array([centre[0] + self.conditions.sheet_offset[0],
+                                                centre[1] + self.conditions.sheet_offset[1], cfg.table_height]))
+        self.dressing.add_lights()
+        self.camera_post = CameraPost(self.conditions.camera)
         self.time = 0.0
         self._build_room()
+        self.dressing.add_surfaces(TABLE_DEPTH, TABLE_WIDTH)
+        self.dressing.add_props()
+        self.dressing.add_bystander()
         self._build_sheet()
         self._build_robot()
         self._build_human_arm()
@@ -94,11 +117,12 @@ class PepperScene:
     def _build_room(self) -> None:
         import sapien
 
-        floor = sapien.render.RenderMaterial(base_color=[0.55, 0.56, 0.58, 1.0], roughness=0.9)
+        colours = self.conditions
+        floor = sapien.render.RenderMaterial(base_color=[*colours.floor_colour, 1.0], roughness=0.9)
         self.scene.add_ground(0.0, render_material=floor)
-        wood = sapien.render.RenderMaterial(base_color=[0.40, 0.26, 0.16, 1.0], roughness=0.7)
+        wood = sapien.render.RenderMaterial(base_color=[*colours.table_colour, 1.0], roughness=0.7)
         cfg = self.config
-        depth, width, thick = 0.8, 1.2, 0.03
+        depth, width, thick = TABLE_DEPTH, TABLE_WIDTH, 0.03
         builder = self.scene.create_actor_builder()
         centre_x = cfg.table_edge_x + depth / 2
         builder.add_box_visual(sapien.Pose([0, 0, -thick / 2]), [depth / 2, width / 2, thick / 2], wood)
@@ -116,13 +140,16 @@ class PepperScene:
         self.sheet_side = side
         self.canvas = SheetCanvas(self.grid, self.config.texture_px)
         self._texture = sapien.render.RenderTexture2D(self.canvas.texture_rgba(), "R8G8B8A8Unorm")
-        material = sapien.render.RenderMaterial(base_color=[1.0, 1.0, 1.0, 1.0], roughness=0.95)
+        # The paper's tint multiplies the canvas (white in the lab).
+        material = sapien.render.RenderMaterial(base_color=[*self.conditions.paper_colour, 1.0], roughness=0.95)
         material.base_color_texture = self._texture
         builder = self.scene.create_actor_builder()
         # A plane faces +x; turn it to face up (+z), scaled to the sheet.
         builder.add_plane_visual(sapien.Pose(q=[0.7071068, 0.0, -0.7071068, 0.0]), [1.0, side / 2, side / 2], material)
         self.sheet = builder.build_kinematic(name="sheet")
-        self.sheet_home_pose = sapien.Pose([self.config.table_edge_x + SHEET_MARGIN + side / 2, 0.0, self.config.table_height + 0.0008])
+        (x, y), (dx, dy), yaw = self.config.lab_sheet_centre(), self.conditions.sheet_offset, self.conditions.sheet_yaw
+        self.sheet_home_pose = sapien.Pose([x + dx, y + dy, self.config.table_height + 0.0008],
+                                           [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
         self.sheet.set_pose(self.sheet_home_pose)
         self._uploaded_version = self.canvas.version
 
@@ -156,8 +183,8 @@ class PepperScene:
         """The human's forearm, hand and pen: kinematic primitives moved by the simulated human."""
         import sapien
 
-        skin = sapien.render.RenderMaterial(base_color=SKIN, roughness=0.8)
-        sleeve = sapien.render.RenderMaterial(base_color=SLEEVE, roughness=0.9)
+        skin = sapien.render.RenderMaterial(base_color=[*self.conditions.skin, 1.0], roughness=0.8)
+        sleeve = sapien.render.RenderMaterial(base_color=[*self.conditions.sleeve, 1.0], roughness=0.9)
         pen = sapien.render.RenderMaterial(base_color=[0.1, 0.2, 0.7, 1.0])
         builder = self.scene.create_actor_builder()
         # Local frame: origin at the pen tip; the arm runs along +x towards the elbow.
@@ -251,7 +278,8 @@ class PepperScene:
         home = np.array(self.sheet_home_pose.p)
         offset = np.clip(np.array(self.sheet.pose.p) + np.array([dx, dy, 0.0]) - home, -max_offset, max_offset)
         offset[2] = 0.0
-        yaw = float(np.clip(self.sheet_yaw() + dyaw, -max_yaw, max_yaw))
+        laid = self.conditions.sheet_yaw
+        yaw = laid + float(np.clip(self.sheet_yaw() - laid + dyaw, -max_yaw, max_yaw))
         self.sheet.set_pose(sapien.Pose(home + offset, [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]))
 
     def sheet_yaw(self) -> float:
@@ -294,9 +322,11 @@ class PepperScene:
         return np.ascontiguousarray(self._overview.get_picture("Color")[:, :, :3])
 
     def render(self) -> np.ndarray:
-        """One mouth-camera frame as uint8 RGB (H, W, 3), with the sheet's latest texture."""
+        """One mouth-camera frame as uint8 RGB (H, W, 3), with the sheet's latest texture, as the camera
+        delivers it (the conditions' exposure, noise, blur and compression; untouched in the lab)."""
+        self.dressing.before_frame(self.time)
         self.refresh_sheet()
         self.scene.update_render()
         self.camera.take_picture()
         rgba = self.camera.get_picture("Color")
-        return np.ascontiguousarray(rgba[:, :, :3])
+        return self.camera_post(np.ascontiguousarray(rgba[:, :, :3]))

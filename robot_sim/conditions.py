@@ -1,0 +1,395 @@
+"""The field's conditions for the robot's scene: presets as typed ranges, and one game's values drawn from a seed.
+
+The paper's robot was tested in a lab and then in an atrium with other light, other backgrounds and people
+standing by. `ConditionRanges` says how widely each property of the scene may vary (light, surfaces, clutter,
+the sheet's pose and tint, pen, camera, a bystander); `sample_conditions(ranges, seed)` draws one game's
+`SceneConditions` from them, so one seed always gives the same scene. `lab` has no ranges at all: it is the
+scene the robot was built in, unchanged (the robot tests and figures rely on it). A YAML file can override any
+field of a preset (`base: office` plus the fields to change).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+Range = tuple[float, float]
+PRESETS_NAMES = ("lab", "office", "atrium", "random")
+CLUTTER_KINDS = ("cup", "phone", "pen", "scrap", "sheet")
+TABLE_TEXTURES = ("plain", "wood", "laminate", "linen")
+FLOOR_TEXTURES = ("plain", "carpet", "tiles", "stone")
+WALL_TEXTURES = ("none", "paint", "brick", "panels")
+
+#: The lab scene as built before conditions existed (kept bit-identical).
+LAB_AMBIENT = (0.45, 0.45, 0.45)
+LAB_LIGHTS = (("directional", (0.4, 0.25, -1.0), (0.75, 0.75, 0.72)), ("point", (0.6, 0.4, 2.0), (0.6, 0.6, 0.6)))
+LAB_SKIN = (0.87, 0.68, 0.56)
+LAB_SLEEVE = (0.25, 0.32, 0.45)
+LAB_INK_BGR = (120, 40, 20)   # a blue ballpoint
+#: Pens people bring (BGR): blue, black, dark blue, red, green, purple.
+PEN_INKS_BGR = ((120, 40, 20), (30, 30, 30), (90, 30, 10), (40, 40, 170), (50, 110, 30), (110, 40, 90))
+#: Skin tones (RGB, linear-ish base colours) from light to dark.
+SKIN_TONES = ((0.92, 0.76, 0.66), (0.87, 0.68, 0.56), (0.78, 0.57, 0.43), (0.62, 0.43, 0.30), (0.45, 0.30, 0.20),
+              (0.32, 0.21, 0.14))
+
+
+@dataclass(frozen=True)
+class ConditionRanges:
+    """How much each property of the scene may vary; (lo, hi) ranges are sampled uniformly per game."""
+
+    name: str = "lab"
+    #: Scale of every light's intensity (1 = the lab's).
+    light_intensity: Range = (1.0, 1.0)
+    #: Colour temperature of the main light (K); None keeps the lab's neutral lights.
+    colour_temperature: Range | None = None
+    #: Colour temperature of the extra lamps (K).
+    lamp_temperature: Range = (2700.0, 3300.0)
+    #: Elevation and azimuth of the main (directional) light, degrees; it casts shadows when `shadows`.
+    light_elevation: Range = (55.0, 75.0)
+    light_azimuth: Range = (-180.0, 180.0)
+    shadows: bool = False
+    #: Extra point/spot lamps around the table (how many, and their intensity relative to the main light).
+    extra_lights: tuple[int, int] = (0, 0)
+    lamp_intensity: Range = (0.2, 0.5)
+    #: Ambient light as a fraction of the main light.
+    ambient: Range = (0.45, 0.45)
+    #: Slow drift of the main light per frame (clouds over an atrium): amplitude (fraction) and period (s).
+    light_drift: Range = (0.0, 0.0)
+    light_drift_period: Range = (60.0, 180.0)
+    table_textures: tuple[str, ...] = ("plain",)
+    floor_textures: tuple[str, ...] = ("plain",)
+    wall_textures: tuple[str, ...] = ("none",)
+    #: Objects on the table around the sheet (how many), from these kinds.
+    clutter: tuple[int, int] = (0, 0)
+    clutter_kinds: tuple[str, ...] = ("cup", "phone", "pen", "scrap")
+    second_sheet_probability: float = 0.0
+    #: The sheet's pose on the table: yaw (degrees) and offset (m) from where it is laid in the lab.
+    sheet_yaw: Range = (0.0, 0.0)
+    sheet_offset: Range = (0.0, 0.0)
+    #: Paper tint: how far from white the paper is (0 = white), in any warm/cool/grey direction.
+    paper_tint: Range = (0.0, 0.0)
+    #: Pens the person may bring (BGR inks); the first one is the lab's.
+    pen_inks: tuple[tuple[int, int, int], ...] = (LAB_INK_BGR,)
+    skin_tones: tuple[tuple[float, float, float], ...] = (LAB_SKIN,)
+    vary_sleeve: bool = False
+    #: Camera: exposure gain, how much of the light's colour cast auto white balance removes (1 = all),
+    #: sensor noise (std of gray levels at mid grey), blur length in pixels per frame, JPEG quality.
+    exposure: Range = (1.0, 1.0)
+    white_balance: Range = (1.0, 1.0)
+    noise: Range = (0.0, 0.0)
+    blur_probability: float = 0.0
+    blur_px: Range = (0.0, 0.0)
+    jpeg_quality: tuple[int, int] | None = None
+    vignette: Range = (0.0, 0.0)
+    #: A second person standing by: present in a game with this probability; per frame their arm enters the
+    #: view with `bystander_arm_probability` and stays a few frames.
+    bystander_probability: float = 0.0
+    bystander_arm_probability: float = 0.0
+
+    def validate(self) -> None:
+        for item in dataclasses.fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, tuple) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
+                if value[0] > value[1]:
+                    raise ValueError(f"conditions {self.name!r}: {item.name} range must be (low, high); got {value}")
+        for name in ("second_sheet_probability", "blur_probability", "bystander_probability", "bystander_arm_probability"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"conditions {self.name!r}: {name} must be in [0, 1]; got {getattr(self, name)}")
+        for name, allowed in (("table_textures", TABLE_TEXTURES), ("floor_textures", FLOOR_TEXTURES),
+                              ("wall_textures", WALL_TEXTURES), ("clutter_kinds", CLUTTER_KINDS)):
+            bad = [v for v in getattr(self, name) if v not in allowed]
+            if bad or not getattr(self, name):
+                raise ValueError(f"conditions {self.name!r}: {name} must be a non-empty list of {', '.join(allowed)}; got {list(getattr(self, name))}")
+        if abs(self.sheet_yaw[0]) > 30 or abs(self.sheet_yaw[1]) > 30 or self.sheet_offset[1] > 0.05:
+            raise ValueError(f"conditions {self.name!r}: the sheet may turn at most 30 degrees and move at most 0.05 m "
+                             f"(the robot must still reach it); got yaw {self.sheet_yaw}, offset {self.sheet_offset}")
+        if self.jpeg_quality is not None and not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
+            raise ValueError(f"conditions {self.name!r}: jpeg_quality must be (low, high) in [1, 100]; got {self.jpeg_quality}")
+
+
+PRESETS: dict[str, ConditionRanges] = {
+    "lab": ConditionRanges(),
+    # Fluorescent ceiling lights, a desk, a few things on it; the sheet roughly where the robot put it.
+    "office": ConditionRanges(
+        name="office", light_intensity=(0.8, 1.1), colour_temperature=(3800.0, 4800.0), lamp_temperature=(3500.0, 4500.0),
+        light_elevation=(60.0, 85.0), shadows=True, extra_lights=(1, 3), lamp_intensity=(0.15, 0.35), ambient=(0.35, 0.5),
+        table_textures=("wood", "laminate"), floor_textures=("carpet", "tiles"), wall_textures=("paint", "panels"),
+        clutter=(1, 3), clutter_kinds=("cup", "phone", "pen", "scrap"), second_sheet_probability=0.15,
+        sheet_yaw=(-10.0, 10.0), sheet_offset=(0.0, 0.015), paper_tint=(0.0, 0.03),
+        pen_inks=PEN_INKS_BGR[:3], skin_tones=SKIN_TONES, vary_sleeve=True,
+        exposure=(0.9, 1.1), white_balance=(0.85, 0.98), noise=(0.8, 2.0), blur_probability=0.1, blur_px=(0.0, 1.5),
+        jpeg_quality=(85, 95), vignette=(0.0, 0.15)),
+    # The paper's field trial: sun through a glass roof (hard shadows, slow clouds), warm lamps, stone floor,
+    # a busy table, the sheet wherever the last player left it, a cheap webcam, people standing by.
+    "atrium": ConditionRanges(
+        name="atrium", light_intensity=(0.55, 1.5), colour_temperature=(5000.0, 6800.0), lamp_temperature=(2700.0, 3200.0),
+        light_elevation=(35.0, 70.0), shadows=True, extra_lights=(2, 4), lamp_intensity=(0.2, 0.5), ambient=(0.25, 0.45),
+        light_drift=(0.0, 0.12), light_drift_period=(40.0, 120.0),
+        table_textures=("wood", "laminate", "linen"), floor_textures=("stone", "tiles"), wall_textures=("brick", "panels"),
+        clutter=(2, 6), clutter_kinds=CLUTTER_KINDS[:4], second_sheet_probability=0.5,
+        sheet_yaw=(-25.0, 25.0), sheet_offset=(0.0, 0.03), paper_tint=(0.0, 0.08),
+        pen_inks=PEN_INKS_BGR, skin_tones=SKIN_TONES, vary_sleeve=True,
+        exposure=(0.75, 1.25), white_balance=(0.7, 0.95), noise=(2.0, 4.0), blur_probability=0.3, blur_px=(0.5, 3.0),
+        jpeg_quality=(60, 85), vignette=(0.05, 0.3), bystander_probability=0.7, bystander_arm_probability=0.06),
+    # Everything at once, each over its widest range: for robustness studies, not a place.
+    "random": ConditionRanges(
+        name="random", light_intensity=(0.45, 1.7), colour_temperature=(2600.0, 7500.0), lamp_temperature=(2600.0, 6500.0),
+        light_elevation=(30.0, 85.0), shadows=True, extra_lights=(0, 4), lamp_intensity=(0.1, 0.6), ambient=(0.2, 0.55),
+        light_drift=(0.0, 0.15), light_drift_period=(30.0, 150.0),
+        table_textures=TABLE_TEXTURES, floor_textures=FLOOR_TEXTURES, wall_textures=WALL_TEXTURES,
+        clutter=(0, 7), clutter_kinds=CLUTTER_KINDS[:4], second_sheet_probability=0.4,
+        sheet_yaw=(-25.0, 25.0), sheet_offset=(0.0, 0.03), paper_tint=(0.0, 0.1),
+        pen_inks=PEN_INKS_BGR, skin_tones=SKIN_TONES, vary_sleeve=True,
+        exposure=(0.7, 1.3), white_balance=(0.6, 1.0), noise=(0.0, 5.0), blur_probability=0.35, blur_px=(0.0, 3.5),
+        jpeg_quality=(50, 95), vignette=(0.0, 0.35), bystander_probability=0.5, bystander_arm_probability=0.08),
+}
+
+
+def load_conditions(spec: str | Path) -> ConditionRanges:
+    """A preset by name (lab, office, atrium, random) or a YAML file: `base: <preset>` plus fields to override."""
+    text = str(spec)
+    if text in PRESETS:
+        return PRESETS[text]
+    path = Path(text)
+    if not path.is_file():
+        raise FileNotFoundError(f"conditions {text!r} is neither a preset ({', '.join(PRESETS_NAMES)}) nor a YAML file")
+    import yaml
+
+    data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"conditions file {path} must hold a mapping of fields; got {type(data).__name__}")
+    base = data.pop("base", "lab")
+    if base not in PRESETS:
+        raise ValueError(f"conditions file {path}: base must be one of {', '.join(PRESETS_NAMES)}; got {base!r}")
+    known = {f.name: f for f in dataclasses.fields(ConditionRanges)}
+    unknown = sorted(set(data) - set(known))
+    if unknown:
+        raise ValueError(f"conditions file {path}: unknown fields {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    values: dict[str, Any] = {"name": str(path)}
+    for key, value in data.items():
+        values[key] = _as_tuple(value)
+    ranges = dataclasses.replace(PRESETS[base], **values)
+    ranges.validate()
+    return ranges
+
+
+def _as_tuple(value: Any) -> Any:
+    """YAML lists -> tuples (nested), so a file's ranges compare and hash like the presets'."""
+    if isinstance(value, list):
+        return tuple(_as_tuple(v) for v in value)
+    return value
+
+
+def kelvin_to_rgb(kelvin: float) -> tuple[float, float, float]:
+    """Colour of a black body at `kelvin` as RGB in [0, 1], brightest channel 1 (Tanner Helland's fit)."""
+    t = kelvin / 100.0
+    r = 255.0 if t <= 66 else 329.698727446 * (t - 60) ** -0.1332047592
+    g = 99.4708025861 * math.log(t) - 161.1195681661 if t <= 66 else 288.1221695283 * (t - 60) ** -0.0755148492
+    b = 255.0 if t >= 66 else (0.0 if t <= 19 else 138.5177312231 * math.log(t - 10) - 305.0447927307)
+    rgb = np.clip([r, g, b], 1.0, 255.0)
+    return tuple(float(v) for v in rgb / rgb.max())
+
+
+@dataclass(frozen=True)
+class Light:
+    """One light: kind (directional/point/spot), position or direction, RGB colour (intensity folded in)."""
+
+    kind: str
+    vector: tuple[float, float, float]
+    colour: tuple[float, float, float]
+    shadow: bool = False
+    direction: tuple[float, float, float] | None = None   # of a spot lamp
+
+
+@dataclass(frozen=True)
+class Prop:
+    """One object on the table: kind, centre (x, y) in the world, yaw, RGB colour, and a size scale."""
+
+    kind: str
+    x: float
+    y: float
+    yaw: float
+    colour: tuple[float, float, float]
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class CameraEffects:
+    """The camera's post-processing for one game; the per-frame parts are drawn from `seed` frame by frame."""
+
+    exposure: float = 1.0
+    #: Per-channel gain of the (imperfect) auto white balance.
+    white_balance_gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    noise: float = 0.0
+    blur_probability: float = 0.0
+    blur_px: Range = (0.0, 0.0)
+    jpeg_quality: int | None = None
+    vignette: float = 0.0
+    seed: int = 0
+
+    @property
+    def identity(self) -> bool:
+        return (self.exposure == 1.0 and self.white_balance_gain == (1.0, 1.0, 1.0) and self.noise == 0.0
+                and self.blur_probability == 0.0 and self.jpeg_quality is None and self.vignette == 0.0)
+
+
+@dataclass(frozen=True)
+class SceneConditions:
+    """One game's concrete scene: what `PepperScene` builds and what its camera does to every frame."""
+
+    preset: str = "lab"
+    ambient: tuple[float, float, float] = LAB_AMBIENT
+    lights: tuple[Light, ...] = tuple(Light(kind, vec, col) for kind, vec, col in LAB_LIGHTS)
+    #: Main light drift: amplitude (fraction of its intensity) and period (simulated s), and its phase.
+    light_drift: float = 0.0
+    light_drift_period: float = 60.0
+    light_drift_phase: float = 0.0
+    table_texture: str = "plain"
+    floor_texture: str = "plain"
+    wall_texture: str = "none"
+    #: RGB base colours of the surfaces (used by their textures too).
+    table_colour: tuple[float, float, float] = (0.40, 0.26, 0.16)
+    floor_colour: tuple[float, float, float] = (0.55, 0.56, 0.58)
+    wall_colour: tuple[float, float, float] = (0.8, 0.8, 0.78)
+    texture_seed: int = 0
+    props: tuple[Prop, ...] = ()
+    #: The sheet: offset (m, x away from the robot, y to its left) and yaw (rad) from the lab's pose; paper tint.
+    sheet_offset: tuple[float, float] = (0.0, 0.0)
+    sheet_yaw: float = 0.0
+    paper_colour: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    ink_bgr: tuple[int, int, int] = LAB_INK_BGR
+    skin: tuple[float, float, float] = LAB_SKIN
+    sleeve: tuple[float, float, float] = LAB_SLEEVE
+    camera: CameraEffects = field(default_factory=CameraEffects)
+    bystander: bool = False
+    bystander_arm_probability: float = 0.0
+    bystander_colours: tuple[tuple[float, float, float], tuple[float, float, float]] = ((0.3, 0.3, 0.3), LAB_SKIN)
+    seed: int = 0
+
+    def summary(self) -> dict[str, Any]:
+        """The few values worth logging per game (JSON-friendly)."""
+        main = self.lights[0]
+        return {"preset": self.preset, "seed": self.seed, "main_light": [round(c, 3) for c in main.colour],
+                "lights": len(self.lights), "shadows": any(light.shadow for light in self.lights),
+                "surfaces": [self.table_texture, self.floor_texture, self.wall_texture],
+                "props": [p.kind for p in self.props], "sheet_yaw_deg": round(math.degrees(self.sheet_yaw), 1),
+                "sheet_offset_m": [round(v, 4) for v in self.sheet_offset],
+                "paper": [round(c, 3) for c in self.paper_colour], "ink_bgr": list(self.ink_bgr),
+                "exposure": round(self.camera.exposure, 3), "noise": round(self.camera.noise, 2),
+                "jpeg_quality": self.camera.jpeg_quality, "bystander": self.bystander}
+
+
+def _uniform(rng: np.random.Generator, bounds: Range) -> float:
+    return float(bounds[0]) if bounds[0] == bounds[1] else float(rng.uniform(bounds[0], bounds[1]))
+
+
+def _pick(rng: np.random.Generator, options: tuple) -> Any:
+    return options[int(rng.integers(len(options)))]
+
+
+def _scaled(colour: tuple[float, float, float], scale: float) -> tuple[float, float, float]:
+    return tuple(float(c * scale) for c in colour)
+
+
+def sample_conditions(ranges: ConditionRanges, seed: int, sheet_side: float = 0.22, sheet_centre: tuple[float, float] = (0.30, 0.0)) -> SceneConditions:
+    """One game's scene drawn from `ranges` with `seed`; `lab` (no colour temperature, no variation) returns the lab."""
+    if ranges.name == "lab" and ranges == PRESETS["lab"]:
+        return SceneConditions(seed=seed)
+    ranges.validate()
+    rng = np.random.default_rng([seed, zlib.crc32(ranges.name.encode())])  # presets differ at one seed
+    intensity = _uniform(rng, ranges.light_intensity)
+    main_rgb = kelvin_to_rgb(_uniform(rng, ranges.colour_temperature)) if ranges.colour_temperature else (1.0, 1.0, 0.96)
+    elevation, azimuth = math.radians(_uniform(rng, ranges.light_elevation)), math.radians(_uniform(rng, ranges.light_azimuth))
+    direction = (-math.cos(elevation) * math.cos(azimuth), -math.cos(elevation) * math.sin(azimuth), -math.sin(elevation))
+    lights = [Light("directional", direction, _scaled(main_rgb, 1.1 * intensity), ranges.shadows)]
+    lamps = int(rng.integers(ranges.extra_lights[0], ranges.extra_lights[1] + 1))
+    for _ in range(lamps):
+        colour = _scaled(kelvin_to_rgb(_uniform(rng, ranges.lamp_temperature)), intensity * _uniform(rng, ranges.lamp_intensity))
+        position = (float(rng.uniform(-0.8, 1.6)), float(rng.uniform(-1.5, 1.5)), float(rng.uniform(1.8, 2.8)))
+        if rng.random() < 0.5:
+            lights.append(Light("point", position, _scaled(colour, 2.5)))
+        else:
+            target = (sheet_centre[0] + float(rng.uniform(-0.4, 0.4)), sheet_centre[1] + float(rng.uniform(-0.4, 0.4)), 0.75)
+            aim = tuple(float(t - p) for t, p in zip(target, position))
+            lights.append(Light("spot", position, _scaled(colour, 6.0), False, aim))
+    ambient_rgb = np.mean([main_rgb] + [kelvin_to_rgb(_uniform(rng, ranges.lamp_temperature))] * min(lamps, 1), axis=0)
+    ambient = _scaled(tuple(ambient_rgb), _uniform(rng, ranges.ambient) * intensity)
+    # The camera's auto white balance removes part of the light's cast (the lights' summed colour).
+    light_mix = np.sum([np.array(light.colour) for light in lights[:1]], axis=0) * 2.0 + np.array(ambient)
+    light_mix = light_mix / light_mix.max()
+    correction = _uniform(rng, ranges.white_balance)
+    # (in display space: the renderer's output is sRGB-encoded, hence the 1/2.2)
+    gain = (light_mix.max() / np.maximum(light_mix, 1e-3)) ** (correction / 2.2)
+    gain = gain / gain.mean()
+    camera = CameraEffects(exposure=_uniform(rng, ranges.exposure), white_balance_gain=tuple(float(g) for g in gain),
+                           noise=_uniform(rng, ranges.noise), blur_probability=ranges.blur_probability,
+                           blur_px=ranges.blur_px, vignette=_uniform(rng, ranges.vignette),
+                           jpeg_quality=None if ranges.jpeg_quality is None else int(rng.integers(ranges.jpeg_quality[0], ranges.jpeg_quality[1] + 1)),
+                           seed=int(rng.integers(2**31)))
+    yaw = math.radians(_uniform(rng, ranges.sheet_yaw))
+    # Away from the robot by at least what the turned sheet's near corner needs to stay on the table.
+    turned = (sheet_side / 2) * (abs(math.cos(yaw)) + abs(math.sin(yaw)) - 1.0)
+    offset = _uniform(rng, ranges.sheet_offset)
+    sheet_offset = (turned + offset * float(rng.uniform(0.0, 1.0)), offset * float(rng.uniform(-1.0, 1.0)))
+    tint_amount = _uniform(rng, ranges.paper_tint)
+    tint_direction = _pick(rng, ((1.0, 0.97, 0.85), (0.9, 0.95, 1.0), (0.93, 0.93, 0.93), (1.0, 0.95, 0.9), (0.95, 1.0, 0.9)))
+    paper = tuple(float(1.0 - tint_amount * (1.0 - c) / 0.15) for c in tint_direction)
+    table_colour = _pick(rng, ((0.40, 0.26, 0.16), (0.55, 0.40, 0.26), (0.30, 0.20, 0.13), (0.62, 0.60, 0.56),
+                               (0.22, 0.23, 0.25), (0.68, 0.55, 0.40)))
+    floor_colour = _pick(rng, ((0.55, 0.56, 0.58), (0.35, 0.33, 0.30), (0.62, 0.58, 0.50), (0.25, 0.28, 0.35)))
+    wall_colour = _pick(rng, ((0.85, 0.84, 0.80), (0.75, 0.80, 0.82), (0.70, 0.45, 0.35), (0.88, 0.85, 0.72)))
+    sleeve = tuple(float(v) for v in rng.uniform(0.08, 0.85, 3)) if ranges.vary_sleeve else LAB_SLEEVE
+    cx, cy = sheet_centre[0] + sheet_offset[0], sheet_centre[1] + sheet_offset[1]
+    props = _sample_props(rng, ranges, sheet_side, (cx, cy), yaw)
+    bystander = bool(rng.random() < ranges.bystander_probability)
+    bystander_colours = (tuple(float(v) for v in rng.uniform(0.08, 0.85, 3)), _pick(rng, ranges.skin_tones))
+    return SceneConditions(
+        preset=ranges.name, ambient=ambient, lights=tuple(lights),
+        light_drift=_uniform(rng, ranges.light_drift), light_drift_period=_uniform(rng, ranges.light_drift_period),
+        light_drift_phase=float(rng.uniform(0, 2 * math.pi)),
+        table_texture=_pick(rng, ranges.table_textures), floor_texture=_pick(rng, ranges.floor_textures),
+        wall_texture=_pick(rng, ranges.wall_textures), table_colour=table_colour, floor_colour=floor_colour,
+        wall_colour=wall_colour, texture_seed=int(rng.integers(2**31)), props=props, sheet_offset=sheet_offset,
+        sheet_yaw=yaw, paper_colour=paper, ink_bgr=_pick(rng, ranges.pen_inks), skin=_pick(rng, ranges.skin_tones),
+        sleeve=sleeve, camera=camera, bystander=bystander,
+        bystander_arm_probability=ranges.bystander_arm_probability if bystander else 0.0,
+        bystander_colours=bystander_colours, seed=seed)
+
+
+#: Footprint radius (m) of each prop kind, to keep them off the game sheet and each other.
+PROP_RADIUS = {"cup": 0.045, "phone": 0.08, "pen": 0.075, "scrap": 0.05, "sheet": 0.16}
+
+
+def _sample_props(rng: np.random.Generator, ranges: ConditionRanges, side: float, centre: tuple[float, float],
+                  yaw: float) -> tuple[Prop, ...]:
+    """Objects around the sheet (in the camera's view, off the sheet itself: they lie on the table, not on it)."""
+    count = int(rng.integers(ranges.clutter[0], ranges.clutter[1] + 1))
+    kinds = [_pick(rng, ranges.clutter_kinds) for _ in range(count)]
+    if rng.random() < ranges.second_sheet_probability:
+        kinds.insert(0, "sheet")
+    colours = {"cup": ((0.9, 0.9, 0.88), (0.75, 0.15, 0.12), (0.15, 0.35, 0.65), (0.95, 0.8, 0.2), (0.2, 0.2, 0.2)),
+               "phone": ((0.05, 0.05, 0.06), (0.85, 0.85, 0.87), (0.3, 0.35, 0.45)),
+               "pen": ((0.1, 0.2, 0.7), (0.05, 0.05, 0.05), (0.8, 0.1, 0.1), (0.9, 0.9, 0.9)),
+               "scrap": ((0.96, 0.96, 0.94), (0.98, 0.92, 0.45), (0.7, 0.85, 0.95), (0.95, 0.75, 0.8)),
+               "sheet": ((0.97, 0.97, 0.96), (0.98, 0.96, 0.9))}
+    placed: list[Prop] = []
+    reach = side / 2 * math.sqrt(2)
+    for kind in kinds:
+        radius = PROP_RADIUS[kind]
+        for _ in range(40):
+            angle = float(rng.uniform(0, 2 * math.pi))
+            distance = reach + radius + float(rng.uniform(0.01, 0.12))
+            x, y = centre[0] + distance * math.cos(angle), centre[1] + distance * math.sin(angle)
+            # on the table (its near edge at 0.16 m, far edge 0.96 m, half width 0.6 m) and not at its near edge
+            if not (0.16 + radius <= x <= 0.9 and abs(y) <= 0.55):
+                continue
+            if all(math.hypot(x - p.x, y - p.y) > radius + PROP_RADIUS[p.kind] for p in placed):
+                placed.append(Prop(kind, x, y, float(rng.uniform(-math.pi, math.pi)), _pick(rng, colours[kind]),
+                                   float(rng.uniform(0.85, 1.15))))
+                break
+    return tuple(placed)
