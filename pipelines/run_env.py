@@ -24,6 +24,8 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
         first=first or env_config.first,
         opponent=opponent or env_config.opponent,
         max_actions=env_config.max_steps,
+        offer_taken_cells=env_config.offer_taken_cells,
+        dialogues=env_config.dialogues,
         **env_config.options,
     )
 
