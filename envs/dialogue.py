@@ -157,6 +157,7 @@ class DialogueModel:
     n_examples: int
     templates: tuple[str, ...] = TEMPLATES
     user_moves_after: tuple[int, ...] = (MOVE, REQUEST_USER_MOVE)
+    example_contexts: tuple[tuple[int, int, int], ...] = ()  # (last sys, last user, phase) of each example turn
 
 
 def load_dialogues(game: str, path: Path = DATA_FILE) -> list[dict]:
@@ -206,12 +207,12 @@ def build_dialogue_model(game: str, dialogues: str = "compact") -> DialogueModel
     learnt (acts per dialogue context, user replies) does not depend on the variant the env is run with.
     """
     chosen = dialogue_set(dialogues)
-    examples = load_dialogues(game, chosen.path)
-    return _fit_model(game, examples, chosen)
+    return fit_dialogue_model(game, load_dialogues(game, chosen.path), chosen)
 
 
-def _fit_model(game: str, dialogues: list[dict], chosen: DialogueSet) -> DialogueModel:
-    """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape."""
+def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet) -> DialogueModel:
+    """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape;
+    any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``)."""
     from envs.rules import make_game
 
     contexts: list[tuple[int, int, int]] = []
@@ -283,6 +284,7 @@ def _fit_model(game: str, dialogues: list[dict], chosen: DialogueSet) -> Dialogu
         n_examples=len(labels),
         templates=chosen.templates,
         user_moves_after=chosen.user_moves_after,
+        example_contexts=tuple(contexts),
     )
 
 
