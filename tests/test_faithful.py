@@ -157,3 +157,11 @@ def test_max_games_stops_training_before_the_frames(tmp_path: Path) -> None:
     assert report["frames"] < 5000
     saved = json.loads((tmp_path / "run" / "eval.json").read_text())
     assert saved["episodes"] == report["episodes"] and saved["history"][-1]["frames"] == report["frames"]
+
+
+def test_an_option_set_twice_is_one_clear_error() -> None:
+    from pipelines.run_env import make_run_env
+
+    config = load_config(ROOT / "pipelines" / "configs" / "default.yaml", ["env.options={dialogues: paper}"])
+    with pytest.raises(ValueError, match="env.options.dialogues repeats the config key env.dialogues"):
+        make_run_env(config.env, batch_size=1, seed=0)
