@@ -18,6 +18,7 @@ import torch
 import yaml
 
 DATA_FILE = Path(__file__).with_name("data") / "example_dialogues.yaml"
+PAPER_DATA_FILE = Path(__file__).with_name("data") / "example_dialogues_paper.yaml"
 
 # System dialogue-act types. Action ids: GameMove(gridloc=c) is action c (c < cells); type k >= 1 is action
 # cells + k - 1, so acts are [moves..., greeting, name, ..., closing].
@@ -47,6 +48,9 @@ TEMPLATES = (
     "It is a draw, good game!",
     "Thank you, goodbye!",
 )
+# The paper's act table gives these two lines (paper-notes section 3); the other acts keep the lines above.
+PAPER_TEMPLATES = tuple({REPLY_YES: "Nice. Let me start.", REQUEST_USER_MOVE: "Your turn."}.get(t, line)
+                        for t, line in enumerate(TEMPLATES))
 # The bracketed command of each act type; "draw" (moves) is represented by the move features instead.
 TYPE_COMMANDS = ("draw", "hello", "asr", "please", "happy", "read", "happy", "no", "think", "hello")
 ROBOT_COMMANDS = ("hello", "please", "happy", "no", "think", "asr", "read")
@@ -66,6 +70,40 @@ USER_YES, USER_MOVE = USER_ACTS.index("Reply(playGame=yes)"), USER_ACTS.index("G
 # Game phases (the third context feature).
 PHASES = ("pre_game", "robot_to_move", "user_to_move", "robot_won", "user_won", "draw", "closed")
 PRE_GAME, ROBOT_TO_MOVE, USER_TO_MOVE, ROBOT_WON, USER_WON, GAME_DRAWN, CLOSED = range(7)
+
+
+
+@dataclass(frozen=True)
+class DialogueSet:
+    """One set of example dialogues (env option ``dialogues``): its file, the robot's lines, and the system acts
+    the simulated user answers with its game move (on its turn).
+
+    Why the last is declared, not learnt: it is the dialogue's shape (who prompts a move), which must hold for
+    any subset of the examples, also one without a user-first game.
+    """
+
+    name: str
+    path: Path
+    templates: tuple[str, ...]
+    user_moves_after: tuple[int, ...]
+
+
+DIALOGUE_SETS = {
+    # ours: the user answers each robot move at once with its own move; "your turn" only opens a user-first game
+    "compact": DialogueSet("compact", DATA_FILE, TEMPLATES, (MOVE, REQUEST_USER_MOVE)),
+    # the paper's shape: "your turn" before every user move, the opening in full ("Nice. Let me start.")
+    "paper": DialogueSet("paper", PAPER_DATA_FILE, PAPER_TEMPLATES, (REQUEST_USER_MOVE,)),
+}
+DIALOGUE_CHOICES = tuple(DIALOGUE_SETS)
+
+
+def dialogue_set(name: str) -> DialogueSet:
+    """The dialogue set called ``name``; ValueError naming the choices otherwise."""
+    try:
+        return DIALOGUE_SETS[name]
+    except KeyError:
+        raise ValueError(f"dialogues must be one of {', '.join(DIALOGUE_CHOICES)}; got {name!r}") from None
+
 
 FILTER_THRESHOLD = 1e-3  # the paper's Pr(a|s) > 0.001
 NB_SMOOTHING = 1e-4  # additive smoothing of the Naive Bayes counts (ours): small, so unseen evidence is strong
@@ -117,6 +155,9 @@ class DialogueModel:
     reply_options: torch.Tensor  # (types, phases, K) int64
     reply_counts: torch.Tensor  # (types, phases) int64
     n_examples: int
+    templates: tuple[str, ...] = TEMPLATES
+    user_moves_after: tuple[int, ...] = (MOVE, REQUEST_USER_MOVE)
+    example_contexts: tuple[tuple[int, int, int], ...] = ()  # (last sys, last user, phase) of each example turn
 
 
 def load_dialogues(game: str, path: Path = DATA_FILE) -> list[dict]:
@@ -157,16 +198,23 @@ def _parse_user(act: str | None, where: str) -> tuple[int, int]:
     raise ValueError(f"{where}: unknown user act {act!r}; expected GameMove(gridloc=N), null or one of {', '.join(USER_ACTS)}")
 
 
-@lru_cache(maxsize=4)
-def build_dialogue_model(game: str) -> DialogueModel:
-    """Replay ``game``'s example dialogues with the exact rules and fit the filter and the user model.
+@lru_cache(maxsize=8)
+def build_dialogue_model(game: str, dialogues: str = "compact") -> DialogueModel:
+    """Replay ``game``'s example dialogues of the set ``dialogues`` with the exact rules and fit the filter and the
+    user model; the vocabulary is the set's templates' words and its users' words.
 
     Each dialogue is replayed under its own ``free_move`` rule (default "anywhere", the paper's); what is
     learnt (acts per dialogue context, user replies) does not depend on the variant the env is run with.
     """
+    chosen = dialogue_set(dialogues)
+    return fit_dialogue_model(game, load_dialogues(game, chosen.path), chosen)
+
+
+def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet) -> DialogueModel:
+    """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape;
+    any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``)."""
     from envs.rules import make_game
 
-    dialogues = load_dialogues(game)
     contexts: list[tuple[int, int, int]] = []
     labels: list[int] = []
     replies: dict[tuple[int, int], list[int]] = {}
@@ -194,19 +242,19 @@ def build_dialogue_model(game: str) -> DialogueModel:
             closed |= act_type == CLOSING
             user_act, user_cell = _parse_user(turn.get("user"), where)
             text = turn.get("says") or ""
+            heard = replies.setdefault((act_type, phase()), [])  # a context seen only with silence stays silent
             if user_act >= 0:
                 key = (user_act, text)
-                utterance = utterances.setdefault(key, len(utterances))
-                replies.setdefault((act_type, phase()), []).append(utterance)
+                heard.append(utterances.setdefault(key, len(utterances)))
             if user_act == USER_MOVE:
-                if phase() != USER_TO_MOVE or act_type not in (MOVE, REQUEST_USER_MOVE):
+                if phase() != USER_TO_MOVE or act_type not in chosen.user_moves_after:
                     raise ValueError(f"{where}: user move while the phase is {PHASES[phase()]}")
                 state = rules.play(state, user_cell)
             agreed |= act_type == REQUEST_PLAY and user_act == USER_YES
             last_sys, last_user = act_type + 1, user_act + 1
 
     texts = [text for (_, text) in utterances]
-    system_words = {w for t in TEMPLATES for w in tokenize(t)}
+    system_words = {w for t in chosen.templates for w in tokenize(t)}
     words = tuple(sorted(system_words | {w for t in texts for w in tokenize(t)}))
     index = {w: i for i, w in enumerate(words)}
 
@@ -215,7 +263,7 @@ def build_dialogue_model(game: str) -> DialogueModel:
         row[[index[w] for w in tokenize(text)]] = 1.0
         return row
 
-    template_words = np.stack([np.zeros(len(words), dtype=np.float32)] + [bag(t) for t in TEMPLATES])
+    template_words = np.stack([np.zeros(len(words), dtype=np.float32)] + [bag(t) for t in chosen.templates])
     commands = np.zeros((1 + len(SYSTEM_TYPES), len(ROBOT_COMMANDS)), dtype=np.float32)
     for act_type, command in enumerate(TYPE_COMMANDS):
         if command in ROBOT_COMMANDS:
@@ -234,6 +282,9 @@ def build_dialogue_model(game: str) -> DialogueModel:
         reply_options=options,
         reply_counts=counts,
         n_examples=len(labels),
+        templates=chosen.templates,
+        user_moves_after=chosen.user_moves_after,
+        example_contexts=tuple(contexts),
     )
 
 
@@ -274,7 +325,11 @@ def _safe_filter(probability: np.ndarray) -> np.ndarray:
 
 
 def _reply_table(replies: dict[tuple[int, int], list[int]], utterance_acts: list[int]) -> tuple[torch.Tensor, torch.Tensor]:
-    """User replies per (system type, phase); unseen contexts fall back to the type's replies (no moves)."""
+    """User replies per (system type, phase); unseen contexts fall back to the type's replies (no moves).
+
+    A context the examples show only with silence (the paper set's user watching the robot draw) keeps no
+    reply; one seen with both silence and words keeps the words only (no example dialogue has such a context).
+    """
     n_types, n_phases = len(SYSTEM_TYPES), len(PHASES)
     table: dict[tuple[int, int], list[int]] = {}
     for act_type in range(n_types):

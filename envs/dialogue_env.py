@@ -14,6 +14,12 @@ except the action count. See docs/env.md for rewards, features and every key.
 This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
 specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
 ``envs.env_speed``. Who opens is the option ``first`` (``env.first``); ``starts`` is its deprecated spelling.
+
+Two options read the paper more literally (both off by default, on in the paper configs; docs/reproduction.md):
+``offer_taken_cells`` offers the robot's taken squares in ``action_mask`` on its turn (choosing one is a refused
+act: -5, the board and the dialogue stay, the user does not move, the robot chooses again), and
+``dialogues="paper"`` learns the act filter, the vocabulary and the user from the paper-shaped example
+dialogues ("your turn" before every user move).
 """
 from __future__ import annotations
 
@@ -62,6 +68,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         asr_confidence: tuple[float, float] = (0.0, 1.0),
         max_actions: int = 100,
         starts: str | None = None,
+        offer_taken_cells: bool = False,
+        dialogues: str = "compact",
     ) -> None:
         batch = check_batch(batch_size)
         check_game(game)
@@ -70,12 +78,15 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         low, high = check_confidence(asr_confidence)
         if not isinstance(max_actions, int) or max_actions < 1:
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
+        if not isinstance(offer_taken_cells, bool):
+            raise ValueError(f"offer_taken_cells must be true or false, got {offer_taken_cells!r}")
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
+        self.offer_taken_cells, self.dialogues = offer_taken_cells, dlg.dialogue_set(dialogues).name
         self.engine = make_engine(game, free_move)
         self.cells = self.engine.cells
-        self.model = dlg.build_dialogue_model(game)
+        self.model = dlg.build_dialogue_model(game, self.dialogues)
         self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
         for name, value in describe(self.model, self.cells, self.temporal).items():
             setattr(self, name, value)
@@ -112,7 +123,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self.d.words = torch.zeros(batch, self._said_features.shape[1])
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
-        self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone())
+        self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone(),
+                            self.d.legal[0].clone())
         fresh = self._output()  # also fills d.observation / d.winning_actions, which partial resets reuse
         self._fresh_features = (fresh["observation"][0].clone(), fresh["winning_actions"][0].clone())
 
@@ -147,7 +159,11 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         return self.engine.status(self.boards) + flags
 
     def _refresh(self) -> None:
-        """Recompute the mask and look-ahead of the current state (after a step)."""
+        """Recompute the mask and look-ahead of the current state (after a step).
+
+        ``d.legal`` is what the step accepts; ``d.mask`` (``action_mask``) is what is offered: the same tensor
+        unless ``offer_taken_cells``, which adds the taken squares on the robot's turn (look-ahead -5).
+        """
         cells = self.cells
         context = self.d.talk * N_STAGES + self._stage(self.d.flags)
         dialogue_mask = self._filter_table.index_select(0, context)  # (B, A): moves = "GameMove allowed"
@@ -155,18 +171,25 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             code = self.boards.codes[:, 0]
             mask = dialogue_mask & self._code_legal.index_select(0, code)
             lookahead = torch.where(mask, self._code_rewards.index_select(0, code), REWARD_ILLEGAL)
-            self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
-            return
-        legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
-        mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
-        can_move = legal.any(1)
-        if bool(can_move.any()):
-            # moves' rewards padded with 0 for the other acts: allowed entries keep them, the rest get -5
-            rewards = torch.nn.functional.pad(self.engine.move_rewards(self.boards, ROBOT, can_move), (0, self.n_actions - cells))
-            lookahead = torch.where(mask, rewards, REWARD_ILLEGAL)
         else:
-            lookahead = torch.where(mask, 0.0, REWARD_ILLEGAL)
-        self.d.mask, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
+            legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
+            mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
+            can_move = legal.any(1)
+            if bool(can_move.any()):
+                # moves' rewards padded with 0 for the other acts: allowed entries keep them, the rest get -5
+                rewards = torch.nn.functional.pad(self.engine.move_rewards(self.boards, ROBOT, can_move), (0, self.n_actions - cells))
+                lookahead = torch.where(mask, rewards, REWARD_ILLEGAL)
+            else:
+                lookahead = torch.where(mask, 0.0, REWARD_ILLEGAL)
+        self.d.legal, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
+        self.d.mask = self._offered(mask, dialogue_mask) if self.offer_taken_cells else mask
+
+    def _offered(self, legal: torch.Tensor, dialogue_mask: torch.Tensor) -> torch.Tensor:
+        """``offer_taken_cells``: the legal acts plus every taken square where the filter allows a move (the
+        robot's turn only). Empty squares the rules forbid (Ultimate's redirect) stay out: they are not taken."""
+        taken = torch.zeros_like(legal)
+        taken[:, : self.cells] = (self.boards.board != 0) & dialogue_mask[:, : self.cells]
+        return legal | taken
 
     def _observation(self) -> torch.Tensor:
         boards = self.boards
@@ -184,10 +207,11 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         """
         mask = self.d.mask
         if reset_rows is None:
+            legal = self.d.legal  # a taken square offered (offer_taken_cells) never wins
             if self._code_wins is not None:  # 3x3: the moves worth +5 are one row per board code
-                winning = mask & self._code_wins.index_select(0, self.boards.codes[:, 0])
+                winning = legal & self._code_wins.index_select(0, self.boards.codes[:, 0])
             else:
-                winning = mask & (self.d.lookahead == REWARD_WIN)
+                winning = legal & (self.d.lookahead == REWARD_WIN)
             observation = self._observation()
             terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
             truncated = (self.d.turn >= self.max_actions) & ~terminated
@@ -272,10 +296,11 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
                 first = (torch.rand(self.batch_size, generator=self._rng) < 0.5).index_select(0, index)
             self.d.robot_first = self.d.robot_first.index_copy(0, index, first.unsqueeze(1))
             self.d.flags.index_copy_(0, index, first.long() * ROBOT_FIRST)
-        mask, dialogue_mask, lookahead = self._fresh_rows
+        mask, dialogue_mask, lookahead, legal = self._fresh_rows
         self.d.mask = paste_rows(self.d.mask, index, mask)
         self.d.dialogue_mask = paste_rows(self.d.dialogue_mask, index, dialogue_mask)
         self.d.lookahead = paste_rows(self.d.lookahead, index, lookahead)
+        self.d.legal = paste_rows(self.d.legal, index, legal) if self.offer_taken_cells else self.d.mask
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
@@ -288,7 +313,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             self._check_action_index(int(action[out_of_range][0]))
             raise
         index = action.unsqueeze(1)
-        accepted = self.d.mask.gather(1, index).squeeze(1)
+        accepted = self.d.legal.gather(1, index).squeeze(1)  # an offered taken square is refused
         reward = self.d.lookahead.gather(1, index)
         said = (act_type + 1) * accepted  # the accepted act's type + 1, 0 if refused: the new "last system act"
 

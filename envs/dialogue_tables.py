@@ -32,7 +32,7 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
     t: dict[str, Any] = {"_silence": n_utt}
     t["_act_type"] = torch.cat([torch.zeros(cells, dtype=torch.int64), torch.arange(1, len(dlg.SYSTEM_TYPES))])
     asks_move = torch.zeros(len(dlg.SYSTEM_TYPES), dtype=torch.bool)
-    asks_move[[dlg.MOVE, dlg.REQUEST_USER_MOVE]] = True
+    asks_move[list(model.user_moves_after)] = True  # the acts the user answers with its move (the set's shape)
     t["_asks_move"] = asks_move
     t["_utterance_acts"] = torch.cat([model.utterance_acts, torch.tensor([-1])])
     # the words of each utterance as column indices (padded with V, a spare column): ASR confidences are
@@ -117,7 +117,7 @@ def describe(model: dlg.DialogueModel, cells: int, temporal: bool) -> dict[str, 
     return {
         "action_names": action_names,
         "n_actions": len(action_names),
-        "templates": [dlg.TEMPLATES[0]] * cells + list(dlg.TEMPLATES[1:]),
+        "templates": [model.templates[0]] * cells + list(model.templates[1:]),
         "robot_commands": [dlg.TYPE_COMMANDS[0]] * cells + list(dlg.TYPE_COMMANDS[1:]),
         "user_act_names": list(dlg.USER_ACTS),
         "words": list(model.words),

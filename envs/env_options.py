@@ -7,7 +7,8 @@ from typing import Any
 
 from envs.core import FIRST_CHOICES
 
-OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts")  # starts: deprecated spelling of first
+# starts: deprecated spelling of first; offer_taken_cells and dialogues: the paper's readings (docs/reproduction.md)
+OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues")
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:

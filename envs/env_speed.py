@@ -76,7 +76,8 @@ class DialogueState:
     user_move: torch.Tensor  # (B, 1) the user's square in the last step (-1 none)
     user_utterance: torch.Tensor  # (B, 1) id of the user's utterance in the last step (-1 none)
     words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
-    mask: torch.Tensor  # (B, A) action_mask
+    mask: torch.Tensor  # (B, A) action_mask: what is offered
+    legal: torch.Tensor  # (B, A) what the step accepts: ``mask`` itself unless offer_taken_cells adds taken squares
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
     observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)

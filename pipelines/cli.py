@@ -12,7 +12,7 @@ import sys
 
 import typer
 
-from pipelines import cli_env, cli_learn, cli_logs, cli_play, cli_robot, cli_vision
+from pipelines import cli_env, cli_learn, cli_logs, cli_play, cli_reproduce, cli_robot, cli_vision
 
 app = typer.Typer(
     name="ncbot",
@@ -37,7 +37,7 @@ def version() -> None:
     typer.echo(f"ncbot {installed_version('ncbot')}")
 
 
-for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play):
+for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
     area.register(app)
 
 

@@ -55,6 +55,13 @@ class EnvConfig(Section):
     first: Literal["robot", "human", "alternate", "random"] = "alternate"  # who opens the training games
     opponent: str = "random"  # envs.opponents name of the simulated user's move policy
     max_steps: Positive = 100  # actions per dialogue before truncation (paper: 100)
+    # The paper's readings (docs/reproduction.md), on in pipelines/configs/paper/: the robot is offered its taken
+    # squares (choosing one earns -5, the board and the dialogue stay, the user does not move, the robot chooses
+    # again); off = only legal squares are offered (our reading of "not taken yet", faster to learn)
+    offer_taken_cells: bool = False
+    # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
+    # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
+    dialogues: Literal["compact", "paper"] = "compact"
     options: dict[str, Any] = Field(default_factory=dict)  # extra keyword arguments for envs.make_env
 
 
@@ -133,7 +140,10 @@ class TrainConfig(Section):
     """Run-level settings."""
 
     seed: int = 0
-    episodes: Positive | None = None  # stop after this many finished training dialogues (paper: 20K games); None = frames
+    episodes: Positive | None = None  # stop after this many finished training dialogues, frames ignored; None = frames
+    # stop at collector.total_frames or after this many finished training games, whichever comes first (the paper:
+    # "400K learning steps or 20K games, whatever occurred first"); None = frames only
+    max_games: Positive | None = None
     eval_every_frames: Positive = 10_000  # periodic greedy evaluation (logged with its wall time)
     num_threads: Positive = 1  # torch threads: small tensors are fastest on one thread
 

@@ -15,6 +15,10 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
     """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random)."""
     from envs import make_env
 
+    readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues}
+    repeated = sorted(set(readings) & set(env_config.options))
+    if repeated:
+        raise ValueError(f"env.options.{repeated[0]} repeats the config key env.{repeated[0]}: set env.{repeated[0]} only")
     return make_env(
         game=env_config.game,
         batch_size=(int(batch_size),),
@@ -24,6 +28,7 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
         first=first or env_config.first,
         opponent=opponent or env_config.opponent,
         max_actions=env_config.max_steps,
+        **readings,
         **env_config.options,
     )
 

@@ -197,6 +197,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             # --- periodic greedy evaluation and checkpoint --------------------------------------------------------
             finished = (counters["episodes"] >= config.train.episodes) if stop_on_episodes else \
                 counters["frames"] >= config.collector.total_frames
+            finished = finished or (config.train.max_games is not None and counters["episodes"] >= config.train.max_games)
             if counters["frames"] >= next_eval or finished:
                 last_eval = periodic_eval(float(np.mean(losses)) if losses else float("nan"))
                 losses.clear()

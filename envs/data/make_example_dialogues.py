@@ -1,10 +1,16 @@
-"""Write ``example_dialogues.yaml``: the dozen example dialogues per game the env learns its dialogue from.
+"""Write the example dialogues the env learns its dialogue from: two sets, a dozen dialogues per game each.
+
+``example_dialogues.yaml`` (set ``compact``, the default): the user answers each robot move at once with its own.
+``example_dialogues_paper.yaml`` (set ``paper``, env option ``dialogues="paper"``): the shape the paper's act table
+implies (paper-notes section 3): the opening in full (after the user agrees the robot says "Nice. Let me start."
+(Reply(playGame=yes)) when it opens the game), and before each user move the robot says "your turn"
+(Request(userGameMove)); the user watches the robot's own moves in silence.
 
 The dialogue skeletons (who starts, how the user is asked to play, what the user says) are written out
 below by hand; only the game moves inside them are sampled (seeded) by playing legal games with the exact
 rules (robot: take a winning square if there is one, else random; user: random), keeping games whose result
-matches the skeleton's feedback. Run ``python -m envs.data.make_example_dialogues`` to regenerate the file
-(same seed -> same file).
+matches the skeleton's feedback. Run ``python -m envs.data.make_example_dialogues`` to regenerate both files
+(same seeds -> same files; each set has its own random stream, so adding one never changed the other).
 """
 from __future__ import annotations
 
@@ -14,6 +20,7 @@ from pathlib import Path
 from envs.rules import Standard, Ultimate
 
 OUT = Path(__file__).with_name("example_dialogues.yaml")
+OUT_PAPER = Path(__file__).with_name("example_dialogues_paper.yaml")
 
 # (robot_first, pre-game opening, result) per dialogue; the same twelve skeletons for both games.
 SKELETONS = [
@@ -31,6 +38,17 @@ AFTER_ROBOT_WINS = ["well done", "well done pepper"]
 AFTER_DRAW_MOVE = ["good game", "thank you"]
 FEEDBACK_REPLIES = ["thank you", "good game", "well done pepper", "good game pepper"]
 CLOSINGS = ["goodbye", "goodbye pepper", "thank you goodbye"]
+# The paper-style set: who opens and how the user is asked (a user who opens is asked, never asks: the robot's
+# "Nice. Let me start." answers a user's request); what the user says when it has drawn its move.
+PAPER_SKELETONS = [
+    (True, "asked", "win"), (True, "asked", "win"), (True, "user_asks", "win"), (True, "declines_first", "draw"),
+    (True, "asked", "lose"), (True, "user_asks", "draw"), (True, "asked", "win"), (True, "declines_first", "win"),
+    (False, "asked", "win"), (False, "declines_first", "lose"), (False, "asked", "draw"), (False, "asked", "win"),
+]
+# Own word lists, chosen so the set's vocabulary (its templates' words and its users' words) has the paper's 39 words.
+PAPER_GREETINGS = ["hello", "hello pepper", "hello nice to meet you", "hello pepper nice to meet you"]
+PAPER_USER_ASKS = ["lets play a game", "lets play"]
+PAPER_MOVE_WORDS = ["done", "this one", "my move is done", "done pepper"]
 
 
 def play_game(game, robot_first: bool, want: str, rng: random.Random) -> list[tuple[str, int]]:
@@ -91,6 +109,38 @@ def dialogue_lines(game, name: str, index: int, robot_first: bool, opening: str,
     return lines
 
 
+def paper_dialogue_lines(game, name: str, index: int, robot_first: bool, opening: str, result: str,
+                         rng: random.Random) -> list[str]:
+    """One dialogue in the paper's shape: "your turn" before each user move, the user silent during the robot's."""
+    pick = lambda options, k=0: options[(index + k) % len(options)]  # noqa: E731
+    lines = [f"  - id: {name}-paper-{index + 1:02d}", f"    game: {name}", f"    robot_first: {str(robot_first).lower()}",
+             "    turns:"]
+    lines.append(turn("Salutation(greeting)", "Salutation(greeting)", pick(PAPER_GREETINGS)))
+    if opening == "user_asks":
+        lines.append(turn("Provide(name)", "Request(playGame)", pick(PAPER_USER_ASKS)))
+        lines.append(turn('"Reply(playGame=yes)"', None, None))  # "Nice. Let me start."
+    else:
+        lines.append(turn("Provide(name)", "Provide(name)", pick(NAMES)))
+        if opening == "declines_first":
+            lines.append(turn("Request(playGame)", '"Reply(playGame=no)"', pick(NO)))
+        lines.append(turn("Request(playGame)", '"Reply(playGame=yes)"', pick(YES)))
+        if robot_first:
+            lines.append(turn('"Reply(playGame=yes)"', None, None))
+    moves = play_game(game, robot_first, result, rng)
+    for k, (who, cell) in enumerate(moves):
+        last = k == len(moves) - 1
+        if who == "robot":
+            ending = AFTER_ROBOT_WINS if result == "win" else AFTER_DRAW_MOVE
+            user, says = ("Provide(feedback)", pick(ending, k)) if last else (None, None)
+            lines.append(turn(f'"GameMove(gridloc={cell})"', user, says))
+        else:
+            lines.append(turn("Request(userGameMove)", f'"GameMove(gridloc={cell})"', pick(PAPER_MOVE_WORDS, k)))
+    feedback = {"win": "win", "lose": "loose", "draw": "draw"}[result]
+    lines.append(turn(f'"Provide(feedback={feedback})"', "Provide(feedback)", pick(FEEDBACK_REPLIES)))
+    lines.append(turn("Salutation(closing)", "Salutation(closing)", pick(CLOSINGS)))
+    return lines
+
+
 HEADER = """\
 # Example dialogues of the robot (system) and the user, a dozen per game.
 # Written by envs/data/make_example_dialogues.py (skeletons and utterances by hand, game moves sampled).
@@ -108,14 +158,28 @@ dialogues:
 """
 
 
-def main() -> None:
-    rng = random.Random(2019)
-    lines = [HEADER.rstrip("\n")]
+PAPER_HEADER = HEADER.replace(
+    "# Example dialogues of the robot (system) and the user, a dozen per game.\n",
+    "# Example dialogues in the paper's shape (env option dialogues=paper), a dozen per game: the robot says\n"
+    "# \"your turn\" (Request(userGameMove)) before each user move and \"Nice. Let me start.\" (Reply(playGame=yes))\n"
+    "# when the user agrees and the robot opens; the user is silent (null) while the robot draws.\n",
+)
+
+
+def write_set(out: Path, header: str, skeletons: list, make_lines, seed: int) -> None:
+    """One dialogue file: both games, the given skeletons, game moves from its own seeded stream."""
+    rng = random.Random(seed)
+    lines = [header.rstrip("\n")]
     for name, game in (("standard", Standard()), ("ultimate", Ultimate("anywhere"))):
-        for index, (robot_first, opening, result) in enumerate(SKELETONS):
-            lines += dialogue_lines(game, name, index, robot_first, opening, result, rng)
-    OUT.write_text("\n".join(lines) + "\n")
-    print(f"wrote {OUT}")
+        for index, (robot_first, opening, result) in enumerate(skeletons):
+            lines += make_lines(game, name, index, robot_first, opening, result, rng)
+    out.write_text("\n".join(lines) + "\n")
+    print(f"wrote {out}")
+
+
+def main() -> None:
+    write_set(OUT, HEADER, SKELETONS, dialogue_lines, 2019)
+    write_set(OUT_PAPER, PAPER_HEADER, PAPER_SKELETONS, paper_dialogue_lines, 2020)
 
 
 if __name__ == "__main__":

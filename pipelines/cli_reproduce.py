@@ -1,0 +1,48 @@
+"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce.py)."""
+from __future__ import annotations
+
+import json
+from typing import Optional
+
+import typer
+
+
+def reproduce_command(
+    part: str = typer.Argument("all", help="table | budget | all."),
+    budget: str = typer.Option(..., "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full (the paper's protocol, resumable)."),
+    workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
+    out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md and PNGs."),
+    runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget)."),
+    backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (budget: {vision, dialogues, games})."),
+) -> None:
+    """Reproduce the paper's findings with the faithful options: runs (finished ones skipped), table, claims, budgets."""
+    import shlex
+    import sys
+
+    from pipelines.reproduce import reproduce
+
+    command = "ncbot " + shlex.join(sys.argv[1:])
+    result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command)
+    if as_json:
+        report = result.get("budget_report")
+        if part == "budget":
+            typer.echo(json.dumps({key: report[key] for key in ("vision", "dialogues", "games", "label")}))
+        else:
+            typer.echo(json.dumps(result))
+        return
+    summary = result["runs"]
+    typer.echo(result["label"])
+    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), {summary['failed']} "
+               f"failed; runs in {summary['runs_dir']}")
+    if "table" in result:
+        typer.echo(f"wrote {result['table']['table']} and {result['table']['claims']}")
+    if "budget_report" in result:
+        typer.echo(f"wrote {out}/data_budget.md and {', '.join(result['budget_report']['figures'])}")
+    if summary["failed"]:
+        raise typer.Exit(1)
+
+
+def register(app: typer.Typer) -> None:
+    """Add this area's command to the root app."""
+    app.command("reproduce")(reproduce_command)

@@ -1,0 +1,147 @@
+"""`ncbot reproduce`: the paper's table, its claims and the data budgets in one command, at a named budget.
+
+Why one command: the paper's findings need dozens of runs with the faithful options on (pipelines/configs/paper/)
+and a fixed protocol (seeds, games, test games). `table` writes an ablation grid for the budget and runs it
+through the same runner as `ncbot ablate` (pipelines/ablate.py: parallel processes, finished runs skipped, a
+killed run resumed from its checkpoint), then `pipelines.table.write_report` writes the table and the claims.
+`budget` reads the data budgets off those runs and the example dialogues (pipelines/reproduce_budget.py).
+
+Budgets: `full` is the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games, every game row);
+`quick` is a smoke version that fits in < 30 min on 2 cores, and says so in every file it writes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from fileio import atomic_write_text
+
+PAPER_CONFIGS = Path(__file__).with_name("configs") / "paper"
+PARTS = ("table", "budget", "all")
+AGENTS = ("dqn_original", "dqn_variant", "proposed")
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much a reproduction spends: seeds, game rows, the training cap and the test games."""
+
+    name: str
+    seeds: int
+    rows: tuple[str, ...]
+    max_games: dict[str, int]  # training games per game row (the runs stop at 400K frames if that comes first)
+    eval_games: int  # final test games per seat
+    eval_every_frames: dict[str, int]  # periodic evaluations: the points of the games-budget curve
+    game_points: tuple[int, ...]  # training games at which the games-budget curve is read
+    label: str  # one line every output of this budget starts with
+    extra_overrides: tuple[str, ...] = field(default_factory=tuple)
+
+
+BUDGETS = {
+    "full": Budget(
+        name="full", seeds=5, rows=("standard", "ultimate100", "ultimate150"),
+        max_games={"standard": 20_000, "ultimate100": 20_000, "ultimate150": 20_000}, eval_games=3000,
+        eval_every_frames={"standard": 5_000, "ultimate100": 20_000, "ultimate150": 20_000},
+        game_points=(1_000, 2_000, 5_000, 10_000, 20_000),
+        label="Budget full: the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games per seat).",
+    ),
+    "quick": Budget(
+        name="quick", seeds=2, rows=("standard", "ultimate100"),
+        max_games={"standard": 2_000, "ultimate100": 600}, eval_games=500,
+        eval_every_frames={"standard": 5_000, "ultimate100": 20_000},
+        game_points=(500, 1_000, 2_000),
+        label="QUICK BUDGET (smoke run, not the paper's protocol): 2 seeds, 2K training games on 3x3 and 600 on "
+              "Ultimate (100), 500 test games per seat, no Ultimate (150); claims cannot be decided (< 5 seeds). "
+              "Run `--budget full` for the paper's numbers.",
+    ),
+}
+
+
+def budget_of(name: str) -> Budget:
+    """The budget called ``name``; ValueError naming the choices otherwise."""
+    try:
+        return BUDGETS[name]
+    except KeyError:
+        raise ValueError(f"--budget must be one of {', '.join(BUDGETS)}; got {name!r}") from None
+
+
+def row_config(row: str, configs: Path = PAPER_CONFIGS) -> Path:
+    """The paper config a game row's grid cells start from (agent and temporal are set per cell)."""
+    path = configs / f"{row}_proposed_temporal.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"paper config {str(path)!r} not found (expected one per game row in {configs})")
+    return path
+
+
+def write_grid(budget: Budget, runs_dir: Path, configs: Path = PAPER_CONFIGS) -> Path:
+    """The `ncbot ablate` grid of this budget, written into its runs folder (so the runs can be redone by hand)."""
+    suites = {}
+    for row in budget.rows:
+        overrides = [f"train.max_games={budget.max_games[row]}", f"eval.games={budget.eval_games}",
+                     f"train.eval_every_frames={budget.eval_every_frames[row]}", "logger.mcap=false",
+                     *budget.extra_overrides]
+        suites[row] = {"config": str(row_config(row, configs).resolve()), "overrides": overrides}
+    grid = {
+        "runs_dir": str(runs_dir),
+        "suites": {"paper": suites},
+        "grid": {"suite": ["paper"], "game": list(budget.rows), "agent": list(AGENTS), "temporal": [False, True],
+                 "lookahead": [None]},
+        "baselines_with_temporal": False,
+    }
+    path = runs_dir / "grid.yaml"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(f"# {budget.label}\n# Written by `ncbot reproduce`; rerun with `ncbot ablate {path} "
+                      f"--seeds {budget.seeds}`.\n" + yaml.safe_dump(grid, sort_keys=False), path)
+    return path
+
+
+def labelled(path: Path, budget: Budget) -> None:
+    """Put the budget's label under the first line (the title) of a markdown file written by another module."""
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:1] + ["\n", f"> {budget.label}\n"] + lines[1:]))
+
+
+def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
+             configs: Path = PAPER_CONFIGS) -> dict[str, Any]:
+    """Run the budget's grid through `ncbot ablate`'s runner: finished runs skipped, killed ones resumed."""
+    from pipelines.ablate import run_ablation
+
+    grid = write_grid(budget, runs_dir, configs)
+    return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir)
+
+
+def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
+    """out/paper_table.md and out/paper_claims.md (pipelines.table.write_report), each labelled with the budget."""
+    from pipelines.table import write_report
+
+    out.mkdir(parents=True, exist_ok=True)
+    table, claims = out / "paper_table.md", out / "paper_claims.md"
+    report = write_report(runs_dir, table, claims, command=command)
+    for path in (table, claims):
+        labelled(path, budget)
+    return {"table": str(table), "claims": str(claims), **report.to_dict()}
+
+
+def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "results", runs: str | Path = "runs/reproduce",
+              workers: int = 2, backend: str = "local", command: str = "ncbot reproduce",
+              configs: Path = PAPER_CONFIGS) -> dict[str, Any]:
+    """`ncbot reproduce PART --budget NAME`: the runs, then the table and claims (table), the data budgets
+    (budget; its games curve reads the same runs), or both (all)."""
+    if part not in PARTS:
+        raise ValueError(f"part must be one of {', '.join(PARTS)}; got {part!r}")
+    budget = budget_name if isinstance(budget_name, Budget) else budget_of(budget_name)
+    if workers <= 0:
+        raise ValueError(f"--workers must be positive, got {workers}")
+    out, runs_dir = Path(out), Path(runs) / budget.name
+    result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command,
+                              "runs": run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend,
+                                               configs=configs)}
+    if part in ("table", "all"):
+        result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
+    if part in ("budget", "all"):
+        from pipelines.reproduce_budget import write_budget_report
+
+        result["budget_report"] = write_budget_report(budget, runs_dir=runs_dir, out=out, command=command)
+    return result

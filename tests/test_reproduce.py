@@ -1,0 +1,74 @@
+"""`ncbot reproduce` on a tiny real budget: the grid runs through `ncbot ablate`'s runner, finished runs are
+skipped, and the table, claims and data-budget files are written and labelled with the budget."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from pipelines.reproduce import BUDGETS, Budget, reproduce, write_grid
+from pipelines.reproduce_budget import filter_agreement
+from tests.learning_helpers import ncbot, write_tiny_config
+
+TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4}, eval_games=20,
+              eval_every_frames={"standard": 64}, game_points=(2, 4), label="TINY BUDGET (test)")
+
+
+def _configs(folder: Path) -> Path:
+    configs = folder / "configs"
+    configs.mkdir()
+    tiny = write_tiny_config(folder, env={"offer_taken_cells": True, "dialogues": "paper", "first": "robot"},
+                             collector={"total_frames": 256}, eval={"games": 20, "periodic_games": 10})
+    shutil.copy(tiny, configs / "standard_proposed_temporal.yaml")
+    return configs
+
+
+def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path) -> None:
+    configs, out, runs = _configs(tmp_path), tmp_path / "results", tmp_path / "runs"
+    result = reproduce("all", TINY, out=out, runs=runs, workers=2, command="ncbot reproduce all --budget tiny",
+                       configs=configs)
+    assert (result["runs"]["done"], result["runs"]["failed"]) == (4, 0), result["runs"]
+    for name in ("paper_table.md", "paper_claims.md", "data_budget.md"):
+        text = (out / name).read_text()
+        assert "TINY BUDGET (test)" in text and "ncbot reproduce all --budget tiny" in text, name
+    assert (out / "data_budget_games.png").stat().st_size > 0 and (out / "data_budget_dialogues.png").stat().st_size > 0
+    table = (out / "paper_table.md").read_text()
+    assert "| 3x3 (100) | DQN-Original | paper | 1 |" in table
+    budget = result["budget_report"]
+    assert {r["dialogues"] for r in budget["dialogues"]} == {1, 2, 4, 8, 12}
+    assert {r["games"] for r in budget["games"]} == {2, 4} and len({r["agent"] for r in budget["games"]}) == 4
+    assert budget["vision"] == [] and "not yet" in budget["vision_note"]
+    for run in (runs / "tiny").glob("paper/standard/*/seed0"):
+        saved = json.loads((run / "eval.json").read_text())
+        # the budget's games cap or the config's frames, whichever first; the budget's test games
+        assert (saved["episodes"] >= 4 or saved["frames"] >= 256) and saved["frames"] <= 256 + 64
+        assert saved["first"]["games"] == 20
+    again = reproduce("budget", TINY, out=out, runs=runs, workers=1, configs=configs)
+    assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 4)  # resumable: finished runs skipped
+
+
+def test_grid_applies_the_budget_to_the_paper_configs(tmp_path: Path) -> None:
+    import yaml
+
+    grid = yaml.safe_load(write_grid(BUDGETS["quick"], tmp_path).read_text())
+    cell = grid["suites"]["paper"]["standard"]
+    assert cell["config"].endswith("paper/standard_proposed_temporal.yaml")
+    assert "train.max_games=2000" in cell["overrides"] and "eval.games=500" in cell["overrides"]
+    assert set(grid["suites"]["paper"]) == {"standard", "ultimate100"}
+    full = yaml.safe_load(write_grid(BUDGETS["full"], tmp_path / "full").read_text())
+    assert set(full["suites"]["paper"]) == {"standard", "ultimate100", "ultimate150"}
+    assert "train.max_games=20000" in full["suites"]["paper"]["ultimate150"]["overrides"]
+
+
+def test_filter_agreement_is_one_with_every_dialogue_and_less_with_one() -> None:
+    assert filter_agreement("standard", 12, 0) == 1.0
+    assert 0.0 < filter_agreement("standard", 1, 0) < 1.0
+    with pytest.raises(ValueError, match="between 1 and 12"):
+        filter_agreement("standard", 13, 0)
+
+
+def test_cli_rejects_an_unknown_budget_in_one_line(tmp_path: Path) -> None:
+    result = ncbot("reproduce", "table", "--budget", "medium", "--out", str(tmp_path), "--runs", str(tmp_path))
+    assert result.returncode == 2 and result.stderr.strip() == "ncbot: error: --budget must be one of full, quick; got 'medium'"
