@@ -28,9 +28,11 @@ def test_lab_is_the_scene_as_it_was_and_presets_vary_per_seed():
 
 def test_conditions_file_overrides_a_preset_and_bad_files_are_one_clear_error(tmp_path):
     path = tmp_path / "dim.yaml"
-    path.write_text("base: office\nlight_intensity: [0.3, 0.4]\nclutter: [0, 0]\n")
+    # the draw is seeded by the file's name too (its path), so the test pins every prop source to zero
+    path.write_text("base: office\nlight_intensity: [0.3, 0.4]\nclutter: [0, 0]\nsecond_sheet_probability: 0.0\n")
     ranges = load_conditions(path)
     assert ranges.light_intensity == (0.3, 0.4) and ranges.clutter == (0, 0)
+    assert ranges.second_sheet_probability == 0.0 and PRESETS["office"].second_sheet_probability > 0
     assert ranges.table_textures == PRESETS["office"].table_textures
     assert not sample_conditions(ranges, 1).props
     (tmp_path / "bad.yaml").write_text("base: office\nglare: 3\n")
