@@ -10,6 +10,7 @@ shapes against the stored config (`load_agent_checkpoint`, `check_training_state
 """
 from __future__ import annotations
 
+import errno
 import os
 import pickle
 import re
@@ -31,8 +32,22 @@ PERIODIC_PATTERN = re.compile(r"^step-(\d{9})\.pt$")
 def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
     """torch.save `obj` to `path` atomically."""
     with atomic_path(path) as temp:
-        torch.save(obj, temp)
+        try:
+            torch.save(obj, temp)
+        except RuntimeError as error:  # torch's zip writer turns a failed write (a full disk) into a RuntimeError
+            raise write_error(error, temp, path) from None
     return Path(path)
+
+
+def write_error(error: RuntimeError, temp: Path, path: str | os.PathLike) -> OSError:
+    """The OSError behind a failed torch.save: ENOSPC when the disk is (nearly) full, else EIO naming the file."""
+    try:
+        stats = os.statvfs(temp.parent)
+        full = stats.f_bavail * stats.f_frsize < 2**20
+    except OSError:
+        full = False
+    reason = "no space left on the device" if full else f"torch could not write it ({str(error).splitlines()[0][:100]})"
+    return OSError(errno.ENOSPC if full else errno.EIO, f"cannot write {str(path)!r}: {reason}")
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -47,7 +62,7 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
     except pickle.UnpicklingError:  # weights_only refused a pickled object: never run, never loaded
         raise ValueError(f"checkpoint {str(path)!r} is corrupt or not ncbot's: it holds Python objects beyond tensors, "
                          "which ncbot never loads (expected a .pt file written by ncbot train)") from None
-    except (RuntimeError, EOFError, zipfile.BadZipFile, ValueError, OSError, MemoryError, OverflowError) as error:
+    except (Exception, MemoryError) as error:  # noqa: BLE001 - torch's unpickler raises anything on a foreign file
         reason = _reason(error)
         raise ValueError(f"checkpoint {str(path)!r} is corrupt or unreadable ({reason}; expected a .pt file "
                          "written by ncbot train)") from None

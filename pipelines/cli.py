@@ -15,6 +15,7 @@ import traceback
 import typer
 
 from pipelines import cli_env, cli_learn, cli_logs, cli_play, cli_robot, cli_vision
+from pipelines.errors import Terminated, one_line, squeeze  # light: no torch
 
 app = typer.Typer(
     name="ncbot",
@@ -54,8 +55,6 @@ def main(args: list[str] | None = None) -> None:
     request to report it. NCBOT_DEBUG=1 re-raises expected failures too, to see where they came from.
     """
     click = click_exceptions()
-
-    from pipelines.errors import Terminated, one_line, squeeze
 
     if threading_is_main():
         signal.signal(signal.SIGTERM, _on_sigterm)

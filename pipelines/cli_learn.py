@@ -63,14 +63,14 @@ def _results_row(result: dict, seat: str) -> str:
 
 def eval_command(
     checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
-    games: int = typer.Option(3000, "--games", min=1, max=MAX_GAMES, help="Number of greedy test games."),
+    games: int = typer.Option(3000, "--games", max=MAX_GAMES, help="Number of greedy test games."),
     opponent: str = typer.Option("random", "--opponent", help="Simulated user's move policy (envs.opponents name)."),
     first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot | human | alternate (default alternate)."),
     seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling of --first: first | second | alternate."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
     mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
-    search: Optional[int] = typer.Option(None, "--search", min=1, max=100_000, help="Game moves by MCTS guided by the Q-network, N simulations."),
+    search: Optional[int] = typer.Option(None, "--search", max=100_000, help="Game moves by MCTS guided by the Q-network, N simulations."),
     exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
 ) -> None:

@@ -49,7 +49,7 @@ def play_command(
 
 def ladder_command(
     checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
-    games: int = typer.Option(200, "--games", min=1, max=MAX_GAMES, help="Games per opponent and seat."),
+    games: int = typer.Option(200, "--games", max=MAX_GAMES, help="Games per opponent and seat."),
     opponents: Optional[str] = typer.Option(None, "--opponents", help="Comma-separated opponent names; default: "
                                             "random,rule,minimax (3x3) or random,rule,mcts:10,mcts:100,mcts:300."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
@@ -91,7 +91,7 @@ def match_command(
     second: str = typer.Argument(..., help="Opponent name moving second."),
     game: str = typer.Option("standard", "--game", help="standard | ultimate."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
-    games: int = typer.Option(100, "--games", min=1, max=MAX_GAMES, help="Number of games."),
+    games: int = typer.Option(100, "--games", max=MAX_GAMES, help="Number of games."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the match."),
 ) -> None:
     """Play two opponents against each other with the exact rules (no dialogue) and print W/D/L and timing."""

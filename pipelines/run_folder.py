@@ -144,7 +144,7 @@ class RunFolder:
 
     @classmethod
     def _resume(cls, path: Path, validate: Callable[[dict[str, Any], Path], None] | None) -> RunFolder:
-        from pipelines.checkpoint import newest_resumable
+        from pipelines.checkpoint import newest_resumable, periodic_checkpoints
 
         run_id = read_run_id(path)
 
@@ -155,6 +155,12 @@ class RunFolder:
             if validate is not None:
                 validate(state, candidate)
 
+        if not periodic_checkpoints(path):  # killed before (or during) its first checkpoint: start it again
+            for log in path.glob(MCAP_GLOB):
+                log.unlink(missing_ok=True)
+            shutil.rmtree(path / "scalars", ignore_errors=True)
+            return cls(path, run_id or uuid.uuid4().hex, None, None,
+                       ["no periodic checkpoint yet: starting this run again from frame 0"])
         state, chosen, notes = newest_resumable(path, check)
         drop_logs_after(path, state.get(MCAP_KEY))
         notes.append(f"resuming from {chosen.name} ({state['frames']} frames)")
