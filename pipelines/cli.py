@@ -11,6 +11,7 @@ import os
 import signal
 import sys
 import traceback
+import warnings
 
 import typer
 
@@ -58,6 +59,8 @@ def main(args: list[str] | None = None) -> None:
 
     if threading_is_main():
         signal.signal(signal.SIGTERM, _on_sigterm)
+    # torch warns about the pickle protocol of a file its safe loader is about to refuse: the refusal is the line
+    warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
     command = typer.main.get_command(app)
     code = 0
     try:

@@ -74,6 +74,7 @@ def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."
         any_read = True
         typer.echo(json.dumps({"image": str(path), "cells": cells}) if json_out else f"{path}: {_board_text(cells, grid)}")
     if not any_read:
+        typer.echo(f"ncbot: error: none of the {len(images)} image(s) could be read (reasons above)", err=True)
         raise typer.Exit(2)
 
 
@@ -97,6 +98,7 @@ def classify(images: list[Path] = typer.Argument(..., help="Crops of one cell ea
         else:
             typer.echo(f"{path}: {label} (scores {' '.join(f'{s:.2f}' for s in scores)})")
     if not any_read:
+        typer.echo(f"ncbot: error: none of the {len(images)} image(s) could be read (reasons above)", err=True)
         raise typer.Exit(2)
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import errno
 import os
 import pickle
+import re
 import sys
 import zipfile
 
@@ -30,6 +31,12 @@ _OS_REASONS = {
     errno.EMFILE: "too many open files",
     errno.EIO: "input/output error of the device",
 }
+
+
+# torch's refusal of a pickled object, quoted by loaders: it blames the weights_only default and suggests turning it
+# off (the wrong cause and an unsafe fix); ncbot says what the file holds instead
+UNSAFE_PICKLE = re.compile(r"(UnpicklingError: )?Weights only load failed\..*?(?=\)?$)", re.S)
+SAFE_REASON = "it holds Python objects beyond tensors, which ncbot never loads"
 
 
 class Terminated(BaseException):
@@ -91,5 +98,5 @@ def one_line(error: BaseException) -> str | None:
         where = ".".join(str(part) for part in first["loc"])
         return f"value {where!r}: {squeeze(first['msg'])}" if where else squeeze(first["msg"])
     if isinstance(error, ValueError):  # library code's one sentence (docs/design.md, Errors)
-        return squeeze(str(error)) or type(error).__name__
+        return squeeze(UNSAFE_PICKLE.sub(SAFE_REASON, str(error))) or type(error).__name__
     return None
