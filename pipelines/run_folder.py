@@ -131,6 +131,7 @@ class RunFolder:
                 if overwrite:
                     clear_run(path)
                 run = cls(path, uuid.uuid4().hex)
+            if not resume or read_run_id(path) is None:  # a folder of an ncbot older than run ids gets one now
                 atomic_write_text(json.dumps({"run_id": run.run_id, "created": time.time()}) + "\n",
                                   path / IDENTITY_NAME)
             removed = remove_stray_temp_files(path)
@@ -164,7 +165,7 @@ class RunFolder:
         state, chosen, notes = newest_resumable(path, check)
         drop_logs_after(path, state.get(MCAP_KEY))
         notes.append(f"resuming from {chosen.name} ({state['frames']} frames)")
-        return cls(path, run_id or uuid.uuid4().hex, state, chosen, notes)
+        return cls(path, run_id or state.get("run_id") or uuid.uuid4().hex, state, chosen, notes)
 
     def release(self) -> None:
         if self.lock is not None:

@@ -16,23 +16,13 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-import yaml
 
 from pipelines.checkpoint import FORMAT, atomic_save, load_checkpoint, periodic_checkpoints
-from tests.learning_helpers import TINY, ncbot
+from tests.learning_helpers import ncbot, write_tiny_config
 from tests.test_reliability_fuzz import _valid_agent, assert_refused
 
 LONG = {"collector": {"total_frames": 20_480, "frames_per_batch": 64}, "checkpoint": {"every_frames": 128, "keep": 2},
         "train": {"eval_every_frames": 4096}, "logger": {"mcap": True, "progress": False}}
-
-
-def write_config(folder: Path, **sections: dict) -> Path:
-    data = {key: dict(value) for key, value in TINY.items()}
-    for section, values in sections.items():
-        data[section].update(values)
-    path = folder / "tiny.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return path
 
 
 @contextmanager
@@ -72,7 +62,7 @@ def train_episodes_in_log(run: Path) -> int:
 
 # ------------------------------------------------------------------------------------------------- disks
 def test_read_only_outputs_are_one_line_for_every_writing_command(tmp_path: Path) -> None:
-    config = write_config(tmp_path)
+    config = write_tiny_config(tmp_path)
     atomic_save(_valid_agent(), tmp_path / "run" / "checkpoint.pt")
     with tmpfs(tmp_path / "ro", "1m", read_only=True) as ro:
         cases = [
@@ -97,14 +87,14 @@ def test_read_only_outputs_are_one_line_for_every_writing_command(tmp_path: Path
 
 
 def test_a_disk_too_small_is_refused_before_any_write(tmp_path: Path) -> None:
-    config = write_config(tmp_path)
+    config = write_tiny_config(tmp_path)
     with tmpfs(tmp_path / "small", "512k") as small:
         line = assert_refused(tmp_path, "train", str(config), "--out", str(small / "run"))
         assert "MiB free" in line and not (small / "run").exists()
 
 
 def test_a_disk_that_fills_during_training_is_one_line_and_resume_finishes(tmp_path: Path) -> None:
-    config = write_config(tmp_path, collector={"total_frames": 2048, "frames_per_batch": 64},
+    config = write_tiny_config(tmp_path, collector={"total_frames": 2048, "frames_per_batch": 64},
                           checkpoint={"every_frames": 128, "keep": 3}, logger={"mcap": True, "progress": False})
     with tmpfs(tmp_path / "full", "3m") as full:
         run = full / "run"
@@ -125,7 +115,7 @@ def test_a_disk_that_fills_during_training_is_one_line_and_resume_finishes(tmp_p
 # ------------------------------------------------------------------------------------------------- signals
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGKILL, -9)])
 def test_a_signal_during_training_then_resume_finishes_with_a_consistent_log(tmp_path: Path, signum: int, code: int) -> None:
-    config = write_config(tmp_path, **LONG)
+    config = write_tiny_config(tmp_path, **LONG)
     run = tmp_path / "run"
     old_umask = os.umask(0o022)
     try:
@@ -153,7 +143,7 @@ def test_a_signal_during_training_then_resume_finishes_with_a_consistent_log(tmp
 
 
 def test_a_kill_before_the_first_checkpoint_then_resume_starts_the_run_again(tmp_path: Path) -> None:
-    config = write_config(tmp_path, **LONG)
+    config = write_tiny_config(tmp_path, **LONG)
     run = tmp_path / "run"
     process = start_training(config, run)
     wait_for(lambda: (run / "config.yaml").exists(), process, "config.yaml")
@@ -172,7 +162,7 @@ def test_a_kill_before_the_first_checkpoint_then_resume_starts_the_run_again(tmp
 
 
 def test_a_damaged_newest_checkpoint_falls_back_to_the_older_one(tmp_path: Path) -> None:
-    config = write_config(tmp_path, **LONG)
+    config = write_tiny_config(tmp_path, **LONG)
     run = tmp_path / "run"
     process = start_training(config, run)
     wait_for(lambda: len(periodic_checkpoints(run)) >= 2, process, "second periodic checkpoint")
@@ -189,7 +179,7 @@ def test_a_damaged_newest_checkpoint_falls_back_to_the_older_one(tmp_path: Path)
 
 # ------------------------------------------------------------------------------------------------- run identity
 def test_a_second_run_into_a_busy_folder_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path: Path) -> None:
-    config = write_config(tmp_path, **LONG)
+    config = write_tiny_config(tmp_path, **LONG)
     run = tmp_path / "run"
     process = start_training(config, run)
     try:
@@ -207,11 +197,11 @@ def test_a_second_run_into_a_busy_folder_is_refused_and_a_dead_runs_lock_is_take
 
 def test_a_new_run_into_a_folder_of_another_run_is_refused_unless_overwrite(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    first = ncbot("train", str(write_config(tmp_path, checkpoint={"every_frames": 128, "keep": 10})), "--out", str(run))
+    first = ncbot("train", str(write_tiny_config(tmp_path, checkpoint={"every_frames": 128, "keep": 10})), "--out", str(run))
     assert first.returncode == 0, first.stderr[-2000:]
     old_steps = {p.name for p in periodic_checkpoints(run)}
     old_id = json.loads((run / "run.json").read_text())["run_id"]
-    config = write_config(tmp_path, train={"seed": 9, "eval_every_frames": 256}, collector={"total_frames": 256})
+    config = write_tiny_config(tmp_path, train={"seed": 9, "eval_every_frames": 256}, collector={"total_frames": 256})
     refused = ncbot("train", str(config), "--out", str(run))
     assert refused.returncode == 2 and "holds another run" in refused.stderr
     assert {p.name for p in periodic_checkpoints(run)} == old_steps  # untouched
@@ -225,7 +215,7 @@ def test_a_new_run_into_a_folder_of_another_run_is_refused_unless_overwrite(tmp_
 
 def test_a_checkpoint_of_another_run_is_never_resumed(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    first = ncbot("train", str(write_config(tmp_path)), "--out", str(run))
+    first = ncbot("train", str(write_tiny_config(tmp_path)), "--out", str(run))
     assert first.returncode == 0, first.stderr[-2000:]
     newest = periodic_checkpoints(run)[-1]
     foreign = load_checkpoint(newest)
@@ -239,14 +229,14 @@ def test_a_checkpoint_of_another_run_is_never_resumed(tmp_path: Path) -> None:
 
 def test_a_resume_whose_overrides_do_not_fit_the_checkpoint_is_one_line(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    assert ncbot("train", str(write_config(tmp_path)), "--out", str(run)).returncode == 0
+    assert ncbot("train", str(write_tiny_config(tmp_path)), "--out", str(run)).returncode == 0
     done = ncbot("train", "--resume", str(run), "agent.hidden=[8]")
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "do not match agent.hidden=[8]" in done.stderr and "Traceback" not in done.stderr
 
 
 def test_a_failed_start_writes_nothing(tmp_path: Path) -> None:
-    config = write_config(tmp_path)
+    config = write_tiny_config(tmp_path)
     for args in (["optim.lr=-1"], ["--seed", "-1"], ["env.batch_size=100000000000"], ["agent.hidden=[1000000000]"]):
         assert_refused(tmp_path, "train", str(config), *args, "--out", str(tmp_path / "run"))
     assert not (tmp_path / "run").exists()

@@ -367,3 +367,48 @@ def test_resume_of_a_run_whose_config_yaml_is_bad_is_one_line(tmp_path: Path) ->
     for text in ("env: [\n", "!!python/name:os.system\n", "- a list\n", "env: {batch_size: 0}\n"):
         (run / "config.yaml").write_text(text)
         assert "config" in assert_refused(tmp_path, "train", "--resume", str(run))
+
+
+# ------------------------------------------------------------------------------------------------- the boundary itself
+@pytest.mark.parametrize("raised, code, expected", [
+    (KeyError("a bug"), 1, "please report it"),
+    (KeyboardInterrupt(), 130, "interrupted (Ctrl-C)"),
+    (OSError(30, "Read-only file system", "/mnt/x"), 2, "'/mnt/x': the file system is read-only"),
+    (OSError(28, "No space left on device", "/mnt/x/step.pt"), 2, "no space left on the device"),
+    (MemoryError(), 2, "not enough memory"),
+    (RuntimeError("[enforce fail at alloc_cpu.cpp:117] DefaultCPUAllocator: can't allocate memory"), 2, "not enough memory"),
+    (OverflowError("Python int too large to convert to C long"), 2, "a number is too large"),
+])
+def test_the_boundary_sorts_bugs_from_expected_failures(monkeypatch, raised: BaseException, code: int,
+                                                        expected: str) -> None:
+    import envs
+
+    def broken(*args, **kwargs):
+        raise raised
+
+    monkeypatch.setattr(envs, "make_env", broken)
+    got, _out, err = cli("env", "describe")
+    assert got == code and expected in err, err
+    if code == 1:
+        assert "Traceback" in err and "KeyError" in err
+    else:
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_ncbot_debug_shows_the_traceback_of_an_expected_failure(monkeypatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("NCBOT_DEBUG", "1")
+    code, _out, err = cli("train", str(tmp_path / "missing.yaml"))
+    assert code == 2 and "Traceback" in err and err.strip().splitlines()[-1].startswith("ncbot: error: config file")
+
+
+def test_a_cv2_error_is_one_line(monkeypatch) -> None:
+    import cv2
+
+    import envs
+
+    def broken(*args, **kwargs):
+        raise cv2.error("OpenCV(4.9) error: (-4:Insufficient memory) Failed to allocate 40000000000 bytes")
+
+    monkeypatch.setattr(envs, "make_env", broken)
+    code, _out, err = cli("env", "describe")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "OpenCV could not process" in err
