@@ -135,9 +135,10 @@ class _Game:
         """Inverse of ``cell_name`` (case and spaces ignored; "2b" is accepted too); ValueError if not a cell."""
         cleaned = "".join(str(text).split()).lower()
         letters = COLUMN_LETTERS[: self.size]
-        if len(cleaned) == 2 and cleaned[1] in letters and cleaned[0].isdigit():
+        digits = "0123456789"  # ASCII only: "²".isdigit() is True but int("²") fails
+        if len(cleaned) == 2 and cleaned[1] in letters and cleaned[0] in digits:
             cleaned = cleaned[1] + cleaned[0]
-        if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1].isdigit():
+        if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1] in digits:
             row = int(cleaned[1]) - 1
             if 0 <= row < self.size:
                 return row * self.size + letters.index(cleaned[0])

@@ -283,6 +283,19 @@ class EpisodeLogger:
         self._pending_bytes = 0
         self._last_flush = time.monotonic()
 
+    def roll(self) -> int:
+        """Finish the current file and open the next; returns the new file's index.
+
+        Why: a training checkpoint rolls the log, so everything logged up to it sits in finished files and the
+        checkpoint can record where its episodes end; `--resume` drops the files from that index on, and the
+        log then holds exactly the episodes the resumed counters count (pipelines/run_folder.py).
+        """
+        self._require_open()
+        self._finish_file()
+        self._file_index += 1
+        self._open_file()
+        return self._file_index
+
     def close(self) -> None:
         """Finish the current file (summary + index), close it. Unfinished episodes are dropped."""
         if self._closed:

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 
 GRID_AXES = ("suite", "game", "agent", "temporal", "lookahead")
 
@@ -32,7 +31,7 @@ class PlannedRun:
         if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
             return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
         return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
-                "--out", str(self.run_dir), "--no-progress"]
+                "--out", str(self.run_dir), "--no-progress", "--overwrite"]  # no checkpoint yet: start it again
 
     @property
     def finished(self) -> bool:
@@ -40,21 +39,38 @@ class PlannedRun:
 
 
 def load_grid(path: str | Path) -> dict[str, Any]:
+    """The ablation grid, read through the one safe YAML loader and checked shape by shape (one line each)."""
+    from pipelines.config import read_yaml
+
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"ablation grid {str(path)!r} not found (expected e.g. pipelines/configs/ablation.yaml)")
-    grid = yaml.safe_load(path.read_text()) or {}
+    expected = "a YAML mapping with 'suites' and 'grid', e.g. pipelines/configs/ablation.yaml"
+    grid = read_yaml(path, "ablation grid", expected)
     if not isinstance(grid, dict):
-        raise ValueError(f"ablation grid {str(path)!r} must be a mapping with 'suites' and 'grid'")
+        raise ValueError(f"ablation grid {str(path)!r} must be {expected}")
     unknown = set(grid) - {"runs_dir", "suites", "grid", "baselines_with_temporal"}
     if unknown:
-        raise ValueError(f"unknown key '{sorted(unknown)[0]}' in ablation grid; allowed: runs_dir, suites, grid, baselines_with_temporal")
+        raise ValueError(f"unknown key '{sorted(map(str, unknown))[0]}' in ablation grid; allowed: runs_dir, suites, grid, baselines_with_temporal")
     for key in ("suites", "grid"):
         if not isinstance(grid.get(key), dict):
             raise ValueError(f"ablation grid {str(path)!r} needs a '{key}' mapping")
+    if not isinstance(grid.get("runs_dir", ""), str):
+        raise ValueError(f"ablation grid {str(path)!r}: 'runs_dir' must be a folder name")
     bad_axes = set(grid["grid"]) - set(GRID_AXES)
     if bad_axes:
-        raise ValueError(f"unknown grid axis '{sorted(bad_axes)[0]}'; allowed: {', '.join(GRID_AXES)}")
+        raise ValueError(f"unknown grid axis '{sorted(map(str, bad_axes))[0]}'; allowed: {', '.join(GRID_AXES)}")
+    for axis, values in grid["grid"].items():
+        if not isinstance(values, list) or not values or not all(v is None or isinstance(v, (str, int, float))
+                                                                   for v in values):
+            raise ValueError(f"grid axis '{axis}' must be a non-empty list of names or flags (e.g. {axis}: [a, b]), got {values!r}")
+    for suite, rows in grid["suites"].items():
+        if not isinstance(rows, dict):
+            raise ValueError(f"suite {suite!r} must map game rows to {{config: FILE, overrides: [...]}}, got {rows!r}")
+        for row, entry in rows.items():
+            if not isinstance(entry, dict) or not isinstance(entry.get("config"), str):
+                raise ValueError(f"suite {suite!r} row {row!r} needs 'config: FILE' (a YAML run config), got {entry!r}")
+            overrides = entry.get("overrides", [])
+            if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+                raise ValueError(f"suite {suite!r} row {row!r}: 'overrides' must be a list of key=value strings")
     return grid
 
 
@@ -64,14 +80,14 @@ def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None 
 
     grid_path = Path(grid_path)
     grid = load_grid(grid_path)
-    if seeds <= 0:
-        raise ValueError(f"--seeds must be a positive number, got {seeds}")
+    if not 0 < seeds <= 1000:
+        raise ValueError(f"--seeds must be a positive number (at most 1000), got {seeds}")
     runs_dir = Path(runs_dir or grid.get("runs_dir", "runs/ablation"))
     axes = grid["grid"]
     values = {axis: axes.get(axis, [None]) for axis in GRID_AXES}
     planned = []
     for suite, game, agent, temporal, lookahead in itertools.product(*(values[a] for a in GRID_AXES)):
-        if suite not in grid["suites"]:
+        if not isinstance(suite, str) or suite not in grid["suites"]:
             raise ValueError(f"grid suite {suite!r} is not defined under 'suites' ({', '.join(grid['suites'])})")
         entry = grid["suites"][suite].get(game)
         if entry is None:
@@ -117,8 +133,8 @@ def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, bac
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
     if backend == "ray" and not _ray_available():
         raise ValueError("backend 'ray' needs the optional extra: pip install 'ncbot[ray]' (ray is not importable)")
-    if workers <= 0:
-        raise ValueError(f"--workers must be positive, got {workers}")
+    if not 0 < workers <= 256:
+        raise ValueError(f"--workers must be a positive number of parallel runs (at most 256), got {workers}")
     planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
     if only:
         planned = [run for run in planned if only in run.name]

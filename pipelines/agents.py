@@ -14,12 +14,10 @@ def load_agent(checkpoint_path):
     """(config, greedy policy) of a saved agent: the same masks as in training."""
     from modules.policy import make_policies
     from modules.qnet import make_qnet
-    from pipelines.checkpoint import load_checkpoint
-    from pipelines.config import config_from_dict
+    from pipelines.checkpoint import load_agent_checkpoint
     from torchrl.data import Categorical
 
-    data = load_checkpoint(checkpoint_path)
-    config = config_from_dict(data["config"])
+    config, data = load_agent_checkpoint(checkpoint_path)  # keys, config and weight shapes checked: one-line errors
     qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
@@ -94,11 +92,9 @@ class AgentOpponent:
         from envs.rules import make_game
         from modules.guided_mcts import TurnFeatures
         from modules.qnet import make_qnet
-        from pipelines.checkpoint import load_checkpoint
-        from pipelines.config import config_from_dict
+        from pipelines.checkpoint import load_agent_checkpoint
 
-        data = load_checkpoint(checkpoint)
-        config = config_from_dict(data["config"])
+        config, data = load_agent_checkpoint(checkpoint)
         if config.env.game != game:
             raise ValueError(f"agent checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
         self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)

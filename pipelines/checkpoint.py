@@ -4,21 +4,24 @@ Two kinds live in a run folder:
 - `checkpoint.pt`: the final agent (Q-network weights + resolved config): what `ncbot eval` loads.
 - `checkpoints/step-NNNNNNNNN.pt`: periodic training state (network, target network, optimiser, epsilon, replay
   buffer, counters, RNG, evaluation history) that `ncbot train --resume DIR` continues from.
-A crash can leave a stray `.NAME.*.tmp` file but never a half-written checkpoint under its final name; `--resume`
-removes such leftovers, since the resumed run is now the folder's only writer.
+A crash can leave a stray `.NAME.*.tmp` file but never a half-written checkpoint under its final name; every run
+removes such leftovers once it holds the folder's lock (`pipelines.run_folder`). Loaders check keys and weight
+shapes against the stored config (`load_agent_checkpoint`, `check_training_state`) for a one-line reason.
 """
 from __future__ import annotations
 
+import errno
 import os
 import pickle
 import re
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from fileio import TEMP_GLOB, atomic_path
+from fileio import atomic_path
 
 FORMAT = "ncbot-dqn/1"
 FINAL_NAME = "checkpoint.pt"
@@ -29,8 +32,22 @@ PERIODIC_PATTERN = re.compile(r"^step-(\d{9})\.pt$")
 def atomic_save(obj: Any, path: str | os.PathLike) -> Path:
     """torch.save `obj` to `path` atomically."""
     with atomic_path(path) as temp:
-        torch.save(obj, temp)
+        try:
+            torch.save(obj, temp)
+        except RuntimeError as error:  # torch's zip writer turns a failed write (a full disk) into a RuntimeError
+            raise write_error(error, temp, path) from None
     return Path(path)
+
+
+def write_error(error: RuntimeError, temp: Path, path: str | os.PathLike) -> OSError:
+    """The OSError behind a failed torch.save: ENOSPC when the disk is (nearly) full, else EIO naming the file."""
+    try:
+        stats = os.statvfs(temp.parent)
+        full = stats.f_bavail * stats.f_frsize < 2**20
+    except OSError:
+        full = False
+    reason = "no space left on the device" if full else f"torch could not write it ({str(error).splitlines()[0][:100]})"
+    return OSError(errno.ENOSPC if full else errno.EIO, f"cannot write {str(path)!r}: {reason}")
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -42,12 +59,29 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
         raise FileNotFoundError(f"checkpoint {str(path)!r} not found (expected a .pt file written by ncbot train)")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as error:
-        reason = str(error).splitlines()[0][:120] if str(error) else type(error).__name__
-        raise ValueError(f"checkpoint {str(path)!r} is corrupt or unreadable ({reason})") from None
+    except pickle.UnpicklingError:  # weights_only refused a pickled object: never run, never loaded
+        raise ValueError(f"checkpoint {str(path)!r} is corrupt or not ncbot's: it holds Python objects beyond tensors, "
+                         "which ncbot never loads (expected a .pt file written by ncbot train)") from None
+    except (Exception, MemoryError) as error:  # noqa: BLE001 - torch's unpickler raises anything on a foreign file
+        reason = _reason(error)
+        raise ValueError(f"checkpoint {str(path)!r} is corrupt or unreadable ({reason}; expected a .pt file "
+                         "written by ncbot train)") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ValueError(f"checkpoint {str(path)!r} is not an ncbot DQN checkpoint (expected format {FORMAT})")
     return data
+
+
+def _reason(error: BaseException) -> str:
+    """Why torch could not read a file, in a few words (its own messages run over lines and name other causes)."""
+    text = str(error)
+    if isinstance(error, (EOFError, zipfile.BadZipFile)) or "zip archive" in text or "central directory" in text:
+        return "truncated or not a torch zip file"
+    if isinstance(error, OSError) and error.errno is not None:
+        return error.strerror or "cannot be read"
+    if isinstance(error, (MemoryError, OverflowError)):
+        return "sizes in the file are absurd"
+    first = text.splitlines()[0] if text else type(error).__name__
+    return first if len(first) <= 100 else first[:first.rfind(" ", 0, 100)] + " ..."
 
 
 def periodic_path(run_dir: str | os.PathLike, frames: int) -> Path:
@@ -70,27 +104,101 @@ def save_periodic(state: dict[str, Any], run_dir: str | os.PathLike, frames: int
     return path
 
 
-def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
-    """The newest periodic checkpoint of a run, for `--resume`; one-line errors if none exists or it is corrupt."""
+AGENT_KEYS = {"config": dict, "n_features": int, "n_actions": int, "qnet": dict}
+TRAINING_KEYS = {"learner": dict, "egreedy": dict, "history": list, "frames": int, "updates": int, "episodes": int,
+                 "wall_time": (int, float)}
+ACTIONS = {"standard": 18, "ultimate": 90}  # 9 / 81 game moves + 9 other dialogue acts (docs/env.md)
+
+
+def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:
+    """The state-dict shapes `modules.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
+    widths = [n_features, *hidden, n_actions]
+    shapes: dict[str, tuple[int, ...]] = {}
+    for layer, (inputs, outputs) in enumerate(zip(widths, widths[1:])):
+        shapes[f"module.{2 * layer}.weight"] = (outputs, inputs)
+        shapes[f"module.{2 * layer}.bias"] = (outputs,)
+    return shapes
+
+
+def _require(data: dict[str, Any], keys: dict[str, Any], path: Path, expected: str) -> None:
+    for key, kind in keys.items():
+        if key not in data:
+            raise ValueError(f"checkpoint {str(path)!r} has no {key!r}; expected {expected}")
+        if isinstance(data[key], bool) or not isinstance(data[key], kind):
+            raise ValueError(f"checkpoint {str(path)!r}: {key!r} is a {type(data[key]).__name__}; expected {expected}")
+
+
+def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
+    """The Q-network weights match the sizes the config builds; ValueError naming the first mismatch."""
+    expected = qnet_shapes(data["n_features"], data["n_actions"], list(config.agent.hidden))
+    weights = data["qnet"]
+    if set(weights) != set(expected):
+        missing = sorted(set(expected) - set(weights)) or sorted(set(weights) - set(expected))
+        raise ValueError(f"checkpoint {str(path)!r}: Q-network weights do not match agent.hidden="
+                         f"{list(config.agent.hidden)} ({len(weights)} tensors, expected {len(expected)}; first "
+                         f"difference {missing[0]!r})")
+    for key, shape in expected.items():
+        got = tuple(getattr(weights[key], "shape", ()))
+        if got != shape:
+            raise ValueError(f"checkpoint {str(path)!r}: weights {key!r} have shape {got} but its config "
+                             f"(agent.hidden={list(config.agent.hidden)}, {data['n_features']} features, "
+                             f"{data['n_actions']} actions) expects {shape}")
+
+
+def load_agent_checkpoint(path: str | os.PathLike) -> tuple[Any, dict[str, Any]]:
+    """(validated RunConfig, checkpoint dict) of a saved agent: keys, config and weight shapes checked, so a
+    foreign or inconsistent file is one line naming what is wrong instead of a KeyError or size mismatch."""
+    from pipelines.config import config_from_dict
+
+    data = load_checkpoint(path)
+    path = Path(path) / FINAL_NAME if Path(path).is_dir() else Path(path)
+    expected = "an ncbot train checkpoint (config, n_features, n_actions, qnet)"
+    _require(data, AGENT_KEYS, path, expected)
+    try:
+        config = config_from_dict(data["config"])
+    except ValueError as error:
+        raise ValueError(f"checkpoint {str(path)!r} holds an invalid config ({error})") from None
+    if data["n_actions"] != ACTIONS[config.env.game]:
+        raise ValueError(f"checkpoint {str(path)!r} has {data['n_actions']} actions but plays {config.env.game} "
+                         f"({ACTIONS[config.env.game]} actions)")
+    check_qnet(data, config, path)
+    return config, data
+
+
+def check_training_state(state: dict[str, Any], path: Path, config: Any) -> None:
+    """A periodic checkpoint can be resumed under `config`: training keys present, Q-network shapes match."""
+    expected = "a periodic checkpoint of ncbot train (network, learner, counters, history)"
+    _require(state, {**AGENT_KEYS, **TRAINING_KEYS}, path, expected)
+    check_qnet(state, config, path)
+
+
+def newest_resumable(run_dir: str | os.PathLike,
+                     check: Callable[[dict[str, Any], Path], None] | None = None) -> tuple[dict[str, Any], Path, list[str]]:
+    """(state, path, notes) of the newest periodic checkpoint that loads, holds training state and passes `check`;
+    damaged newer ones are skipped (named in `notes`), never deleted. One-line errors when none qualifies."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise FileNotFoundError(f"run folder {str(run_dir)!r} not found (expected the --out folder of an earlier ncbot train)")
     found = periodic_checkpoints(run_dir)
     if not found:
         raise FileNotFoundError(f"no periodic checkpoint in {str(run_dir / PERIODIC_DIR)!r} to resume from")
-    remove_stray_temp_files(run_dir)
-    state = load_checkpoint(found[-1])
-    if "learner" not in state:
-        raise ValueError(f"checkpoint {str(found[-1])!r} holds no training state to resume from")
-    return state
+    notes: list[str] = []
+    for candidate in reversed(found):
+        try:
+            state = load_checkpoint(candidate)
+            if "learner" not in state:
+                raise ValueError(f"checkpoint {str(candidate)!r} holds no training state to resume from")
+            if check is not None:
+                check(state, candidate)
+        except ValueError as error:
+            notes.append(f"skipped {candidate.name}: {error}")
+            continue
+        return state, candidate, notes
+    raise ValueError(f"no checkpoint in {str(run_dir / PERIODIC_DIR)!r} can be resumed from ({len(found)} tried); "
+                     f"newest: {notes[0].split(': ', 1)[1]}")
 
 
-def remove_stray_temp_files(run_dir: str | os.PathLike) -> list[Path]:
-    """Delete the temp files `fileio.atomic_path` leaves when a run is killed mid-write (run folder and its
-    checkpoints); returns what was removed. Only for a folder no other process is writing to."""
-    run_dir = Path(run_dir)
-    stray = [p for folder in (run_dir, run_dir / PERIODIC_DIR) if folder.is_dir()
-             for p in folder.glob(TEMP_GLOB) if p.is_file()]
-    for path in stray:
-        path.unlink(missing_ok=True)
-    return stray
+def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
+    """The newest resumable training state of a run, read only (`--resume` goes through pipelines.run_folder,
+    which also holds the run's lock and checks the run's identity)."""
+    return newest_resumable(run_dir)[0]

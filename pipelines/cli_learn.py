@@ -10,6 +10,9 @@ from typing import Optional
 
 import typer
 
+from pipelines.config import MAX_GAMES, MAX_SEED  # light: pydantic and yaml, no torch
+from pipelines.outputs import check_writable_dir, check_writable_file  # light: os and pathlib only
+
 
 def train_command(
     config: Optional[str] = typer.Argument(None, help="YAML run config, e.g. pipelines/configs/default.yaml."),
@@ -20,6 +23,8 @@ def train_command(
     resume: Optional[str] = typer.Option(None, "--resume", help="Continue the run in this folder from its last checkpoint."),
     no_mcap: bool = typer.Option(False, "--no-mcap", help="Do not write the MCAP episode log."),
     no_progress: bool = typer.Option(False, "--no-progress", help="Hide the progress bar."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the run already in --out (its checkpoints, "
+                                   "log, eval.json); without it such a folder is refused."),
 ) -> None:
     """Train an agent (competitive DQN or a baseline) and write checkpoint, eval.json, curve PNG and MCAP log."""
     from pipelines.train import resolve_run, train
@@ -31,7 +36,9 @@ def train_command(
                                                 resume=resume, mcap=not no_mcap)
     if no_progress:
         run_config.logger.progress = False
-    report = train(run_config, run_dir, resume=resuming)
+    if overwrite and resuming:
+        raise ValueError("give --resume or --overwrite, not both (--overwrite replaces the run --resume continues)")
+    report = train(run_config, run_dir, resume=resuming, overwrite=overwrite)
     typer.echo(f"run folder: {run_dir}")
     typer.echo(_results_header())
     for seat in ("first", "second"):
@@ -56,14 +63,14 @@ def _results_row(result: dict, seat: str) -> str:
 
 def eval_command(
     checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
-    games: int = typer.Option(3000, "--games", help="Number of greedy test games."),
+    games: int = typer.Option(3000, "--games", max=MAX_GAMES, help="Number of greedy test games."),
     opponent: str = typer.Option("random", "--opponent", help="Simulated user's move policy (envs.opponents name)."),
     first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot | human | alternate (default alternate)."),
     seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling of --first: first | second | alternate."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
     mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
-    search: Optional[int] = typer.Option(None, "--search", help="Game moves by MCTS guided by the Q-network, N simulations."),
+    search: Optional[int] = typer.Option(None, "--search", max=100_000, help="Game moves by MCTS guided by the Q-network, N simulations."),
     exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
 ) -> None:
@@ -71,6 +78,8 @@ def eval_command(
     from pipelines.cli_first import ROBOT_SEAT, resolve_first
 
     seat = ROBOT_SEAT[resolve_first(first, seat, allowed=("robot", "human", "alternate"), default="alternate")]
+    if mcap is not None:
+        check_writable_dir(mcap, "--mcap")
     import torch
 
     from pipelines.evaluate import evaluate_checkpoint
@@ -123,6 +132,9 @@ def ablate_command(
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
     from pipelines.ablate import run_ablation
 
+    if out is not None:
+        check_writable_dir(out, "--out")
+
     summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
@@ -142,6 +154,10 @@ def table_command(
     import sys
 
     from pipelines.table import write_report
+
+    for path, option in ((out, "--out"), (claims, "--claims")):
+        if path is not None:
+            check_writable_file(path, option, (".md",))
 
     report = write_report(runs_dir, out, claims, command="ncbot " + shlex.join(sys.argv[1:]))
     typer.echo(json.dumps(report.to_dict()) if as_json else report.table + "\n" + report.claims_text)

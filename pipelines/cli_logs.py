@@ -11,6 +11,7 @@ from typing import Optional
 
 import typer
 
+from pipelines.outputs import check_writable_file
 from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
 logs_app = typer.Typer(help="Inspect, replay, plot and export the MCAP episode logs of a run.",
@@ -81,6 +82,8 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
     """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
     from logs.curve import plot_learning_curve
 
+    check_writable_file(output, "-o", (".png",))
+
     series = plot_learning_curve(path, output, window, progress=progress_bar)
     for label, entry in series.items():
         last = []
@@ -101,6 +104,8 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
              max_episodes: int = typer.Option(200, min=1, help="cap on exported episodes")) -> None:
     """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
     from logs.rerun_export import export_to_rerun, parse_episode_spec
+
+    check_writable_file(output, "-o", (".rrd",))
 
     counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=progress_bar)
     typer.echo(f"wrote {output} ({counts['bytes']} bytes): {counts['episodes']} episodes, {counts['steps']} steps, "

@@ -6,6 +6,8 @@ from typing import Optional
 import typer
 
 from pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
+from pipelines.config import MAX_GAMES, MAX_SEED
+from pipelines.outputs import check_writable_dir
 
 
 def play_command(
@@ -15,7 +17,7 @@ def play_command(
     first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default) | human (you draw the first mark)."),
     seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling: your seat, first | second."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the robot's random choices (look-ahead policy) and the env."),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the robot's random choices (look-ahead policy) and the env."),
     log_dir: str = typer.Option("runs/play", "--log-dir", help="Folder for the MCAP log of the game."),
     no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
 ) -> None:
@@ -28,6 +30,8 @@ def play_command(
     seat = "first" if first == "human" else "second"  # play_dialogue takes the person's seat
     if free_move is not None and free_move not in ("anywhere", "open_subgrids"):
         raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
+    if not no_log:
+        check_writable_dir(log_dir, "--log-dir")
     from pipelines.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
 
     try:
@@ -45,10 +49,10 @@ def play_command(
 
 def ladder_command(
     checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
-    games: int = typer.Option(200, "--games", help="Games per opponent and seat."),
+    games: int = typer.Option(200, "--games", max=MAX_GAMES, help="Games per opponent and seat."),
     opponents: Optional[str] = typer.Option(None, "--opponents", help="Comma-separated opponent names; default: "
                                             "random,rule,minimax (3x3) or random,rule,mcts:10,mcts:100,mcts:300."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the test games."),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
     out: Optional[str] = typer.Option(None, "--out", help="Folder for ladder.md, ladder.json and ladder.png "
                                       "(default: beside the checkpoint)."),
     baseline: bool = typer.Option(False, "--baseline", help="Also play the agent's look-ahead masks alone (random "
@@ -69,9 +73,13 @@ def ladder_command(
         raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {lookahead!r}")
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
+    if out is not None:
+        check_writable_dir(out, "--out")
     from pipelines.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
-    names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents else None
+    names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents is not None else None
+    if names is not None and not names:
+        raise ValueError(f"--opponents must name at least one opponent (e.g. random,rule,minimax), got {opponents!r}")
     result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline,
                         search=search, lookahead=lookahead)
     typer.echo(result["markdown"])
@@ -83,8 +91,8 @@ def match_command(
     second: str = typer.Argument(..., help="Opponent name moving second."),
     game: str = typer.Option("standard", "--game", help="standard | ultimate."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
-    games: int = typer.Option(100, "--games", help="Number of games."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the match."),
+    games: int = typer.Option(100, "--games", max=MAX_GAMES, help="Number of games."),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the match."),
 ) -> None:
     """Play two opponents against each other with the exact rules (no dialogue) and print W/D/L and timing."""
     if games < 1:

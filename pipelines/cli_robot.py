@@ -12,8 +12,25 @@ from typing import Optional
 
 import typer
 
+from pipelines.outputs import check_writable_dir, check_writable_file
+
+MAX_PIXELS = 4096  # camera width/height bound: a 4K frame; 100000 x 100000 would need 30 GB (docs/reliability.md)
+
 robot_app = typer.Typer(help="The simulated Pepper robot (SAPIEN): play games, render the mouth camera.",
                         no_args_is_help=True)
+
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")  # what cv2.imwrite can encode
+
+
+def check_meshes(meshes: Optional[Path]) -> None:
+    """--meshes must be a folder holding at least one mesh file (an empty one silently drew primitives)."""
+    if meshes is None:
+        return
+    if not meshes.is_dir():
+        raise FileNotFoundError(f"meshes folder {meshes} does not exist; expected a folder of <Link>.dae/.stl/.obj files")
+    if not any(p.suffix.lower() in (".dae", ".stl", ".obj") for p in meshes.iterdir()):
+        raise ValueError(f"meshes folder {meshes} holds no .dae/.stl/.obj file; expected meshes named after the links")
 
 
 def _simulator_unavailable(error: Exception) -> None:
@@ -25,15 +42,15 @@ def _simulator_unavailable(error: Exception) -> None:
 def play(
     game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Trained agent (checkpoint.pt); default: look-ahead filter alone."),
-    games: int = typer.Option(1, min=1, help="Games to play."),
+    games: int = typer.Option(1, min=1, max=10_000, help="Games to play."),
     seed: int = typer.Option(0, help="Seed of the env, the simulated human and the robot's marks."),
     out: Optional[Path] = typer.Option(None, help="Folder for the MCAP log, PNG snapshots and report.json."),
     rrd: bool = typer.Option(False, help="Also export the run to OUT/run.rrd (rerun)."),
     first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default), human, alternate, random."),
     starts: Optional[str] = typer.Option(None, "--starts", hidden=True, help="Old spelling of --first."),
     opponent: str = typer.Option("random", help="The simulated human's opponent model (random, rule, minimax, mcts:N)."),
-    width: int = typer.Option(640, help="Mouth camera width (pixels)."),
-    height: int = typer.Option(480, help="Mouth camera height (pixels)."),
+    width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Mouth camera width (pixels)."),
+    height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Mouth camera height (pixels)."),
     occlusion: bool = typer.Option(True, help="Show the human's arm and hand while drawing."),
     wait_probability: float = typer.Option(0.0, help="Chance that the human waits before drawing."),
     nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
@@ -57,8 +74,9 @@ def play(
         raise ValueError("--rrd needs --out DIR (the recording is exported from the run's MCAP log)")
     if checkpoint is not None and not checkpoint.is_file():
         raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
-    if meshes is not None and not meshes.is_dir():
-        raise FileNotFoundError(f"meshes folder {meshes} does not exist; expected a folder of <Link>.dae/.stl/.obj files")
+    check_meshes(meshes)
+    if out is not None:
+        check_writable_dir(out, "--out")
     if robot_frame_period <= 0:
         raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
@@ -103,8 +121,8 @@ def play(
 def render(
     output: Path = typer.Option(Path("mouth.png"), "-o", "--output", help="PNG to write."),
     game: str = typer.Option("standard", help="standard or ultimate sheet."),
-    width: int = typer.Option(640, help="Camera width."),
-    height: int = typer.Option(480, help="Camera height."),
+    width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Camera width."),
+    height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Camera height."),
     marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'x4,o0,x8' (mark and cell)."),
     seed: int = typer.Option(0, help="Seed of the hand-drawn marks and of the conditions."),
     frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
@@ -119,6 +137,7 @@ def render(
 
     if view not in ("mouth", "overview"):
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
+    check_writable_file(output, "-o", IMAGE_SUFFIXES)
     from robot_sim.conditions import load_conditions
     from robot_sim.render_system import SimulatorUnavailable
     from robot_sim.scene import PepperScene, SceneConfig
@@ -131,9 +150,14 @@ def render(
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     rng = np.random.default_rng(seed)
+    taken: set[int] = set()
     for token in filter(None, (t.strip() for t in marks.split(","))):
-        if token[0] not in MARK_OF_PLAYER or not token[1:].isdigit() or int(token[1:]) >= scene.grid ** 2:
+        if token[0] not in MARK_OF_PLAYER or not token[1:].isascii() or not token[1:].isdigit() \
+                or int(token[1:]) >= scene.grid ** 2:
             raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell in [0, {scene.grid ** 2}), e.g. x4")
+        if int(token[1:]) in taken:
+            raise ValueError(f"mark {token!r} puts a second mark on cell {token[1:]}; expected one mark per cell")
+        taken.add(int(token[1:]))
         scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)),
                                     scene.conditions.ink_bgr), 1.0)
     grab = scene.render if view == "mouth" else (lambda: scene.render_overview(width, height))
@@ -159,6 +183,10 @@ def urdf(
 ) -> None:
     """Write the primitive Pepper URDF (optionally with licensed meshes swapped in for the primitives)."""
     from robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
+
+    if output is not None:
+        check_writable_file(output, "-o", (".urdf",))
+    check_meshes(meshes)
 
     path = write_pepper_urdf(output or PACKAGED_URDF, meshes)
     typer.echo(str(path))

@@ -12,6 +12,7 @@ from typing import Optional
 
 import typer
 
+from pipelines.outputs import check_writable_dir, check_writable_file
 from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
 vision_app = typer.Typer(help="Visual perception: read game sheets, classify cells, train/evaluate the CNN, generate data.",
@@ -55,7 +56,7 @@ def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."
          grid: int = typer.Option(3, help="3 (noughts & crosses) or 9 (ultimate)."),
          json_out: bool = typer.Option(False, "--json", help="One JSON object per line per image."),
          weights: Optional[Path] = typer.Option(None, help="Classifier weights (default: the shipped ones)."),
-         rho: Optional[int] = typer.Option(None, help="Pixels per cell of the grid warp (default 64 / 40).")) -> None:
+         rho: Optional[int] = typer.Option(None, min=8, max=256, help="Pixels per cell of the grid warp (default 64 / 40; 8..256).")) -> None:
     """Read the board on each photo: row-major cells "x" / "o" / "" over the full grid."""
     from vision.grid import read_board
     from vision.sheet import check_grid
@@ -73,6 +74,7 @@ def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."
         any_read = True
         typer.echo(json.dumps({"image": str(path), "cells": cells}) if json_out else f"{path}: {_board_text(cells, grid)}")
     if not any_read:
+        typer.echo(f"ncbot: error: none of the {len(images)} image(s) could be read (reasons above)", err=True)
         raise typer.Exit(2)
 
 
@@ -96,6 +98,7 @@ def classify(images: list[Path] = typer.Argument(..., help="Crops of one cell ea
         else:
             typer.echo(f"{path}: {label} (scores {' '.join(f'{s:.2f}' for s in scores)})")
     if not any_read:
+        typer.echo(f"ncbot: error: none of the {len(images)} image(s) could be read (reasons above)", err=True)
         raise typer.Exit(2)
 
 
@@ -112,6 +115,8 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
     from vision.data import TRAIN_SEED
     from vision.training import DefaultTraining, train_default
 
+    if out is not None:
+        check_writable_file(out, "--out", (".pt",))
     _setup_threads()
     config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9,
                              seed=TRAIN_SEED if data_seed is None else data_seed,
@@ -142,6 +147,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser, harsh; got {what!r}")
     if seed_set not in ("heldout", "tuning"):
         raise ValueError(f"--seed-set must be heldout or tuning; got {seed_set!r}")
+    check_writable_dir(out, "--out")
     _setup_threads()
     written = []
     if "paper" in parts:
@@ -181,7 +187,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
 @vision_app.command()
 def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
              out: Path = typer.Option(..., help="Output directory (PNG files + labels.jsonl)."),
-             n: int = typer.Option(20, min=1, help="Number of cells / frames (sequence: one sequence)."),
+             n: int = typer.Option(20, min=1, max=100_000, help="Number of cells / frames (sequence: one sequence)."),
              seed: int = typer.Option(0, help="Data seed."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
              grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
@@ -203,6 +209,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
     check_grid(grid)
     check_conditions(conditions)
+    check_writable_dir(out, "--out")
     out.mkdir(parents=True, exist_ok=True)
     records = []
     if kind == "cells":

@@ -34,8 +34,16 @@ def _yaml_number(value: Any) -> Any:
     return value
 
 
-Number = Annotated[float, BeforeValidator(_yaml_number)]
+Number = Annotated[float, BeforeValidator(_yaml_number), Field(allow_inf_nan=False)]  # finite: nan/inf is a typo
 Positive = Annotated[int, Field(gt=0)]
+# Upper bounds: far above any run this project makes, far below what exhausts memory or overflows (a typo such as
+# env.batch_size=100000000000 is one line at start-up, not an allocation error minutes later); docs/reliability.md.
+MAX_BATCH = 65_536  # env games in parallel, sampled transitions per update
+MAX_WIDTH = 4_096  # units of one hidden layer (paper: 100 / 150)
+MAX_LAYERS = 16
+MAX_FRAMES = 10_000_000_000  # env frames of one run (paper: 400K)
+MAX_SEED = 2**32 - 1
+MAX_GAMES = 10_000_000  # test games of one evaluation: hours of CPU already
 Fraction = Annotated[Number, Field(ge=0.0, le=1.0)]
 
 
@@ -51,10 +59,10 @@ class EnvConfig(Section):
     game: Literal["standard", "ultimate"] = "standard"
     temporal: bool = True  # the paper's 9/81 temporal features
     free_move: Literal["anywhere", "open_subgrids"] = "anywhere"  # ultimate rule variant
-    batch_size: Positive = 128  # games played in parallel by one batched env
+    batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # games played in parallel by one batched env
     first: Literal["robot", "human", "alternate", "random"] = "alternate"  # who opens the training games
     opponent: str = "random"  # envs.opponents name of the simulated user's move policy
-    max_steps: Positive = 100  # actions per dialogue before truncation (paper: 100)
+    max_steps: Annotated[int, Field(gt=0, le=10_000)] = 100  # actions per dialogue before truncation (paper: 100)
     # The paper's readings (docs/reproduction.md), on in pipelines/configs/paper/: the robot is offered its taken
     # squares (choosing one earns -5, the board and the dialogue stay, the user does not move, the robot chooses
     # again); off = only legal squares are offered (our reading of "not taken yet", faster to learn)
@@ -71,25 +79,26 @@ class AgentConfig(Section):
     name: Literal["dqn_original", "dqn_variant", "proposed"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
     # paper: 3 x 100 (or 150 on ultimate)
-    hidden: Annotated[list[Positive], Field(min_length=1)] = Field(default_factory=lambda: [100, 100, 100])
+    hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
+        Field(default_factory=lambda: [100, 100, 100])
 
 
 class CollectorConfig(Section):
     """How experience is gathered (TorchRL Collector) and how exploration anneals."""
 
-    frames_per_batch: Positive = 1024  # env frames (robot actions) per collected batch
-    total_frames: Positive = 100_000  # training length in frames (paper: 400K steps)
-    init_random_frames: Annotated[int, Field(ge=0)] = 1_000  # burn-in: updates start once the buffer holds this many frames
+    frames_per_batch: Annotated[int, Field(gt=0, le=2**20)] = 1024  # env frames (robot actions) per collected batch
+    total_frames: Annotated[int, Field(gt=0, le=MAX_FRAMES)] = 100_000  # training length in frames (paper: 400K steps)
+    init_random_frames: Annotated[int, Field(ge=0, le=MAX_FRAMES)] = 1_000  # burn-in: updates start once the buffer holds this many frames
     eps_init: Fraction = 1.0
     eps_end: Fraction = 0.005  # paper: minimum epsilon 0.005
-    annealing_frames: Positive = 20_000  # frames over which epsilon decays linearly
+    annealing_frames: Annotated[int, Field(gt=0, le=MAX_FRAMES)] = 20_000  # frames over which epsilon decays linearly
 
 
 class BufferConfig(Section):
     """Experience replay (TensorDictReplayBuffer over LazyTensorStorage)."""
 
-    size: Positive = 10_000  # paper: 10,000
-    batch_size: Positive = 128  # sampled transitions per update (paper: 2)
+    size: Annotated[int, Field(gt=0, le=10_000_000)] = 10_000  # paper: 10,000
+    batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
 
@@ -98,7 +107,7 @@ class OptimConfig(Section):
     """Adam on the Q-network; the paper does not state these, so they are ours."""
 
     lr: Annotated[Number, Field(gt=0)] = 1e-3
-    updates_per_batch: Positive = 8  # gradient updates per collected batch
+    updates_per_batch: Annotated[int, Field(gt=0, le=10_000)] = 8  # gradient updates per collected batch
     max_grad_norm: Number = 10.0
     weight_decay: Number = 0.0
     # matrix products of the learner's forward/backward: fp32, or bf16 (CPU autocast, float32 weights, gradients and
@@ -130,7 +139,7 @@ class LossConfig(Section):
     # n-step returns (modules/transitions.py, TorchRL's MultiStepTransform): the target sums up to n discounted
     # rewards, then bootstraps with gamma**k (k = the steps the window really spans, fewer at a game's end);
     # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
-    n_step: Positive = 1
+    n_step: Annotated[int, Field(gt=0, le=1_000)] = 1
     # which next actions the TD target maximises over (modules/bootstrap.py): every available one (the paper) or
     # only the agent's greedy set, the actions it can actually play; untrained actions outside it inflate targets
     bootstrap: Literal["available", "greedy"] = "available"
@@ -139,20 +148,21 @@ class LossConfig(Section):
 class TrainConfig(Section):
     """Run-level settings."""
 
-    seed: int = 0
-    episodes: Positive | None = None  # stop after this many finished training dialogues, frames ignored; None = frames
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
+    # stop after this many finished training dialogues, frames ignored; None = frames
+    episodes: Annotated[int, Field(gt=0, le=10**9)] | None = None
     # stop at collector.total_frames or after this many finished training games, whichever comes first (the paper:
     # "400K learning steps or 20K games, whatever occurred first"); None = frames only
-    max_games: Positive | None = None
+    max_games: Annotated[int, Field(gt=0, le=10**9)] | None = None
     eval_every_frames: Positive = 10_000  # periodic greedy evaluation (logged with its wall time)
-    num_threads: Positive = 1  # torch threads: small tensors are fastest on one thread
+    num_threads: Annotated[int, Field(gt=0, le=1_024)] = 1  # torch threads: small tensors are fastest on one thread
 
 
 class EvalConfig(Section):
     """Greedy test games against the simulated user (paper: 3000)."""
 
-    games: Positive = 3000  # final evaluation
-    periodic_games: Positive = 500  # each periodic evaluation during training
+    games: Annotated[int, Field(gt=0, le=MAX_GAMES)] = 3000  # final evaluation
+    periodic_games: Annotated[int, Field(gt=0, le=MAX_GAMES)] = 500  # each periodic evaluation during training
     # who opens the test games: robot | human | alternate (older configs and checkpoints say seat: first|second)
     first: Literal["robot", "human", "alternate"] = "alternate"
     opponent: str = "random"
@@ -182,7 +192,7 @@ class CheckpointConfig(Section):
     """Periodic checkpoints (atomic write + rename) that `--resume` continues from."""
 
     every_frames: Positive = 10_000
-    keep: Positive = 2  # periodic checkpoints kept on disk
+    keep: Annotated[int, Field(gt=0, le=1_000)] = 2  # periodic checkpoints kept on disk
     save_buffer: bool = True  # include the replay buffer so a resumed run continues with the same experience
 
 
@@ -190,7 +200,7 @@ class SelfPlayConfig(Section):
     """Self-play option of a run (section ``selfplay``; pipelines/selfplay.py): the user's moves by frozen snapshots."""
 
     enabled: bool = False
-    pool_size: Positive = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
+    pool_size: Annotated[int, Field(gt=0, le=1_000)] = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
     snapshot_every_frames: Positive = 5_000  # a snapshot of the learning Q-network every this many frames
     random_share: Fraction = 0.2  # share of the user's moves still made by the paper's uniformly random user
     epsilon: Fraction = 0.05  # random moves of a snapshot (keeps self-play games diverse)
@@ -267,9 +277,14 @@ def _bounds(annotation: Any, field: FieldInfo | None = None) -> str:
         metadata += [m for item in extra for m in (item.metadata if isinstance(item, FieldInfo) else [item])]
     limits = {key: getattr(m, key) for m in metadata for key in ("gt", "ge", "lt", "le") if getattr(m, key, None) is not None}
     if "ge" in limits and "le" in limits:
-        return f"between {limits['ge']:g} and {limits['le']:g}"
+        return f"between {_number(limits['ge'])} and {_number(limits['le'])}"
     symbols = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-    return " and ".join(f"{symbols[key]} {value:g}" for key, value in limits.items())
+    return " and ".join(f"{symbols[key]} {_number(value)}" for key, value in limits.items())
+
+
+def _number(value: float) -> str:
+    """A bound as people write it: 65536, 0.5 (no 6.5e+04)."""
+    return str(value) if isinstance(value, int) else f"{value:g}"
 
 
 def _describe(loc: tuple[Any, ...]) -> tuple[str, Any, FieldInfo | None, type[BaseModel]]:
@@ -309,6 +324,10 @@ def _one_line(error: ValidationError) -> str:
         return f"config key '{key}' must be {_bounds(annotation, field)}, got {value!r}"
     if kind == "too_short" and typing.get_origin(annotation) is not Literal:
         return f"config key '{key}' must be a non-empty list, got {value!r}"
+    if kind == "too_long":
+        return f"config key '{key}' must be a list of at most {first['ctx']['max_length']} items, got {len(value)}"
+    if kind == "finite_number":
+        return f"config key '{key}' must be a finite number, got {value!r}"
     bounds = _bounds(annotation, field)
     members = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else ()
     if bounds and type(None) in members:  # `Positive | None`: "an integer > 0 or null"
@@ -361,17 +380,53 @@ def config_from_dict(data: dict[str, Any]) -> RunConfig:
         raise ValueError(_one_line(error)) from None
 
 
-def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:
-    """Read a YAML config, apply overrides and validate it."""
+def read_yaml(path: str | Path, what: str, expected: str) -> Any:
+    """Every YAML file ncbot reads by name (configs, ablation grids, a run's config.yaml), through one safe loader.
+
+    `yaml.safe_load` never builds Python objects (a ``!!python/...`` tag is an error, not code); every failure
+    (missing, a folder, unreadable, not UTF-8 text, not YAML) becomes one sentence naming `what` and the file,
+    and what was `expected`.
+    """
     path = Path(path)
+    label = f"{what} {str(path)!r}"
+    if path.is_dir():
+        raise IsADirectoryError(f"{label} is a folder; expected {expected}")
     if not path.is_file():
-        raise FileNotFoundError(f"config file {str(path)!r} not found (expected a YAML file, e.g. pipelines/configs/default.yaml)")
+        raise FileNotFoundError(f"{label} not found (expected {expected})")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{label} is not UTF-8 text (byte 0x{error.object[error.start]:02x} at position "
+                         f"{error.start}); expected {expected}") from None
+    except OSError as error:
+        raise ValueError(f"{label} cannot be read ({error.strerror or error}); expected {expected}") from None
+    if "\x00" in text:
+        raise ValueError(f"{label} is a binary file; expected {expected}")
+    try:
+        return yaml.safe_load(text)
+    except yaml.constructor.ConstructorError as error:
+        raise ValueError(f"{label} uses a YAML tag ncbot does not load ({squeeze_yaml(error)}); expected {expected}") from None
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
-        raise ValueError(f"config file {str(path)!r} is not valid YAML{where}") from None
+        raise ValueError(f"{label} is not valid YAML{where}; expected {expected}") from None
+    except RecursionError:
+        raise ValueError(f"{label} nests too deeply; expected {expected}") from None
+
+
+def squeeze_yaml(error: Exception) -> str:
+    """The problem of a YAML error without its multi-line context."""
+    problem = getattr(error, "problem", None) or str(error)
+    return " ".join(str(problem).split())[:120]
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:
+    """Read a YAML config, apply overrides and validate it."""
+    expected = "a YAML file of config sections, e.g. pipelines/configs/default.yaml"
+    data = read_yaml(path, "config file", expected)
+    if data is None:
+        raise ValueError(f"config file {str(path)!r} is empty; expected {expected} (an empty mapping {{}} means "
+                         "every default)")
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of sections (env, agent, ...)")
     return config_from_dict(apply_overrides(data, overrides or []))

@@ -8,7 +8,9 @@ Resuming (`resume=True`) reloads the newest periodic checkpoint, which holds the
 counters, RNG state, evaluation history AND the replay buffer (config `checkpoint.save_buffer`; when it is off the
 buffer is rebuilt from fresh experience and updates wait for the burn-in again). The env restarts from fresh games:
 a game in progress at the kill is lost, so a resumed run is a faithful continuation but not bit-identical to an
-uninterrupted one.
+uninterrupted one. The MCAP log rolls to a new file at every periodic checkpoint and a resume deletes the files
+written after the checkpoint it continues from: the log then holds exactly the training episodes the counters
+count (episodes of the killed stretch are replayed, not double-logged).
 """
 from __future__ import annotations
 
@@ -24,8 +26,9 @@ import numpy as np
 import torch
 
 from fileio import atomic_write_text
-from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, latest_training_state, save_periodic
+from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
 from pipelines.config import RunConfig, config_from_dict, dump_config
+from pipelines.run_folder import MCAP_KEY
 
 SUCCESS_THRESHOLD = 0.995
 EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
@@ -56,8 +59,43 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
     return None
 
 
-def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> dict[str, Any]:
-    """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json)."""
+def checkpoint_bytes(config: RunConfig) -> int:
+    """About how large one periodic checkpoint of this run is (networks, Adam moments, replay buffer): the free
+    space a run needs before it starts, so a full disk is one line at start-up rather than an error hours in."""
+    features, actions = (289, 90) if config.env.game == "ultimate" else (73, 18)  # the larger (temporal) features
+    widths = [features, *config.agent.hidden, actions]
+    params = sum(a * b + b for a, b in zip(widths, widths[1:]))
+    buffer = config.buffer.size * (2 * features * 4 + 2 * actions + 64) if config.checkpoint.save_buffer else 0
+    return 4 * 4 * params + buffer + 2**20
+
+
+def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
+    """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json).
+
+    Start-up (pipelines/run_folder.py) before any work: the folder is checked (writable, not a file, room for a
+    checkpoint), locked against a second writer, then claimed (a folder holding another run is refused unless
+    `overwrite`) or, with `resume`, its newest checkpoint of this run that loads is picked (and named on stderr).
+    """
+    import sys
+
+    from pipelines.checkpoint import check_training_state
+    from pipelines.outputs import check_free_space, check_writable_dir
+    from pipelines.run_folder import RunFolder
+
+    check_writable_dir(out_dir, "--resume" if resume else "--out")
+    check_free_space(out_dir, checkpoint_bytes(config), "a checkpoint of this run")
+    run = RunFolder.open(out_dir, resume=resume, overwrite=overwrite,
+                         validate=lambda state, path: check_training_state(state, path, config))
+    try:
+        for note in run.notes:
+            print(f"ncbot: note: {note}", file=sys.stderr)
+        return _train(config, run)
+    finally:
+        run.release()
+
+
+def _train(config: RunConfig, run: Any) -> dict[str, Any]:
+    """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
     from torchrl.collectors import Collector
 
     from modules.policy import make_policies
@@ -73,10 +111,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
 
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     started = time.monotonic()
-    out_dir = Path(out_dir)
-    state = latest_training_state(out_dir) if resume else None
+    out_dir, state = run.path, run.state
     scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
-    out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(dump_config(config), out_dir / "config.yaml")
     torch.set_num_threads(config.train.num_threads)
     seed = config.train.seed
@@ -107,12 +143,16 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
     history: list[dict[str, Any]] = []
     if state:
-        qnet.load_state_dict(state["qnet"])
-        learner.load_state_dict(state["learner"])
-        agent.egreedy.load_state_dict(state["egreedy"])
-        if state.get("buffer") is not None:
-            buffer.load_state_dict(state["buffer"])
-        torch.set_rng_state(state["rng"])
+        try:
+            qnet.load_state_dict(state["qnet"])
+            learner.load_state_dict(state["learner"])
+            agent.egreedy.load_state_dict(state["egreedy"])
+            if state.get("buffer") is not None:
+                buffer.load_state_dict(state["buffer"])
+            torch.set_rng_state(state["rng"])
+        except (RuntimeError, KeyError, TypeError, ValueError) as error:  # the checkpoint's parts do not fit this config
+            raise ValueError(f"checkpoint {str(run.state_path)!r} does not fit the run's config "
+                             f"({str(error).splitlines()[0][:160]})") from None
         counters.update({k: state[k] for k in ("frames", "updates", "episodes")})
         counters["wall_offset"] = state["wall_time"]
         history = list(state["history"])
@@ -148,7 +188,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             "config": config.to_dict(), "n_features": env.n_features, "n_actions": env.n_actions,
             "qnet": qnet.state_dict(), "learner": learner.state_dict(), "egreedy": agent.egreedy.state_dict(),
             "buffer": buffer.state_dict() if config.checkpoint.save_buffer else None,
-            "rng": torch.get_rng_state(), "history": history,
+            "rng": torch.get_rng_state(), "history": history, "run_id": run.run_id,
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
             "wall_time": counters["wall_offset"] + time.monotonic() - started,
         }
@@ -203,7 +243,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
                 losses.clear()
                 next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
             if counters["frames"] >= next_ckpt:
-                save_periodic(training_state(), out_dir, counters["frames"], config.checkpoint.keep)
+                # the log rolls here: its finished files hold exactly the episodes this checkpoint counts
+                log_next = mcap_logger.roll() if mcap_logger is not None else None
+                save_periodic({**training_state(), MCAP_KEY: log_next}, out_dir, counters["frames"],
+                              config.checkpoint.keep)
                 next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
             bar.update(episodes_ended if stop_on_episodes else frames)
             bar.set_postfix(eps=f"{float(agent.egreedy.eps):.3f}", upd=counters["updates"],
@@ -219,7 +262,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False) -> di
             periodic_eval(float(np.mean(losses)) if losses else float("nan"))
         final = {"format": FORMAT, "config": config.to_dict(), "n_features": env.n_features,
                  "n_actions": env.n_actions, "qnet": qnet.state_dict(), "frames": counters["frames"],
-                 "updates": counters["updates"], "episodes": counters["episodes"]}
+                 "updates": counters["updates"], "episodes": counters["episodes"], "run_id": run.run_id}
         atomic_save(final, out_dir / FINAL_NAME)
         report: dict[str, Any] = {
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
@@ -253,29 +296,32 @@ def _open_mcap(config: RunConfig, out_dir: Path):
 
 def resolve_run(config_path: str | None, overrides: list[str], *, out: str | None, seed: int | None,
                 episodes: int | None, resume: str | None, mcap: bool) -> tuple[RunConfig, Path, bool]:
-    """CLI arguments -> (config, run folder, resume?). With --resume the run's own config.yaml is the base."""
-    import yaml
+    """CLI arguments -> (config, run folder, resume?). With --resume the run's own config.yaml is the base.
+    --seed and --episodes are validated with the config (same bounds, one line naming the option)."""
+    from pipelines.config import MAX_SEED, apply_overrides, load_config, read_yaml
 
-    from pipelines.config import apply_overrides, load_config
-
+    if seed is not None and not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"--seed must be between 0 and {MAX_SEED}, got {seed}")
+    if episodes is not None and not 0 < episodes <= 10**9:
+        raise ValueError(f"--episodes must be a positive number of training games (at most 1000000000), got {episodes}")
+    overrides = list(overrides) + ([f"train.seed={seed}"] if seed is not None else []) \
+        + ([f"train.episodes={episodes}"] if episodes is not None else []) + ([] if mcap else ["logger.mcap=false"])
     if resume:
         run_dir = Path(resume)
+        if not run_dir.is_dir():
+            raise FileNotFoundError(f"cannot resume: run folder {str(run_dir)!r} not found (expected the --out folder "
+                                    "of an earlier ncbot train)")
         saved = run_dir / "config.yaml"
         if not saved.is_file():
             raise FileNotFoundError(f"cannot resume: {str(saved)!r} not found (expected a run folder of ncbot train)")
-        data = yaml.safe_load(saved.read_text()) or {}
+        data = read_yaml(saved, "run config", "the config.yaml ncbot train wrote into its run folder")
+        if not isinstance(data, dict):
+            raise ValueError(f"run config {str(saved)!r} must hold a mapping of sections; expected the config.yaml "
+                             "ncbot train wrote")
         config = config_from_dict(apply_overrides(data, overrides))
     else:
         if config_path is None:
             raise ValueError("ncbot train needs a CONFIG file (e.g. pipelines/configs/default.yaml) or --resume DIR")
         config = load_config(config_path, overrides)
         run_dir = Path(out) if out else Path("runs") / Path(config_path).stem
-    if seed is not None:
-        config.train.seed = seed
-    if episodes is not None:
-        if episodes <= 0:
-            raise ValueError(f"--episodes must be a positive number of training games, got {episodes}")
-        config.train.episodes = episodes
-    if not mcap:
-        config.logger.mcap = False
     return config, run_dir, bool(resume)

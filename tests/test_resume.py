@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from pipelines.checkpoint import FORMAT, atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
+from pipelines.run_folder import remove_stray_temp_files
 from pipelines.train import resolve_run
 from tests.learning_helpers import ncbot, write_tiny_config
 
@@ -51,9 +52,12 @@ def test_resume_after_sigkill_finishes_the_run(tmp_path: Path) -> None:
 
 
 def test_missing_or_corrupt_checkpoint_is_one_line_exit_2(tmp_path: Path) -> None:
-    with pytest.raises(FileNotFoundError, match="config.yaml' not found"):
+    with pytest.raises(FileNotFoundError, match="run folder .* not found"):
         resolve_run(None, [], out=None, seed=None, episodes=None, resume=str(tmp_path / "nowhere"), mcap=True)
     run = tmp_path / "run"
+    run.mkdir()
+    with pytest.raises(FileNotFoundError, match="config.yaml' not found"):
+        resolve_run(None, [], out=None, seed=None, episodes=None, resume=str(run), mcap=True)
     (run / "checkpoints").mkdir(parents=True)
     (run / "config.yaml").write_text(write_tiny_config(tmp_path).read_text())
     with pytest.raises(FileNotFoundError, match="no periodic checkpoint"):
@@ -69,7 +73,7 @@ def test_missing_or_corrupt_checkpoint_is_one_line_exit_2(tmp_path: Path) -> Non
     assert "corrupt" in result.stderr and "Traceback" not in result.stderr
 
 
-def test_resume_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -> None:
+def test_every_run_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -> None:
     run = tmp_path / "run"
     atomic_save({"format": FORMAT, "learner": {}, "frames": 0}, run / "checkpoints" / "step-000000128.pt")
     stray = [run / "checkpoints" / ".step-000000256.pt.abc123.tmp", run / ".checkpoint.pt.def456.tmp"]
@@ -77,5 +81,7 @@ def test_resume_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -> N
         path.write_bytes(b"half a checkpoint")
     keep = run / "notes.tmp"  # not one of ours: left alone
     keep.write_text("user file")
-    assert latest_training_state(run)["frames"] == 0
+    assert latest_training_state(run)["frames"] == 0  # reading alone removes nothing (another run may be writing)
+    assert all(path.exists() for path in stray)
+    assert sorted(remove_stray_temp_files(run)) == sorted(stray)
     assert not any(path.exists() for path in stray) and keep.exists()

@@ -1,0 +1,184 @@
+"""A training run folder with an identity: checked before any work, locked while a run writes, never mixed.
+
+Why: two runs writing one folder deleted each other's checkpoints and interleaved one log, and a fresh run into an
+old folder resumed the old run's state after a kill. So:
+- `pipelines.outputs.check_writable_dir` refuses an output that is a file or cannot be written, before any work;
+- `RunFolder.open` takes an exclusive `flock` on RUN/.lock (a second writer gets one line and exit 2; the kernel
+  drops the lock when a run dies, so a killed run's lock is taken over without a stale-pid dance), then either
+  claims a fresh folder (refusing one that holds another run unless `overwrite`), or, to resume, picks the newest
+  periodic checkpoint of THIS run (run.json's id) that loads, falling back past damaged ones and saying which;
+- stray temp files of killed writers (`fileio.TEMP_GLOB`) anywhere in the folder are removed once the lock is ours;
+- the MCAP log is rolled at every checkpoint (`EpisodeLogger.roll`), the checkpoint records the first file written
+  after it, and a resume deletes the files from there on: the log keeps exactly the episodes the counters count.
+"""
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fileio import TEMP_GLOB, atomic_write_text
+from pipelines.outputs import check_writable_dir
+
+IDENTITY_NAME = "run.json"
+LOCK_NAME = ".lock"
+# what an ncbot train run writes into its folder (all removed by --overwrite; anything else is left alone)
+RUN_FILES = ("checkpoint.pt", "eval.json", "config.yaml", IDENTITY_NAME, "learning_curve.png")
+RUN_FOLDERS = ("checkpoints", "scalars")
+MCAP_GLOB = "episodes-*.mcap"
+MCAP_KEY = "mcap_next_file"  # in a periodic checkpoint: the first log file written after it
+
+
+def holds_run(path: Path) -> bool:
+    """Does the folder hold (part of) an ncbot train run?"""
+    return path.is_dir() and (any((path / name).exists() for name in RUN_FILES)
+                              or any((path / name).exists() for name in RUN_FOLDERS)
+                              or any(path.glob(MCAP_GLOB)))
+
+
+def remove_stray_temp_files(run_dir: str | os.PathLike) -> list[Path]:
+    """Delete the temp files `fileio.atomic_path` leaves when a writer is killed mid-write, anywhere in the run
+    folder; only for a folder whose lock we hold (no other writer)."""
+    stray = [p for p in Path(run_dir).rglob(TEMP_GLOB) if p.is_file()]
+    for path in stray:
+        path.unlink(missing_ok=True)
+    return stray
+
+
+def clear_run(path: Path) -> None:
+    """Remove what an earlier run wrote (`--overwrite`); files that are not ncbot's stay."""
+    for name in RUN_FILES:
+        (path / name).unlink(missing_ok=True)
+    for name in RUN_FOLDERS:
+        shutil.rmtree(path / name, ignore_errors=True)
+    for log in path.glob(MCAP_GLOB):
+        log.unlink(missing_ok=True)
+
+
+def drop_logs_after(path: Path, next_file: int | None) -> list[Path]:
+    """Delete MCAP files numbered `next_file` or later: episodes played after the checkpoint a run resumes from."""
+    if next_file is None:
+        return []
+    from logs.reader import FILE_PATTERN
+
+    dropped = [p for p in path.glob(MCAP_GLOB) if (m := FILE_PATTERN.match(p.name)) and int(m.group(1)) >= next_file]
+    for log in dropped:
+        log.unlink(missing_ok=True)
+    return dropped
+
+
+class RunLock:
+    """An exclusive `flock` on RUN/.lock for as long as the run writes; the kernel releases it if the run dies."""
+
+    def __init__(self, path: Path) -> None:
+        import fcntl
+
+        path.mkdir(parents=True, exist_ok=True)
+        self.path = path / LOCK_NAME
+        self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            holder = os.pread(self._fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            os.close(self._fd)
+            if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise ValueError(f"run folder {str(path)!r} is in use by another ncbot train (pid {holder}); "
+                                 "wait for it to finish or choose another --out") from None
+            raise
+        os.ftruncate(self._fd, 0)
+        os.pwrite(self._fd, f"{os.getpid()}\n".encode(), 0)
+
+    def release(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)  # closing the descriptor drops the flock
+            self._fd = -1
+
+
+@dataclass
+class RunFolder:
+    """A locked run folder: its identity and, when resuming, the training state to continue from."""
+
+    path: Path
+    run_id: str
+    state: dict[str, Any] | None = None
+    state_path: Path | None = None
+    notes: list[str] = field(default_factory=list)
+    lock: RunLock | None = None
+
+    @classmethod
+    def open(cls, path: str | os.PathLike, *, resume: bool, overwrite: bool,
+             validate: Callable[[dict[str, Any], Path], None] | None = None) -> RunFolder:
+        """Lock the folder and claim it (fresh) or pick the state to resume; one-line errors otherwise."""
+        path = check_writable_dir(path, "--out" if not resume else "--resume")
+        if resume and not path.is_dir():
+            raise FileNotFoundError(f"run folder {str(path)!r} not found (expected the --out folder of an earlier "
+                                    "ncbot train)")
+        lock = RunLock(path)
+        try:
+            if resume:
+                run = cls._resume(path, validate)
+            else:
+                if holds_run(path) and not overwrite:
+                    raise ValueError(f"run folder {str(path)!r} holds another run; continue it with --resume "
+                                     f"{str(path)!r}, replace it with --overwrite, or choose another --out")
+                if overwrite:
+                    clear_run(path)
+                run = cls(path, uuid.uuid4().hex)
+            if not resume or read_run_id(path) is None:  # a folder of an ncbot older than run ids gets one now
+                atomic_write_text(json.dumps({"run_id": run.run_id, "created": time.time()}) + "\n",
+                                  path / IDENTITY_NAME)
+            removed = remove_stray_temp_files(path)
+            if removed:
+                run.notes.append(f"removed {len(removed)} temp file(s) of an interrupted write")
+        except BaseException:
+            lock.release()
+            raise
+        run.lock = lock
+        return run
+
+    @classmethod
+    def _resume(cls, path: Path, validate: Callable[[dict[str, Any], Path], None] | None) -> RunFolder:
+        from pipelines.checkpoint import newest_resumable, periodic_checkpoints
+
+        run_id = read_run_id(path)
+
+        def check(state: dict[str, Any], candidate: Path) -> None:
+            if run_id is not None and state.get("run_id") not in (None, run_id):
+                raise ValueError(f"checkpoint {str(candidate)!r} belongs to another run (id {state.get('run_id')}, "
+                                 f"this folder's is {run_id})")
+            if validate is not None:
+                validate(state, candidate)
+
+        if not periodic_checkpoints(path):  # killed before (or during) its first checkpoint: start it again
+            for log in path.glob(MCAP_GLOB):
+                log.unlink(missing_ok=True)
+            shutil.rmtree(path / "scalars", ignore_errors=True)
+            return cls(path, run_id or uuid.uuid4().hex, None, None,
+                       ["no periodic checkpoint yet: starting this run again from frame 0"])
+        state, chosen, notes = newest_resumable(path, check)
+        drop_logs_after(path, state.get(MCAP_KEY))
+        notes.append(f"resuming from {chosen.name} ({state['frames']} frames)")
+        return cls(path, run_id or state.get("run_id") or uuid.uuid4().hex, state, chosen, notes)
+
+    def release(self) -> None:
+        if self.lock is not None:
+            self.lock.release()
+
+
+def read_run_id(path: Path) -> str | None:
+    """The run id in RUN/run.json; None for a folder written before run identities existed."""
+    identity = path / IDENTITY_NAME
+    if not identity.is_file():
+        return None
+    try:
+        data = json.loads(identity.read_text())
+        return str(data["run_id"])
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        raise ValueError(f"{str(identity)!r} is damaged; expected the JSON ncbot train writes with a 'run_id'") from None
