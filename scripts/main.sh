@@ -4,6 +4,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 out="${1:-runs/default}"
-ncbot train pipelines/configs/default.yaml --out "$out"
+# --overwrite: the main job is re-runnable; it replaces an earlier run in $out (ncbot train refuses by default)
+ncbot train pipelines/configs/default.yaml --out "$out" --overwrite
 ncbot eval "$out/checkpoint.pt" --games 3000 --first robot
 ncbot eval "$out/checkpoint.pt" --games 3000 --first human
