@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root):
 # the software Vulkan driver SAPIEN renders with, the TTS engines the robot speaks with (flite, espeak-ng),
+# headless Chromium for the browser tests,
 # the CPU build of torch from local disk, and ncbot itself (pocketsphinx, the recogniser, comes from PyPI with it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -38,6 +39,19 @@ install_tts() {
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq flite espeak-ng >/dev/null
 }
 
+install_chromium() {
+  # The browser tests of `ncbot robot serve` drive Debian's headless Chromium through its WebDriver (Selenium).
+  if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then
+    log "chromium and chromium-driver already installed"; return
+  fi
+  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+    log "not root or no apt-get: install chromium and chromium-driver yourself (docs/browser.md)"; return
+  fi
+  log "installing chromium and chromium-driver"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+}
+
 install_python() {
   if ! python -c "import torch, sys; sys.exit(0 if torch.__version__.startswith('2.13.0') else 1)" 2>/dev/null; then
     log "installing torch==2.13.0 (CPU build from local disk)"
@@ -55,5 +69,6 @@ install_python() {
 
 install_lavapipe
 install_tts
+install_chromium
 install_python
 log "done"
