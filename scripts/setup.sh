@@ -26,17 +26,23 @@ install_lavapipe() {
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
 }
 
+apt_install() {
+  # apt_install WHAT HINT PACKAGE...: install Debian packages as root, or say what to install by hand.
+  local what=$1 hint=$2; shift 2
+  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+    log "not root or no apt-get: install $what yourself ($hint)"; return
+  fi
+  log "installing $what"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@" >/dev/null
+}
+
 install_tts() {
   # speech/tts.py runs flite (the simulated person's voices) and espeak-ng (the robot's voice) as subprocesses.
   if command -v flite >/dev/null && command -v espeak-ng >/dev/null; then
     log "TTS engines already installed"; return
   fi
-  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
-    log "not root or no apt-get: install flite and espeak-ng yourself (docs/speech.md)"; return
-  fi
-  log "installing the TTS engines flite and espeak-ng"
-  apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq flite espeak-ng >/dev/null
+  apt_install "the TTS engines flite and espeak-ng" docs/speech.md flite espeak-ng
 }
 
 install_chromium() {
@@ -44,12 +50,7 @@ install_chromium() {
   if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then
     log "chromium and chromium-driver already installed"; return
   fi
-  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
-    log "not root or no apt-get: install chromium and chromium-driver yourself (docs/browser.md)"; return
-  fi
-  log "installing chromium and chromium-driver"
-  apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+  apt_install "chromium and chromium-driver" docs/browser.md chromium chromium-driver
 }
 
 install_python() {
