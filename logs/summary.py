@@ -126,7 +126,7 @@ def summarize_study(path: str | Path) -> dict[str, Any]:
         messages = list(reader.messages([schemas.EPISODE_TOPIC, "/dialogue"]))
         truncated += any(reader.scans[file].truncated for file in reader.files)
         episodes = [m.data for m in messages if m.topic == schemas.EPISODE_TOPIC and m.data.get("phase") == "robot"]
-        person_acts.append(sum(1 for m in messages if m.topic == "/dialogue" and m.data.get("speaker") == "person"))
+        person_acts.append(sum(1 for m in messages if m.topic == "/dialogue" and m.data.get("source") == "browser"))
         for episode in episodes:
             extra = episode.get("extra") or {}
             people.add(str(extra.get("participant") or extra.get("session") or folder.name))

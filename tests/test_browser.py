@@ -22,6 +22,7 @@ def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
 
             def disturb(d, turn: int) -> None:
                 if turn == 0:  # the robot opened: its cell is taken
+                    d.find_element(By.CSS_SELECTOR, '[data-act="hello"]').click()  # logged with the game
                     before = board(d)
                     taken = next(i for i, mark in enumerate(before) if mark)
                     click_cell(d, taken)
@@ -49,3 +50,4 @@ def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
     assert study["sessions"] == 1 and study["games"] == 1
     assert study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
     assert sum(study["outcomes"].values()) == 1 and study["outcomes"][outcome] == 1
+    assert study["person_dialogue_acts_per_session"]["max"] == 1

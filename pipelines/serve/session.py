@@ -14,6 +14,7 @@ import queue
 import secrets
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -169,7 +170,10 @@ class Session:
         """A dialogue act button: logged with the game (the env's simulated ASR still carries the game's dialogue)."""
         if not isinstance(name, str) or name not in PERSON_ACTS:
             raise SessionError(f"unknown dialogue act {name!r}; acts: {', '.join(PERSON_ACTS)}")
-        turn = {"speaker": "person", "act": PERSON_ACTS[name], "text": name, "session": self.id,
+        from envs.dialogue import USER_ACTS
+
+        turn = {"speaker": "user", "act": USER_ACTS.index(PERSON_ACTS[name]), "act_name": PERSON_ACTS[name],
+                "text": name, "move": -1, "source": "browser", "session": self.id,
                 "t": round(time.monotonic() - self.created, 3)}
         self.dialogue.append(turn)
         with self._lock:  # written to the log by the game thread (the logger is not thread safe)
@@ -252,6 +256,7 @@ class Session:
         except SessionClosed:
             pass
         except Exception as error:  # a broken game must end this session, never the server
+            traceback.print_exc()  # the server's log keeps the cause; the page gets one line
             self.snapshot = replace(self.snapshot, screen="over", status=f"The robot failed: {error}. Outcome: unfinished",
                                     outcome="unfinished", your_turn=False)
             self._publish_state()
@@ -308,8 +313,10 @@ class Session:
     def _log_person_acts(self, runner) -> None:
         with self._lock:
             acts, self._pending_acts = self._pending_acts, []
+        record = getattr(runner, "_record", None)  # the game being played: its index is the log's episode id
         for turn in acts:
-            runner.logger.log_dialogue(turn)
+            runner.logger.log_dialogue({**turn, "episode": record.index if record else -1,
+                                        "step": record.actions if record else -1})
 
     def _refresh_board(self, runner, state=None) -> None:
         state = state if state is not None else runner.true_state

@@ -45,6 +45,8 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
                 raise RuntimeError(f"session {sid}: the server refused a scripted request: {message['error']}")
             if message["type"] != "state":
                 continue
+            if message["status"].startswith("The robot failed"):
+                raise RuntimeError(f"session {sid}: {message['status']}")
             if message["screen"] == "closed":
                 raise RuntimeError(f"session {sid} was closed by the server before {games} games were played")
             if clicked is not None and message["says_seq"] > clicked[1]:
