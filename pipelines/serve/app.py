@@ -2,7 +2,7 @@
 
 Protocol (JSON text frames from the page, each may carry `"session"`; a mismatch is an error):
 `{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "act", "act": NAME}`,
-`{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`. The server sends `{"type": "state", ...}`
+`{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends `{"type": "state", ...}`
 (the whole page state), `{"type": "audio", "url": ...}`, `{"type": "error", "error": ...}` and camera frames
 as binary JPEG messages. Any bad request gets an error and changes nothing; the server never dies from a client.
 """
@@ -244,10 +244,13 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
             return session.state_message()
         elif kind == "again":
             session.again()
+        elif kind == "close":  # the person leaves: end the game and finish the log now
+            sessions.close(session.id)
+            return None
         elif kind == "ping":
             return {"type": "pong"}
         else:
-            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, act, view, again, ping")
+            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, act, view, again, close, ping")
         return None
     except SessionError as error:
         return {"type": "error", "error": str(error), "request": request}

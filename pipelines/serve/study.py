@@ -26,6 +26,8 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
     rng = random.Random(seed)
     async with httpx.AsyncClient(base_url=url, timeout=30) as client:
         created = (await client.post("/api/session", json={})).json()
+    if "session" not in created:
+        raise RuntimeError(f"the server did not open a session: {created.get('error', created)}")
     sid = created["session"]
     ws_url = url.replace("http", "ws", 1) + f"/ws/{sid}"
     latencies: list[float] = []
@@ -61,7 +63,21 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
                 free = [i for i, mark in enumerate(message["board"]) if not mark]
                 clicked = (time.perf_counter(), message["says_seq"])
                 await ws.send(json.dumps({"type": "move", "cell": rng.choice(free)}))
+        await ws.send(json.dumps({"type": "close"}))  # leave: the server finishes this session's log now
+        await _until_closed(ws)
     return {"session": sid, "outcomes": outcomes, "latencies": latencies}
+
+
+async def _until_closed(ws, timeout: float = 60.0) -> None:
+    import websockets
+
+    try:
+        while True:
+            raw = await asyncio.wait_for(ws.recv(), timeout=timeout)
+            if not isinstance(raw, bytes) and json.loads(raw).get("screen") == "closed":
+                return
+    except websockets.ConnectionClosed:
+        return
 
 
 def latency_stats(values: list[float]) -> dict[str, float] | None:
