@@ -2,8 +2,8 @@
 
 Protocol (JSON text frames from the page, each may carry `"session"`; a mismatch is an error):
 `{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "act", "act": NAME}`,
-`{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends `{"type": "state", ...}`
-(the whole page state), `{"type": "audio", "url": ...}`, `{"type": "error", "error": ...}` and camera frames
+`{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends
+`{"type": "state", ...}` (the whole page state), `{"type": "audio", "url": ...}`, `{"type": "error", "error": ...}` and camera frames
 as binary JPEG messages. Any bad request gets an error and changes nothing; the server never dies from a client.
 """
 from __future__ import annotations

@@ -159,7 +159,8 @@ class Session:
                 raise SessionError("it is not your turn; wait for the robot")
             if cell not in self._legal:
                 taken = self.snapshot.board[cell] if self.snapshot.board else ""
-                raise SessionError(f"cell {cell} is taken" if taken else f"cell {cell} is not playable now (Ultimate: play in the board the last move points to)")
+                raise SessionError(f"cell {cell} is taken" if taken else
+                                   f"cell {cell} is not playable now (Ultimate: play in the board the last move points to)")
             self._awaiting = False
         self._click_time = time.perf_counter()
         self.snapshot = replace(self.snapshot, your_turn=False, status="Drawing your mark; the robot is watching.")
