@@ -51,3 +51,23 @@ def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
     assert study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
     assert sum(study["outcomes"].values()) == 1 and study["outcomes"][outcome] == 1
     assert study["person_dialogue_acts_per_session"]["max"] == 1
+
+
+def test_a_whole_ultimate_game_through_the_page(tmp_path):
+    out = tmp_path / "study"
+    with running_server(out, "--game", "ultimate", "--idle-seconds", "60") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/", first="human")
+            assert len(board(driver)) == 81
+
+            def first_legal(cells: list[str]) -> int:  # the page highlights the small board the person must play in
+                legal = driver.find_elements(By.CSS_SELECTOR, "[data-cell].legal")
+                return int(legal[0].get_attribute("data-cell"))
+
+            outcome = play_to_end(driver, choose=first_legal, timeout=600)
+            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0

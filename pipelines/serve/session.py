@@ -72,6 +72,7 @@ class Snapshot:
     outcome: str | None = None   # the person's side: win | loss | draw | unfinished
     games: int = 0
     mark: str = ""
+    legal: list[int] = field(default_factory=list)  # cells the person may click now (Ultimate: one small board)
 
 
 class Session:
@@ -163,7 +164,7 @@ class Session:
                                    f"cell {cell} is not playable now (Ultimate: play in the board the last move points to)")
             self._awaiting = False
         self._click_time = time.perf_counter()
-        self.snapshot = replace(self.snapshot, your_turn=False, status="Drawing your mark; the robot is watching.")
+        self.snapshot = replace(self.snapshot, your_turn=False, legal=[], status="Drawing your mark; the robot is watching.")
         self._publish_state()
         self._moves.put(cell)
 
@@ -292,7 +293,7 @@ class Session:
         self._push_frame(runner, force=True)
         self._awaiting = True
         self.touch()  # idle time counts from the robot's last action, not the person's last click
-        self.snapshot = replace(self.snapshot, your_turn=True, status="Your turn: click a cell.")
+        self.snapshot = replace(self.snapshot, your_turn=True, status="Your turn: click a cell.", legal=list(self._legal))
         self._publish_state()
         self._log_person_acts(runner)
         SIM_LOCK.release()

@@ -60,7 +60,7 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
                     await ws.send(json.dumps({"type": "act", "act": "feedback"}))
                     await ws.send(json.dumps({"type": "again"}))
             elif message["screen"] == "game" and message["your_turn"]:
-                free = [i for i, mark in enumerate(message["board"]) if not mark]
+                free = message.get("legal") or [i for i, mark in enumerate(message["board"]) if not mark]
                 clicked = (time.perf_counter(), message["says_seq"])
                 await ws.send(json.dumps({"type": "move", "cell": rng.choice(free)}))
         await ws.send(json.dumps({"type": "close"}))  # leave: the server finishes this session's log now
