@@ -95,3 +95,82 @@ def format_summary(summary: dict[str, Any]) -> str:
                      f"  truncated {stats['truncated']}")
     lines.append("truncated: " + ("yes (recovered everything up to the cut)" if summary["truncated"] else "no"))
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- a browser study (`ncbot robot serve`)
+PERSON_SIDE = {"win": "loss", "loss": "win", "draw": "draw"}
+
+
+def study_sessions(path: str | Path) -> list[Path]:
+    """The session folders of a study directory (sub-folders holding .mcap files); [] if `path` is a plain run."""
+    path = Path(path)
+    if not path.is_dir() or any(p.suffix == ".mcap" for p in path.iterdir()):
+        return []
+    return sorted(d for d in path.iterdir() if d.is_dir() and any(p.suffix == ".mcap" for p in d.iterdir()))
+
+
+def summarize_study(path: str | Path) -> dict[str, Any]:
+    """People, sessions, games, outcomes (the person's side), misrecognised moves, dialogue lengths and time per
+    turn of a study written by `ncbot robot serve --out DIR` (one session-<id>/ log per browser tab)."""
+    import statistics
+
+    folders = study_sessions(path)
+    if not folders:
+        raise ValueError(f"{path} holds no session folders with .mcap logs; expected the --out of `ncbot robot serve`")
+    people: set[str] = set()
+    outcomes: Counter = Counter()
+    games, lengths, person_acts, human_turns, robot_turns = [], [], [], [], []
+    misrecognised = unseen = truncated = 0
+    for folder in folders:
+        reader = LogReader(folder)
+        messages = list(reader.messages([schemas.EPISODE_TOPIC, "/dialogue"]))
+        truncated += any(reader.scans[file].truncated for file in reader.files)
+        episodes = [m.data for m in messages if m.topic == schemas.EPISODE_TOPIC and m.data.get("phase") == "robot"]
+        person_acts.append(sum(1 for m in messages if m.topic == "/dialogue" and m.data.get("source") == "browser"))
+        for episode in episodes:
+            extra = episode.get("extra") or {}
+            people.add(str(extra.get("participant") or extra.get("session") or folder.name))
+            outcomes[PERSON_SIDE.get(str(extra.get("true_outcome")), "unfinished")] += 1
+            misrecognised += int(extra.get("misrecognised_moves", 0))
+            unseen += int(extra.get("unseen_moves", 0))
+            lengths.append(int(episode.get("length", 0)))
+            human_turns += [float(s) for s in extra.get("human_turn_seconds", [])]
+            robot_turns += [float(s) for s in extra.get("robot_move_seconds", [])]
+        games.append(len(episodes))
+
+    def stats(values: list[float]) -> dict[str, float] | None:
+        if not values:
+            return None
+        ordered = sorted(values)
+        return {"median": round(statistics.median(ordered), 3), "mean": round(statistics.fmean(ordered), 3),
+                "p95": round(ordered[min(len(ordered) - 1, int(0.95 * len(ordered)))], 3), "max": round(ordered[-1], 3)}
+
+    return {"path": str(path), "sessions": len(folders), "people": len(people), "games": sum(games),
+            "games_per_session": stats([float(g) for g in games]),
+            "outcomes": {name: outcomes.get(name, 0) for name in ("win", "loss", "draw", "unfinished")},
+            "misrecognised_moves": misrecognised, "unseen_moves": unseen,
+            "dialogue_length": stats([float(n) for n in lengths]),
+            "person_dialogue_acts_per_session": stats([float(n) for n in person_acts]),
+            "seconds_per_person_turn": stats(human_turns), "seconds_per_robot_move": stats(robot_turns),
+            "truncated_sessions": truncated}
+
+
+def format_study(summary: dict[str, Any]) -> str:
+    """The terminal form of `summarize_study`."""
+    def line(name: str, value: dict[str, float] | None) -> str:
+        if value is None:
+            return f"  {name}: -"
+        return f"  {name}: median {value['median']}  mean {value['mean']}  p95 {value['p95']}  max {value['max']}"
+
+    outcomes = " ".join(f"{name}={count}" for name, count in summary["outcomes"].items())
+    return "\n".join([
+        f"study: {summary['path']}",
+        f"  people {summary['people']}  sessions {summary['sessions']}  games {summary['games']}"
+        f"  (logs cut off: {summary['truncated_sessions']})",
+        f"  outcomes (the person's side): {outcomes}",
+        f"  misrecognised moves {summary['misrecognised_moves']}  unseen moves {summary['unseen_moves']}",
+        line("robot actions per game (dialogue length)", summary["dialogue_length"]),
+        line("person's dialogue buttons per session", summary["person_dialogue_acts_per_session"]),
+        line("seconds per person turn (thinking + drawing + recognition)", summary["seconds_per_person_turn"]),
+        line("seconds per robot move", summary["seconds_per_robot_move"]),
+    ])

@@ -25,8 +25,12 @@ def inspect_log(path: Path = typer.Argument(..., help=PATH_HELP),
                 as_json: bool = typer.Option(False, "--json", help="print one JSON object instead of text")) -> None:
     """Channels and schemas, message counts, time span, episodes by phase, and whether a file was cut off."""
     from logs.reader import LogReader
-    from logs.summary import format_summary, summarize
+    from logs.summary import format_study, format_summary, study_sessions, summarize, summarize_study
 
+    if study_sessions(path):  # a browser study: one session-<id>/ folder per tab (`ncbot robot serve`)
+        study = summarize_study(path)
+        typer.echo(json.dumps(study, indent=2) if as_json else format_study(study))
+        return
     summary = summarize(path, LogReader(path, progress=progress_bar))
     typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
 

@@ -117,6 +117,45 @@ def play(
     typer.echo(json.dumps(report))
 
 
+@robot_app.command("serve")
+def serve(
+    game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)."),
+    checkpoint: Optional[Path] = typer.Option(None, help="Trained agent (checkpoint.pt); default: look-ahead filter alone."),
+    host: str = typer.Option("127.0.0.1", help="Address to listen on (loopback by default; a study on a LAN needs 0.0.0.0)."),
+    port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
+    out: Path = typer.Option(Path("runs/study"), help="Folder for the sessions' MCAP logs (one session-<id>/ each)."),
+    width: int = typer.Option(320, help="Mouth camera width (pixels)."),
+    height: int = typer.Option(240, help="Mouth camera height (pixels)."),
+    idle_seconds: float = typer.Option(300.0, help="Close a session (and finish its log) after this long without a message."),
+    max_sessions: int = typer.Option(8, min=1, help="Sessions at once; more get a 'server full' error."),
+    audio: bool = typer.Option(True, help="Speak the robot's utterances as WAV (speech.tts) when an engine is installed."),
+    seed: int = typer.Option(0, help="Seed of the look-ahead policy and the robot's marks."),
+) -> None:
+    """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
+    from robot_sim.scene import check_game
+
+    check_game(game)
+    if checkpoint is not None and not checkpoint.is_file():
+        raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
+    if idle_seconds <= 0:
+        raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
+    import torch
+
+    from pipelines.serve.app import serve as run_server
+    from pipelines.serve.session import ServeConfig
+    from robot_sim.render_system import SimulatorUnavailable
+
+    torch.set_num_threads(1)
+    config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
+                         camera_width=width, camera_height=height, idle_seconds=idle_seconds,
+                         max_sessions=max_sessions, audio=audio, seed=seed)
+    typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, logs in {out})", err=True)
+    try:
+        run_server(config, host=host, port=port)
+    except SimulatorUnavailable as error:
+        _simulator_unavailable(error)
+
+
 @robot_app.command("render")
 def render(
     output: Path = typer.Option(Path("mouth.png"), "-o", "--output", help="PNG to write."),

@@ -67,8 +67,17 @@ class RobotGameRunner:
     """Plays `config.games` games with `policy` (a callable TensorDict -> TensorDict writing `action`)."""
 
     def __init__(self, config: RobotPlayConfig, policy: Callable, out_dir: str | Path | None = None,
-                 logger: Any = None) -> None:
+                 logger: Any = None, human_cell: Callable[[Any, int], int] | None = None,
+                 on_frame: Callable[[np.ndarray, float], None] | None = None,
+                 episode_tags: dict[str, Any] | None = None) -> None:
+        """`human_cell(true_state, human_mark)` lets a real person choose the cell the simulated hand draws
+        (`ncbot robot serve`: a click in the browser) instead of the simulated opponent model; the robot still
+        learns the move only through its camera. `on_frame` sees every rendered mouth-camera frame;
+        `episode_tags` go into every logged `/episode` summary (e.g. the browser session id)."""
         config.validate()
+        self.human_cell = human_cell
+        self.on_frame = on_frame
+        self.episode_tags = dict(episode_tags or {})
         self.config = config
         self.policy = policy
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -90,6 +99,8 @@ class RobotGameRunner:
     def _log_frame(self, frame: np.ndarray, t: float) -> None:
         self.last_frame = frame
         self._record.frames += 1
+        if self.on_frame is not None:
+            self.on_frame(frame, t)
         if self.logger is None:
             return
         import cv2
@@ -115,7 +126,8 @@ class RobotGameRunner:
             self._diverged = True
             return int(np.flatnonzero(legal)[0])
         human_mark = 1 if self._robot_mark == 2 else 2
-        true_cell = self.human.choose(self.true_state, human_mark)
+        chooser = self.human_cell or self.human.choose
+        true_cell = chooser(self.true_state, human_mark)
         kind = MARK_OF_PLAYER["x" if human_mark == 1 else "o"]
         known = [0 if ok else 1 for ok in legal]  # only legal cells can hold the new move
         self.recogniser.reset()
@@ -295,7 +307,9 @@ class RobotGameRunner:
     def _episode_extra(self, record: GameRecord) -> dict[str, Any]:
         return {"true_boards": list(self._true_boards), "true_outcome": self._true_outcome(),
                 "misrecognised_moves": record.misrecognised_moves, "unseen_moves": record.unseen_moves,
-                "robot_first": record.robot_first, "conditions": record.conditions}
+                "robot_first": record.robot_first, "conditions": record.conditions,
+                "human_turn_seconds": [round(s, 3) for s in record.human_turn_seconds],
+                "robot_move_seconds": [round(s, 3) for s in record.robot_move_seconds], **self.episode_tags}
 
     def _annotated(self, frame: np.ndarray, record: GameRecord) -> np.ndarray:
         import cv2

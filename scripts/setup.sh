@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root):
 # the software Vulkan driver SAPIEN renders with, the TTS engines the robot speaks with (flite, espeak-ng),
+# headless Chromium for the browser tests,
 # the CPU build of torch from local disk, and ncbot itself (pocketsphinx, the recogniser, comes from PyPI with it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,17 +26,31 @@ install_lavapipe() {
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
 }
 
+apt_install() {
+  # apt_install WHAT HINT PACKAGE...: install Debian packages as root, or say what to install by hand.
+  local what=$1 hint=$2; shift 2
+  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+    log "not root or no apt-get: install $what yourself ($hint)"; return
+  fi
+  log "installing $what"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@" >/dev/null
+}
+
 install_tts() {
   # speech/tts.py runs flite (the simulated person's voices) and espeak-ng (the robot's voice) as subprocesses.
   if command -v flite >/dev/null && command -v espeak-ng >/dev/null; then
     log "TTS engines already installed"; return
   fi
-  if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
-    log "not root or no apt-get: install flite and espeak-ng yourself (docs/speech.md)"; return
+  apt_install "the TTS engines flite and espeak-ng" docs/speech.md flite espeak-ng
+}
+
+install_chromium() {
+  # The browser tests of `ncbot robot serve` drive Debian's headless Chromium through its WebDriver (Selenium).
+  if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then
+    log "chromium and chromium-driver already installed"; return
   fi
-  log "installing the TTS engines flite and espeak-ng"
-  apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq flite espeak-ng >/dev/null
+  apt_install "chromium and chromium-driver" docs/browser.md chromium chromium-driver
 }
 
 install_python() {
@@ -55,5 +70,6 @@ install_python() {
 
 install_lavapipe
 install_tts
+install_chromium
 install_python
 log "done"

@@ -1,0 +1,392 @@
+"""One browser tab's game with the simulated robot: its own SAPIEN scene, game thread, MCAP log and event stream.
+
+Why a thread per session: `robot_sim.play.RobotGameRunner` is a blocking loop (policy, speech, motion, and
+inside the env's step the human's turn). The person's click reaches it through the runner's `human_cell`
+hook: the thread waits for the click, the simulated hand draws that mark into the scene, and the robot learns
+the move only through its camera and the move recogniser, exactly as in `ncbot robot play`. SAPIEN work of
+all sessions is serialised by one process-wide lock (lavapipe rendering is not safe to interleave), which the
+thread gives up while it waits for the person.
+"""
+from __future__ import annotations
+
+import asyncio
+import queue
+import secrets
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Serialises every SAPIEN / policy call of every session in this process.
+SIM_LOCK = threading.Lock()
+FIRST_CHOICES = ("robot", "human")
+#: The person's dialogue act buttons (the env's user acts, shown as plain words), logged on `/dialogue`.
+PERSON_ACTS = {"hello": "Salutation(greeting)", "yes": "Reply(playGame=yes)", "no": "Reply(playGame=no)",
+               "feedback": "Provide(feedback)", "bye": "Salutation(closing)"}
+PERSON_SIDE = {"win": "loss", "loss": "win", "draw": "draw", "unfinished": "unfinished"}
+
+
+class SessionError(ValueError):
+    """A request this session cannot take (the message is sent to the client; nothing changed)."""
+
+
+class SessionClosed(RuntimeError):
+    """Raised inside the game thread when the session is closed while the robot waits for the person."""
+
+
+@dataclass
+class ServeConfig:
+    """What `ncbot robot serve` can change."""
+
+    game: str = "standard"
+    checkpoint: str | None = None
+    out: str = "runs/study"
+    camera_width: int = 320
+    camera_height: int = 240
+    overview_width: int = 480
+    overview_height: int = 360
+    #: Sessions with no message for this long are closed and their log finished.
+    idle_seconds: float = 300.0
+    max_sessions: int = 8
+    #: Minimum wall seconds between two frames pushed to a tab (the scene renders more often).
+    frame_interval: float = 0.3
+    audio: bool = True
+    seed: int = 0
+
+
+@dataclass
+class Snapshot:
+    """What the page shows, sent whole on every change (so a reloaded tab is up to date at once)."""
+
+    screen: str = "start"        # start | game | over | closed
+    board: list[str] = field(default_factory=list)
+    status: str = "Choose who opens, then press Start."
+    robot_says: str = ""
+    says_seq: int = 0
+    your_turn: bool = False
+    outcome: str | None = None   # the person's side: win | loss | draw | unfinished
+    games: int = 0
+    mark: str = ""
+    legal: list[int] = field(default_factory=list)  # cells the person may click now (Ultimate: one small board)
+
+
+class Session:
+    """A person's session: create, `start(first)`, `move(cell)` per turn, `again()`, `close()`."""
+
+    def __init__(self, config: ServeConfig, policy: Callable, agent_name: str, participant: str = "") -> None:
+        self.id = secrets.token_hex(8)
+        self.config = config
+        self.policy = policy
+        self.agent_name = agent_name
+        self.participant = participant[:64]
+        self.created = self.last_seen = time.monotonic()
+        self.snapshot = Snapshot()
+        self.view = "overview"
+        self.latest_jpeg: bytes | None = None
+        self.latencies: list[float] = []  # accepted click -> the robot's next utterance (server side)
+        self.outcomes: list[str] = []
+        self.dialogue: list[dict[str, Any]] = []
+        self._moves: queue.Queue[int | None] = queue.Queue()
+        self._commands: queue.Queue[str | None] = queue.Queue()
+        self._awaiting = False
+        self._legal: list[int] = []
+        self._click_time: float | None = None
+        self._last_frame_push = 0.0
+        self._listeners: list[tuple[asyncio.AbstractEventLoop, asyncio.Queue]] = []
+        self._lock = threading.Lock()
+        self.closed = threading.Event()
+        self.dir = Path(config.out) / f"session-{self.id}"
+        self._thread: threading.Thread | None = None
+        self._runner = None
+        self._utterances = 0
+        self._pending_acts: list[dict[str, Any]] = []
+
+    # ------------------------------------------------------------------ what clients call (event-loop thread)
+    def subscribe(self, loop: asyncio.AbstractEventLoop) -> asyncio.Queue:
+        """A queue of outgoing messages for one connected tab (bounded: slow tabs lose frames, never state)."""
+        out: asyncio.Queue = asyncio.Queue(maxsize=64)
+        with self._lock:
+            self._listeners.append((loop, out))
+        return out
+
+    def unsubscribe(self, out: asyncio.Queue) -> None:
+        with self._lock:
+            self._listeners = [(loop, q) for loop, q in self._listeners if q is not out]
+
+    def touch(self) -> None:
+        self.last_seen = time.monotonic()
+
+    def idle_for(self, now: float) -> float:
+        """Seconds the session has waited for the person (0 while the robot acts or waits for the simulator)."""
+        waiting = self._awaiting or self.snapshot.screen in ("start", "over")
+        return now - self.last_seen if waiting else 0.0
+
+    def start(self, first: Any, participant: Any = "") -> None:
+        """Begin the first game (who opens: robot or human); `participant` is the person's optional code."""
+        if first not in FIRST_CHOICES:
+            raise SessionError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {str(first)[:40]!r}")
+        if not isinstance(participant, str):
+            raise SessionError("participant must be a string")
+        if self._thread is not None:
+            raise SessionError("this session has already started; use 'again' after a game ends")
+        self._first = first
+        self.participant = participant[:64] or self.participant
+        self._thread = threading.Thread(target=self._run, name=f"session-{self.id}", daemon=True)
+        self._thread.start()
+        self._commands.put("play")
+
+    def again(self) -> None:
+        """Play another game once the last one is over."""
+        if self.snapshot.screen != "over":
+            raise SessionError("a new game can start only when the current game is over")
+        self.snapshot = replace(self.snapshot, screen="game", status="The robot is setting up a new game.", outcome=None)
+        self._publish_state()
+        self._commands.put("play")
+
+    def move(self, cell: Any) -> None:
+        """The person's click: validated against the TRUE board; the game thread then draws it."""
+        cells = self.config_cells
+        if isinstance(cell, bool) or not isinstance(cell, int):
+            raise SessionError(f"cell must be an integer in [0, {cells}); got {cell!r}")
+        if not 0 <= cell < cells:
+            raise SessionError(f"cell {cell} is out of range; cells are 0 to {cells - 1}")
+        with self._lock:  # two tabs of one session may click at once: only one click is taken
+            if not self._awaiting:
+                raise SessionError("it is not your turn; wait for the robot")
+            if cell not in self._legal:
+                taken = self.snapshot.board[cell] if self.snapshot.board else ""
+                raise SessionError(f"cell {cell} is taken" if taken else
+                                   f"cell {cell} is not playable now (Ultimate: play in the board the last move points to)")
+            self._awaiting = False
+        self._click_time = time.perf_counter()
+        self.snapshot = replace(self.snapshot, your_turn=False, legal=[], status="Drawing your mark; the robot is watching.")
+        self._publish_state()
+        self._moves.put(cell)
+
+    def act(self, name: Any) -> None:
+        """A dialogue act button: logged with the game (the env's simulated ASR still carries the game's dialogue)."""
+        if not isinstance(name, str) or name not in PERSON_ACTS:
+            raise SessionError(f"unknown dialogue act {name!r}; acts: {', '.join(PERSON_ACTS)}")
+        from envs.dialogue import USER_ACTS
+
+        turn = {"speaker": "user", "act": USER_ACTS.index(PERSON_ACTS[name]), "act_name": PERSON_ACTS[name],
+                "text": name, "move": -1, "source": "browser", "session": self.id,
+                "t": round(time.monotonic() - self.created, 3)}
+        self.dialogue.append(turn)
+        with self._lock:  # written to the log by the game thread (the logger is not thread safe)
+            self._pending_acts.append(turn)
+
+    def set_view(self, view: Any) -> None:
+        if view not in ("overview", "mouth"):
+            raise SessionError(f"view must be overview or mouth; got {view!r}")
+        self.view = view
+
+    def close(self) -> None:
+        """Stop the game (if the robot waits for the person) and finish the log; safe to call twice."""
+        if self.closed.is_set():
+            return
+        self.closed.set()
+        self._moves.put(None)
+        self._commands.put(None)
+        self.snapshot = replace(self.snapshot, screen="closed", status="This session was closed.", your_turn=False)
+        self._publish_state()
+        if self._thread is None:
+            return
+        self._thread.join(timeout=60)
+
+    @property
+    def config_cells(self) -> int:
+        return 9 if self.config.game == "standard" else 81
+
+    def state_message(self) -> dict[str, Any]:
+        return {"type": "state", "session": self.id, "game": self.config.game, "view": self.view,
+                **self.snapshot.__dict__}
+
+    # ------------------------------------------------------------------ publishing (any thread)
+    def _publish(self, message: Any, droppable: bool = False) -> None:
+        with self._lock:
+            listeners = list(self._listeners)
+        for loop, out in listeners:
+            def put(out=out) -> None:
+                if out.full():
+                    if droppable:
+                        return
+                    try:  # make room for state: drop the oldest message (a frame, most likely)
+                        out.get_nowait()
+                    except asyncio.QueueEmpty:
+                        pass
+                out.put_nowait(message)
+            try:
+                loop.call_soon_threadsafe(put)
+            except RuntimeError:  # the loop is gone (server shutting down)
+                pass
+
+    def _publish_state(self) -> None:
+        self._publish(self.state_message())
+
+    # ------------------------------------------------------------------ the game thread
+    def _run(self) -> None:
+        import torch
+
+        from logs import EpisodeLogger
+        from robot_sim.human import HumanConfig
+        from robot_sim.play import RobotGameRunner, RobotPlayConfig
+
+        torch.set_num_threads(1)
+        config = RobotPlayConfig(game=self.config.game, games=1, seed=self.config.seed, first=self._first,
+                                 camera_width=self.config.camera_width, camera_height=self.config.camera_height,
+                                 human=HumanConfig(), agent_name=self.agent_name)
+        tags = {"session": self.id, "participant": self.participant}
+        logger = EpisodeLogger(self.dir, run_info={"robot_serve": {**tags, "game": self.config.game,
+                                                                   "agent": self.agent_name}})
+        index = 0
+        try:
+            with torch.no_grad():
+                runner = RobotGameRunner(config, self.policy, out_dir=self.dir, logger=logger,
+                                         human_cell=self._wait_for_click, on_frame=self._frame,
+                                         episode_tags=tags)
+                runner.speaker = _BroadcastSpeaker(self)
+                self._runner = runner
+                while (command := self._commands.get()) is not None and not self.closed.is_set():
+                    self._play_one(runner, index)
+                    index += 1
+        except SessionClosed:
+            pass
+        except Exception as error:  # a broken game must end this session, never the server
+            traceback.print_exc()  # the server's log keeps the cause; the page gets one line
+            self.snapshot = replace(self.snapshot, screen="over", status=f"The robot failed: {error}. Outcome: unfinished",
+                                    outcome="unfinished", your_turn=False)
+            self._publish_state()
+        finally:
+            with SIM_LOCK:
+                logger.close()
+
+    def _play_one(self, runner, index: int) -> None:
+        robot_mark = "x" if self._first == "robot" else "o"
+        person_mark = "o" if robot_mark == "x" else "x"
+        self.snapshot = replace(self.snapshot, screen="game", board=[""] * self.config_cells, outcome=None,
+                                status="The robot's turn.", your_turn=False, mark=person_mark)
+        self._publish_state()
+        with SIM_LOCK:
+            record = runner.play_game(index)
+            self._push_frame(runner, force=True)
+            self._log_person_acts(runner)
+            runner.logger.flush()  # the finished game is on disk now, not when the session closes
+        outcome = PERSON_SIDE[record.outcome]
+        self.outcomes.append(outcome)
+        self._refresh_board(runner)
+        self.touch()
+        self.snapshot = replace(self.snapshot, screen="over", outcome=outcome, your_turn=False,
+                                games=self.snapshot.games + 1, status=f"Game over. Outcome: {outcome}")
+        self._publish_state()
+
+    def _wait_for_click(self, true_state, human_mark: int) -> int:
+        """The runner's `human_cell` hook: publish 'your turn', give up the sim lock, wait for a valid click."""
+        runner = self._runner
+        self._legal = list(runner.rules.legal(true_state))
+        self._refresh_board(runner, true_state)
+        self._push_frame(runner, force=True)
+        self._awaiting = True
+        self.touch()  # idle time counts from the robot's last action, not the person's last click
+        self.snapshot = replace(self.snapshot, your_turn=True, status="Your turn: click a cell.", legal=list(self._legal))
+        self._publish_state()
+        self._log_person_acts(runner)
+        SIM_LOCK.release()
+        try:
+            while True:
+                try:
+                    cell = self._moves.get(timeout=1.0)
+                except queue.Empty:
+                    if self.closed.is_set():
+                        raise SessionClosed(self.id) from None
+                    continue
+                if cell is None:
+                    raise SessionClosed(self.id)
+                return cell
+        finally:
+            self._awaiting = False
+            SIM_LOCK.acquire()
+
+    def _log_person_acts(self, runner) -> None:
+        with self._lock:
+            acts, self._pending_acts = self._pending_acts, []
+        record = getattr(runner, "_record", None)  # the game being played: its index is the log's episode id
+        for turn in acts:
+            runner.logger.log_dialogue({**turn, "episode": record.index if record else -1,
+                                        "step": record.actions if record else -1})
+
+    def _refresh_board(self, runner, state=None) -> None:
+        state = state if state is not None else runner.true_state
+        marks = {0: "", 1: "x", 2: "o"}
+        self.snapshot = replace(self.snapshot, board=[marks[int(v)] for v in state.board])
+
+    def _frame(self, frame: np.ndarray, t: float) -> None:
+        """The runner's `on_frame` hook (game thread, sim lock held): push a JPEG to the tab now and then."""
+        if self._runner is not None and time.perf_counter() - self._last_frame_push >= self.config.frame_interval:
+            self._push_frame(self._runner, frame=frame)
+
+    def _push_frame(self, runner, frame: np.ndarray | None = None, force: bool = False) -> None:
+        import cv2
+
+        if not self._listeners and not force:
+            return
+        if self.view == "overview":
+            image = runner.scene.render_overview(self.config.overview_width, self.config.overview_height)
+        else:
+            image = frame if frame is not None else runner.last_frame
+        if image is None:
+            return
+        ok, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(image[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, 75])
+        if ok:
+            self.latest_jpeg = jpeg.tobytes()
+            self._last_frame_push = time.perf_counter()
+            self._publish({"type": "frame", "jpeg": self.latest_jpeg}, droppable=True)
+
+    def utterance(self, text: str) -> None:
+        """The robot said `text`: show it, time the reply to the last click, synthesise audio when possible."""
+        if self._click_time is not None:
+            self.latencies.append(time.perf_counter() - self._click_time)
+            self._click_time = None
+        self._refresh_board(self._runner)
+        self.snapshot = replace(self.snapshot, robot_says=text, says_seq=self.snapshot.says_seq + 1,
+                                status="The robot's turn.", your_turn=False)
+        self._publish_state()
+        self.dialogue.append({"speaker": "robot", "text": text, "t": round(time.monotonic() - self.created, 3)})
+        if self.config.audio and text:
+            url = self._speak(text)
+            if url:
+                self._publish({"type": "audio", "url": url, "seq": self.snapshot.says_seq})
+
+    def _speak(self, text: str) -> str | None:
+        try:
+            from speech.audio import write_wav
+            from speech.tts import ROBOT_VOICE, speak
+
+            samples = speak(text, ROBOT_VOICE)
+        except (ValueError, OSError, RuntimeError):
+            return None  # no TTS engine here: text alone
+        name = f"utterance-{self._utterances:04d}.wav"
+        self._utterances += 1
+        write_wav(self.dir / "audio" / name, samples)
+        return f"/audio/{self.id}/{name}"
+
+
+class _BroadcastSpeaker:
+    """Stands in for robot_sim's Speaker: keeps the text (as it does) and sends it to the session's tabs."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+        self.said: list[str] = []
+
+    @property
+    def has_audio(self) -> bool:
+        return self.session.config.audio
+
+    def say(self, text: str) -> None:
+        self.said.append(text)
+        self.session.utterance(text)
