@@ -138,3 +138,61 @@ def test_missing_open_spiel_is_one_clear_error(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "pyspiel", None)  # what an environment without the wheel sees on import
     with pytest.raises(ValueError, match=r"pip install 'ncbot\[openspiel\]'"):
         make_opponent("openspiel-mcts:10", game="standard")
+
+
+def _bench():
+    """bench/time_to_quality.py as a module (bench is a folder of scripts, not a package)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "time_to_quality.py"
+    spec = importlib.util.spec_from_file_location("time_to_quality", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_time_to_quality_trains_and_evaluates_openspiel_dqn(tmp_path) -> None:
+    """The DQN side of the bench for real (2 s of training): snapshots on its clock, evaluated by our referee."""
+    pytest.importorskip("tree")  # open_spiel.python.pytorch.dqn needs dm-tree (in the openspiel extra)
+    bench = _bench()
+    out = tmp_path / "dqn.pt"
+    bench.dqn_worker("standard", cap=2.0, every=0.5, opponent="random", hidden=[32, 32], out=out, seed=0)
+    data = torch.load(out, weights_only=True)
+    times = [s["wall_time"] for s in data["snapshots"]]
+    assert len(times) >= 3 and times == sorted(times) and times[-1] >= 2.0
+    assert data["settings"] == {"hidden_layers_sizes": [32, 32], "replay_buffer_capacity": 10_000}
+    success = bench.evaluate_dqn(data["snapshots"][-1], data, "standard", 60, seed=1)
+    assert set(success) == {"first", "second"} and all(0.0 <= v <= 1.0 for v in success.values())
+    from open_spiel.python.pytorch.dqn import MLP
+
+    ultimate = {"q": [MLP(254, [32, 32], 9).state_dict() for _ in range(2)]}  # OpenSpiel's Ultimate observation: 254
+    assert set(bench.evaluate_dqn(ultimate, {**data, "state_size": 254}, "ultimate", 3, seed=2)) == {"first", "second"}
+    points = [{"wall_time": 1.0, "first": 0.96, "second": 0.90}, {"wall_time": 2.0, "first": 0.97, "second": 0.99},
+              {"wall_time": 3.0, "first": 1.0, "second": 0.996}]
+    assert bench.first_time(points, 0.95) == 2.0 and bench.first_time(points, 0.995) == 3.0
+    assert bench.first_time(points[:2], 0.995) is None
+
+
+def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
+    """`ncbot ladder --opponents openspiel-mcts:N`: a real (untrained) Ultimate checkpoint of the open_subgrids rule."""
+    from envs import make_env
+    from modules.qnet import make_qnet
+    from pipelines.checkpoint import FORMAT, atomic_save
+    from pipelines.config import RunConfig
+    from pipelines.ladder import check_goals, run_ladder
+
+    config = RunConfig()
+    config.env.game, config.env.free_move = "ultimate", "open_subgrids"
+    env = make_env("ultimate", batch_size=(1,), free_move="open_subgrids")
+    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
+    path = tmp_path / "run" / "checkpoint.pt"
+    atomic_save({"format": FORMAT, "config": config.to_dict(), "n_features": env.n_features,
+                 "n_actions": env.n_actions, "qnet": qnet.state_dict()}, path)
+    result = run_ladder(str(path), games=2, opponents=["openspiel-mcts:3"], seed=0, progress=False)
+    assert [(r["opponent"], r["seat"], r["games"]) for r in result["rows"]] == [
+        ("openspiel-mcts:3", "first", 2), ("openspiel-mcts:3", "second", 2)]
+    rows = [{"opponent": "openspiel-mcts:1000", "seat": seat, "games": 10, "score": score}
+            for seat, score in (("first", 0.6), ("second", 0.3))]
+    assert check_goals("ultimate", rows) == [{"goal": "score >= 0.5 against openspiel-mcts:1000", "met": False,
+                                              "value": "0.450"}]
