@@ -157,7 +157,8 @@ def test_time_to_quality_trains_and_evaluates_openspiel_dqn(tmp_path) -> None:
     pytest.importorskip("tree")  # open_spiel.python.pytorch.dqn needs dm-tree (in the openspiel extra)
     bench = _bench()
     out = tmp_path / "dqn.pt"
-    bench.dqn_worker("standard", cap=2.0, every=0.5, opponent="random", hidden=[32, 32], out=out, seed=0)
+    bench.dqn_worker("standard", cap=2.0, clock_name="wall_time", every=0.5, opponent="random", hidden=[32, 32], out=out,
+                     seed=0)
     data = torch.load(out, weights_only=True)
     times = [s["wall_time"] for s in data["snapshots"]]
     assert len(times) >= 3 and times == sorted(times) and times[-1] >= 2.0
