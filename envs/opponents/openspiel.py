@@ -26,7 +26,7 @@ from typing import Any
 import torch
 
 from envs.core import SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
-from envs.opponents.base import Opponent, register_opponent
+from envs.opponents.base import Opponent, register_opponent, simulation_count
 
 OPENSPIEL_GAMES = {"standard": "tic_tac_toe", "ultimate": "ultimate_tic_tac_toe"}
 OPENSPIEL_FREE_MOVE = "open_subgrids"  # OpenSpiel's Ultimate: sent to a decided subgrid -> any undecided one
@@ -198,14 +198,7 @@ class OpenSpielMCTSOpponent(OpenSpielOpponent):
 
 
 def _openspiel_mcts_factory(arg, *, game, free_move, seed):
-    try:
-        simulations = int(arg) if arg is not None else None
-    except ValueError:
-        simulations = None
-    if simulations is None or simulations < 1:
-        raise ValueError("opponent 'openspiel-mcts' needs a positive simulation count, e.g. 'openspiel-mcts:1000'; "
-                         f"got 'openspiel-mcts:{arg or ''}'")
-    return OpenSpielMCTSOpponent(simulations, game, free_move, seed)
+    return OpenSpielMCTSOpponent(simulation_count("openspiel-mcts", arg, 1000), game, free_move, seed)
 
 
 register_opponent("openspiel-mcts", _openspiel_mcts_factory, usage="openspiel-mcts:N")
