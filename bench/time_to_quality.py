@@ -60,7 +60,8 @@ def process_cpu(pid: int) -> float | None:
 def run_timed(command: list[str], timeout: float | None = None, cpu_timeout: float | None = None) -> dict[str, Any]:
     """Run a trainer subprocess, sampling its CPU seconds every 0.2 s (``samples``: (epoch seconds, CPU seconds)).
 
-    Wall times swing with the other load on this shared machine; CPU seconds barely do, so both are reported."""
+    Wall times swing with the other load on this shared machine; CPU seconds much less (not at all is too
+    much to hope: shared caches), so both are reported."""
     load_before, began = load_average(), time.monotonic()
     process = subprocess.Popen(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
     samples: list[tuple[float, float]] = []
