@@ -3,11 +3,12 @@
 >>> opp = make_opponent("mcts:100", game="ultimate", free_move="anywhere", seed=0)
 >>> cells = opp.select(boards, last_move, legal, player, generator)  # (B,) int64 legal cells
 
-Built-in names: ``random``, ``rule``, ``minimax`` (3x3 only), ``mcts:N``. Higher layers add their own kinds
+Built-in names: ``random``, ``rule``, ``minimax`` (3x3 only), ``mcts:N``, ``openspiel-mcts:N`` (OpenSpiel's
+``MCTSBot``; needs the optional package open_spiel, imported only when such an opponent is built). Higher layers add their own kinds
 with ``register_opponent`` (the learning pipeline registers ``agent:CHECKPOINT``).
 """
 from envs.opponents.base import Opponent, make_opponent, opponent_choices, register_opponent
-from envs.opponents import simple, minimax, mcts  # noqa: F401  (importing registers the built-in kinds)
+from envs.opponents import simple, minimax, mcts, openspiel  # noqa: F401  (importing registers the built-in kinds)
 from envs.opponents.mcts import MCTSOpponent, uct_search
 from envs.opponents.minimax import MinimaxOpponent
 from envs.opponents.simple import RandomOpponent, RuleOpponent

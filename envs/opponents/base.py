@@ -128,3 +128,15 @@ def no_argument(kind: str, arg: str | None) -> None:
     """Reject ``kind:ARG`` for kinds that take no argument."""
     if arg is not None:
         raise ValueError(f"opponent {kind!r} takes no ':' argument, got {kind}:{arg}")
+
+
+def simulation_count(kind: str, arg: str | None, example: int = 100) -> int:
+    """The N of ``kind:N`` for search opponents; ValueError naming the expected form otherwise."""
+    try:
+        simulations = int(arg) if arg is not None else None
+    except ValueError:
+        simulations = None
+    if simulations is None or simulations < 1:
+        raise ValueError(f"opponent '{kind}' needs a positive simulation count, e.g. '{kind}:{example}'; "
+                         f"got '{kind}:{arg or ''}'")
+    return simulations

@@ -13,7 +13,7 @@ import random
 
 import torch
 
-from envs.opponents.base import Opponent, register_opponent
+from envs.opponents.base import Opponent, register_opponent, simulation_count
 from envs.opponents.bitboards import make_bits
 from envs.opponents.search import UCT, RandomRollout, run_search
 
@@ -64,13 +64,7 @@ class MCTSOpponent(Opponent):
 
 
 def _mcts_factory(arg, *, game, free_move, seed):
-    try:
-        simulations = int(arg) if arg is not None else None
-    except ValueError:
-        simulations = None
-    if simulations is None or simulations < 1:
-        raise ValueError(f"opponent 'mcts' needs a positive simulation count, e.g. 'mcts:100'; got 'mcts:{arg or ''}'")
-    return MCTSOpponent(simulations, game, free_move, seed)
+    return MCTSOpponent(simulation_count("mcts", arg), game, free_move, seed)
 
 
 register_opponent("mcts", _mcts_factory, usage="mcts:N")

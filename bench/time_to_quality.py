@@ -1,0 +1,333 @@
+"""Time to a good agent, side by side: our default agent against OpenSpiel's PyTorch DQN, on this machine, in one run.
+
+What users feel is not updates per second but how long until the agent is good. This bench trains both learners
+one after the other (each alone on the machine as far as this bench goes; other load is reported), snapshots
+each every few seconds of its own training clock, then evaluates every snapshot the same way: greedy, ``--games``
+games per seat against the uniform random player, refereed by our rules; task success = 1 - loss rate.
+It prints the training wall time at which each first reaches task success 0.95 and 0.995 in BOTH seats (or
+"never" within ``--cap-seconds``) and the ratio.
+
+- Ours: ``ncbot train pipelines/configs/default.yaml`` (``--ultimate``: ``ultimate.yaml``) in a subprocess, with
+  its in-training evaluations switched off (``train.eval_every_frames`` past the end: evaluating is not training)
+  and a periodic checkpoint every ``--snapshot-frames`` frames, whose saved ``wall_time`` is the training clock.
+  Evaluated as it is deployed: the robot in its dialogue env against the random user (``ncbot eval``'s code).
+- Theirs: ``open_spiel.python.pytorch.dqn.DQN`` with the settings of OpenSpiel's
+  ``examples/tic_tac_toe_dqn_vs_tabular.py`` (hidden [32, 32], replay capacity 10,000, every other argument at
+  its default), one DQN per seat. ``--dqn-opponent dqn`` (default): the two DQNs learn against each other
+  (OpenSpiel's two-player DQN examples; the tic_tac_toe example's opponent also learns); ``random``: each seat's
+  DQN learns against the uniform random player, as our agent does. Snapshots every ``--snapshot-seconds`` of its
+  training clock (the copy is taken off the clock). Evaluated through ``envs.opponents.arena`` with OpenSpiel's
+  own observation tensor, its moves checked against our rules (``envs.opponents.openspiel``).
+
+Snapshots are evaluated in time order and evaluation stops at the first snapshot with 0.995 in both seats.
+
+    python bench/time_to_quality.py                          # 3x3
+    python bench/time_to_quality.py --ultimate --cap-seconds 1800
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+THRESHOLDS = (0.95, 0.995)
+DQN_EXAMPLE_SETTINGS = {"hidden_layers_sizes": [32, 32], "replay_buffer_capacity": int(1e4)}  # tic_tac_toe example
+NEVER_EVALUATE = 10**12  # train.eval_every_frames past any run's end
+
+
+def load_average() -> str:
+    return " / ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def process_cpu(pid: int) -> float | None:
+    """CPU seconds (user + system, with waited-for children) of a running process, from /proc; None once gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")  # utime stime cutime cstime
+
+
+def run_timed(command: list[str], timeout: float | None = None, cpu_timeout: float | None = None) -> dict[str, Any]:
+    """Run a trainer subprocess, sampling its CPU seconds every 0.2 s (``samples``: (epoch seconds, CPU seconds)).
+
+    Wall times swing with the other load on this shared machine; CPU seconds much less (not at all is too
+    much to hope: shared caches), so both are reported."""
+    load_before, began = load_average(), time.monotonic()
+    process = subprocess.Popen(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
+    samples: list[tuple[float, float]] = []
+    stopped = False
+    while process.poll() is None:
+        cpu = process_cpu(process.pid)
+        if cpu is not None:
+            samples.append((time.time(), cpu))
+        over_cpu = cpu_timeout is not None and cpu is not None and cpu > cpu_timeout
+        if over_cpu or timeout is not None and time.monotonic() - began > timeout:  # killed at the cap: its snapshots count
+            process.kill()
+            stopped = True
+            break
+        time.sleep(0.2)
+    if process.wait() != 0 and not stopped:
+        raise RuntimeError(f"{command[2] if len(command) > 2 else command} failed with exit code {process.returncode}")
+    wall = time.monotonic() - began
+    cpu = samples[-1][1] if samples else 0.0
+    return {"command": " ".join(command), "stopped_at_cap": stopped, "process_seconds": round(wall, 1),
+            "cpu_seconds": round(cpu, 1), "cpu_share": round(cpu / wall, 2), "load_before": load_before,
+            "load_after": load_average(), "samples": samples}
+
+
+def cpu_at(samples: list[tuple[float, float]], epoch: float) -> float:
+    """The sampled CPU seconds of a process at ``epoch`` (linear between samples)."""
+    import numpy as np
+
+    return float(np.interp(epoch, [t for t, _ in samples], [c for _, c in samples]))
+
+
+# ------------------------------------------------------------------------------------------------------ ours
+def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: int, seed: int) -> dict[str, Any]:
+    """Run ``ncbot train`` (this tree's code) in a subprocess, stopped at ``cap`` seconds of ``clock``; snapshots
+    with their train clock (wall) and the CPU seconds the process spent since the train clock started."""
+    import shutil
+
+    from pipelines.checkpoint import periodic_checkpoints
+
+    shutil.rmtree(out, ignore_errors=True)  # snapshots of an earlier run must not count
+
+    command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
+               "--seed", str(seed), f"train.eval_every_frames={NEVER_EVALUATE}",
+               f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=100000", "checkpoint.save_buffer=false",
+               "eval.games=10", "eval.periodic_games=10"]
+    # start-up (imports, env and tables) is off the train clock: allow it on top of the cap
+    run = run_timed(command, timeout=cap + 60) if clock == "wall_time" else run_timed(command, cpu_timeout=cap + 30)
+    import torch
+
+    snapshots = []
+    samples = run.pop("samples")
+    for path in periodic_checkpoints(out):
+        data = torch.load(path, map_location="cpu", weights_only=True)
+        saved = path.stat().st_mtime  # the train clock starts inside train(): imports and CLI set-up excluded
+        cpu = cpu_at(samples, saved) - cpu_at(samples, saved - data["wall_time"]) if samples else float("nan")
+        if (data["wall_time"] if clock == "wall_time" else cpu) <= cap:
+            snapshots.append({"wall_time": float(data["wall_time"]), "cpu_time": round(cpu, 2),
+                              "frames": int(data["frames"]), "episodes": int(data["episodes"]), "path": str(path)})
+    return {**run, "snapshots": snapshots}
+
+
+def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int) -> dict[str, float]:
+    from pipelines.agents import load_agent
+    from pipelines.evaluate import evaluate_agent
+
+    config, greedy = load_agent(snapshot["path"])
+    return {seat: evaluate_agent(config, greedy, games=games, seat=seat, seed=seed).task_success
+            for seat in ("first", "second")}
+
+
+# ------------------------------------------------------------------------------------------------------ theirs
+def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: str, hidden: list[int], out: Path,
+               seed: int) -> None:
+    """Train OpenSpiel's PyTorch DQN (one per seat) for ``cap`` seconds of ``clock_name``; snapshots of both nets."""
+    import numpy as np
+    import torch
+    from open_spiel.python import rl_environment
+    from open_spiel.python.algorithms import random_agent
+    from open_spiel.python.pytorch import dqn
+
+    from envs.opponents.openspiel import OPENSPIEL_GAMES
+
+    torch.set_num_threads(1)
+    np.random.seed(seed)
+    env = rl_environment.Environment(OPENSPIEL_GAMES[game])
+    size, actions = env.observation_spec()["info_state"][0], env.action_spec()["num_actions"]
+    settings = {**DQN_EXAMPLE_SETTINGS, "hidden_layers_sizes": hidden}
+    learners = [dqn.DQN(player_id=p, state_representation_size=size, num_actions=actions, seed=seed + p, **settings)
+                for p in range(2)]
+    randoms = [random_agent.RandomAgent(player_id=p, num_actions=actions) for p in range(2)]
+    snapshots: list[dict[str, Any]] = []
+    clock, cpu_clock, episodes, steps = 0.0, 0.0, 0, 0
+    next_snapshot = every
+    def reading() -> float:
+        return clock if clock_name == "wall_time" else cpu_clock
+
+    while reading() < cap:
+        began, cpu_began = time.monotonic(), time.process_time()
+        if opponent == "dqn":
+            agents = learners
+        else:  # each seat's DQN against the uniform random player, seats alternating by episode
+            agents = [learners[0], randoms[1]] if episodes % 2 == 0 else [randoms[0], learners[1]]
+        time_step = env.reset()
+        while not time_step.last():
+            output = agents[time_step.observations["current_player"]].step(time_step)
+            time_step = env.step([output.action])
+            steps += 1
+        for agent in agents:
+            agent.step(time_step)
+        episodes += 1
+        clock += time.monotonic() - began
+        cpu_clock += time.process_time() - cpu_began
+        if reading() >= next_snapshot or reading() >= cap:
+            snapshots.append({"wall_time": round(clock, 3), "cpu_time": round(cpu_clock, 3), "episodes": episodes,
+                              "steps": steps,
+                              "q": [{k: v.clone() for k, v in agent._q_network.state_dict().items()} for agent in learners]})
+            next_snapshot = reading() + every
+    torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
+                "opponent": opponent}, out)
+
+
+def train_dqn(game: str, out: Path, cap: float, clock: str, every: float, opponent: str, hidden: list[int],
+              seed: int) -> dict[str, Any]:
+    command = [sys.executable, str(Path(__file__).resolve()), "--worker", "--cap-seconds", str(cap), "--clock", clock.split("_")[0],
+               "--snapshot-seconds", str(every), "--dqn-opponent", opponent, "--dqn-hidden",
+               ",".join(map(str, hidden)), "--seed", str(seed), "--out", str(out)] + (["--ultimate"] if game == "ultimate" else [])
+    run = run_timed(command)
+    run.pop("samples")
+    import torch
+
+    return {**run, "data": torch.load(out, map_location="cpu", weights_only=True)}
+
+
+class DQNPlayer:
+    """A DQN snapshot as a batched opponent: greedy Q over OpenSpiel's legal actions, as DQN.step(is_evaluation)."""
+
+    @staticmethod
+    def build(q_state: dict, size: int, actions: int, hidden: list[int], game: str, free_move: str, seed: int):
+        import torch
+        from open_spiel.python.pytorch.dqn import MLP
+
+        from envs.opponents.openspiel import OpenSpielOpponent
+
+        network = MLP(size, hidden, actions)
+        network.load_state_dict(q_state)
+        network.eval()
+
+        class _Player(OpenSpielOpponent):
+            name = "openspiel-dqn"
+
+            def decide(self, state, seed):
+                legal = state.legal_actions()
+                with torch.no_grad():
+                    q = network(torch.tensor(state.observation_tensor(state.current_player())).unsqueeze(0))[0]
+                return legal[int(torch.argmax(q[legal]))]
+
+        return _Player(game, free_move, seed)
+
+
+def evaluate_dqn(snapshot: dict[str, Any], meta: dict[str, Any], game: str, games: int, seed: int) -> dict[str, float]:
+    from envs.opponents import make_opponent
+    from envs.opponents.arena import play_match
+
+    free_move = "open_subgrids" if game == "ultimate" else "anywhere"
+    hidden = meta["settings"]["hidden_layers_sizes"]
+    players = [DQNPlayer.build(snapshot["q"][p], meta["state_size"], meta["num_actions"], hidden, game, free_move, seed)
+               for p in range(2)]
+    rand = make_opponent("random", game=game, free_move=free_move, seed=seed)
+    first = play_match(players[0], rand, games, seed=seed, free_move=free_move)
+    second = play_match(rand, players[1], games, seed=seed + 1, free_move=free_move)
+    return {"first": 1 - first.second_wins / games, "second": 1 - second.first_wins / games}
+
+
+# ------------------------------------------------------------------------------------------------------ report
+def curve(snapshots: list[dict[str, Any]], evaluate) -> list[dict[str, Any]]:
+    """Evaluate snapshots in time order until both seats reach the top threshold."""
+    points = []
+    for snapshot in snapshots:
+        success = evaluate(snapshot)
+        point = {k: snapshot[k] for k in ("wall_time", "cpu_time", "frames", "episodes", "steps") if k in snapshot} | success
+        points.append(point)
+        print(f"  t={point['wall_time']:7.1f}s cpu={point['cpu_time']:7.1f}s first {success['first']:.4f} second {success['second']:.4f}", flush=True)
+        if min(success.values()) >= THRESHOLDS[-1]:
+            break
+    return points
+
+
+def first_time(points: list[dict[str, Any]], threshold: float, clock: str = "wall_time") -> float | None:
+    """The ``clock`` reading of the first point with task success >= ``threshold`` in both seats (None: never)."""
+    for point in points:
+        if min(point["first"], point["second"]) >= threshold:
+            return point[clock]
+    return None
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--ultimate", action="store_true", help="Ultimate (ours: ultimate.yaml; theirs: ultimate_tic_tac_toe, open_subgrids)")
+    parser.add_argument("--cap-seconds", type=float, default=600.0, help="training time limit of each learner (--clock)")
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                        help="what the cap and the DQN snapshot period count: wall seconds, or CPU seconds of the "
+                             "trainer's process (for a machine loaded by others; both are reported either way)")
+    parser.add_argument("--snapshot-seconds", type=float, default=5.0, help="DQN snapshot period (its training clock)")
+    parser.add_argument("--snapshot-frames", type=int, default=None, help="our snapshot period in env frames (default: ~every 2-8 s)")
+    parser.add_argument("--games", type=int, default=1000, help="evaluation games per seat and snapshot")
+    parser.add_argument("--dqn-opponent", choices=("dqn", "random"), default="dqn")
+    parser.add_argument("--dqn-hidden", default="32,32", help="DQN hidden layers (the tic_tac_toe example: 32,32)")
+    parser.add_argument("--config", default=None, help="our config (default: default.yaml / ultimate.yaml)")
+    parser.add_argument("--only", choices=("ours", "dqn"), default=None, help="train and evaluate one side only")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default="/tmp/time_to_quality")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    game = "ultimate" if args.ultimate else "standard"
+    clock = f"{args.clock}_time"
+    hidden = [int(h) for h in args.dqn_hidden.split(",") if h]
+    if args.worker:
+        dqn_worker(game, args.cap_seconds, clock, args.snapshot_seconds, args.dqn_opponent, hidden, Path(args.out), args.seed)
+        return
+    from envs.opponents.openspiel import import_pyspiel
+
+    import_pyspiel()  # one clear line if the optional package is missing, before any training
+    out = Path(args.out) / game
+    out.mkdir(parents=True, exist_ok=True)
+    config = args.config or str(ROOT / "pipelines" / "configs" / ("ultimate.yaml" if args.ultimate else "default.yaml"))
+    snapshot_frames = args.snapshot_frames or (51200 if args.ultimate else 4096)
+    report: dict[str, Any] = {"game": game, "games_per_seat": args.games, "cap_seconds": args.cap_seconds, "clock": clock,
+                              "cpus": os.cpu_count()}
+    if args.only in (None, "ours"):
+        print(f"ours: training {config} (load {load_average()})", flush=True)
+        ours = train_ours(config, out / "ours", args.cap_seconds, clock, snapshot_frames, args.seed)
+        print(f"ours: {len(ours['snapshots'])} snapshots; evaluating", flush=True)
+        ours["points"] = curve(ours["snapshots"], lambda s: evaluate_ours(s, args.games, args.seed + 17))
+        report["ours"] = {k: v for k, v in ours.items() if k != "snapshots"}
+    if args.only in (None, "dqn"):
+        print(f"OpenSpiel DQN: training (load {load_average()})", flush=True)
+        theirs = train_dqn(game, out / "dqn_snapshots.pt", args.cap_seconds, clock, args.snapshot_seconds, args.dqn_opponent,
+                           hidden, args.seed)
+        data = theirs.pop("data")
+        print(f"OpenSpiel DQN: {len(data['snapshots'])} snapshots; evaluating", flush=True)
+        theirs["points"] = curve(data["snapshots"], lambda s: evaluate_dqn(s, data, game, args.games, args.seed + 17))
+        theirs["settings"], theirs["opponent"] = data["settings"], data["opponent"]
+        report["dqn"] = theirs
+    print(f"\n{game}: training wall time to task success vs uniform random, both seats ({args.games} games per seat), "
+          f"cap {args.cap_seconds:.0f} {args.clock} s")
+    print("| threshold | clock | ours (s) | OpenSpiel DQN (s) | DQN / ours |\n|---|---|---|---|---|")
+    for threshold in THRESHOLDS:
+        for clock in ("wall_time", "cpu_time"):
+            times = {side: first_time(report[side]["points"], threshold, clock) if side in report else None
+                     for side in ("ours", "dqn")}
+            report[f"{clock}_to_{threshold}"] = times
+            shown = {side: "-" if side not in report else ("never" if t is None else f"{t:.1f}") for side, t in times.items()}
+            if times["ours"] and times["dqn"]:
+                ratio = f"{times['dqn'] / times['ours']:.1f}x"
+            elif times["ours"] and "dqn" in report:
+                ratio = f"> {report['dqn']['points'][-1][clock] / times['ours']:.1f}x"
+            else:
+                ratio = "-"
+            print(f"| {threshold} | {clock.split('_')[0]} | {shown['ours']} | {shown['dqn']} | {ratio} |")
+    for side in ("ours", "dqn"):
+        if side in report:
+            print(f"{side}: load average {report[side]['load_before']} -> {report[side]['load_after']}, "
+                  f"{report[side]['cpu_share']:.2f} of a core ({report[side]['cpu_seconds']} CPU s in "
+                  f"{report[side]['process_seconds']} s); last point {report[side]['points'][-1] if report[side]['points'] else None}")
+    (out / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")
+    print(f"report: {out / 'report.json'}")
+
+
+if __name__ == "__main__":
+    main()
