@@ -70,7 +70,20 @@ class EnvConfig(Section):
     # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
+    # what the robot hears of the simulated user: uniform (the words said, uniform random confidences) | channel
+    # (words and confidences sampled from the ASR channel model fitted on TTS -> noise -> pocketsphinx round trips,
+    # docs/speech.md) at an SNR drawn per utterance in asr_snr_db, in asr_noise; asr_channel: None = shipped model
+    asr: Literal["uniform", "channel"] = "uniform"
+    asr_snr_db: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(default_factory=lambda: [10.0, 30.0])
+    asr_noise: Literal["white", "babble"] = "babble"
+    asr_channel: str | None = None
     options: dict[str, Any] = Field(default_factory=dict)  # extra keyword arguments for envs.make_env
+
+    @model_validator(mode="after")
+    def _snr_order(self) -> EnvConfig:
+        if self.asr_snr_db[0] > self.asr_snr_db[1]:
+            raise ValueError(f"env.asr_snr_db must be [low, high] with low <= high, got {list(self.asr_snr_db)}")
+        return self
 
 
 class AgentConfig(Section):
