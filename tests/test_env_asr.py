@@ -96,7 +96,11 @@ def test_misheard_reply_drives_the_dialogue_act_not_the_board():
 def test_bad_asr_settings_raise_one_clear_error(tmp_path):
     with pytest.raises(ValueError, match="asr_snr_db"):
         EnvConfig(asr="channel", asr_snr_db=[30.0, 10.0])
-    with pytest.raises(FileNotFoundError, match="not found"):
-        make_run_env(EnvConfig(asr="channel", asr_channel=str(tmp_path / "none.json")), batch_size=2, seed=0)
+    with pytest.raises(ValueError, match="asr_channel"):
+        EnvConfig(asr="channel", asr_channel=str(tmp_path / "none.json"))
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    with pytest.raises(ValueError, match="not an ASR channel model"):
+        make_run_env(EnvConfig(asr="channel", asr_channel=str(bad)), batch_size=2, seed=0)
     with pytest.raises(ValueError, match="hearing must be"):
         make_env(game="standard", batch_size=(2,), hearing=object())
