@@ -27,7 +27,9 @@ def make_env(
     game slot every episode, ``random`` draws per game). The old spelling ``starts=`` still works with a
     DeprecationWarning. Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
     object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
-    uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100).
+    uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100), ``hearing`` None (the
+    words said, at those uniform confidences) or an object with ``hear(utterances, generator)`` that decides what
+    the robot hears (``speech.hearing.ChannelHearing``; built by ``pipelines.run_env`` for ``env.asr: channel``).
     """
     for name in options:
         if name not in OPTION_NAMES:

@@ -38,7 +38,7 @@ from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests a
     AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
 )
 from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
-from envs.env_options import check_batch, check_confidence, first_of, resolve_opponent
+from envs.env_options import check_batch, check_confidence, check_hearing, first_of, resolve_opponent
 from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 
 STARTS_CHOICES = FIRST_CHOICES  # the deprecated spelling's name, kept for old imports
@@ -70,6 +70,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         starts: str | None = None,
         offer_taken_cells: bool = False,
         dialogues: str = "compact",
+        hearing: Any = None,
     ) -> None:
         batch = check_batch(batch_size)
         check_game(game)
@@ -88,6 +89,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self.cells = self.engine.cells
         self.model = dlg.build_dialogue_model(game, self.dialogues)
         self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
+        self.hearing = check_hearing(hearing)
         for name, value in describe(self.model, self.cells, self.temporal).items():
             setattr(self, name, value)
         for name, spec in make_specs(batch, self.cells, self.n_actions, self.n_features, len(self.model.utterance_texts)).items():
@@ -338,16 +340,19 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             user_move = torch.where(user_moves, cells_taken, -1)
         else:
             user_move = torch.full_like(action, -1)
-        user_act = self._utterance_acts.index_select(0, utterance)
+        if self.hearing is None:  # uniform ASR: the robot hears the words said, at uniform random confidences
+            user_act = self._utterance_acts.index_select(0, utterance)
+            columns = self._utterance_word_columns.index_select(0, utterance)
+            confidence = torch.rand(columns.shape, generator=self._rng)
+            if self._asr_scaled:
+                confidence = confidence * (self.asr_high - self.asr_low) + self.asr_low
+        else:  # the hearing's words; the utterance it understood drives the dialogue, the one said the board
+            user_act, columns, confidence = self._heard(utterance)
         talk = said * N_USER + (user_act + 1)  # 0 for a refused act (silence)
         flags = flags | self._talk_flags.index_select(0, talk)
 
         # the commands and words of the robot's act, with the user's words at their ASR confidence (the larger
         # of the two where both said a word); refused acts leave the last ones (rare with a masked policy)
-        columns = self._utterance_word_columns.index_select(0, utterance)
-        confidence = torch.rand(columns.shape, generator=self._rng)
-        if self._asr_scaled:
-            confidence = confidence * (self.asr_high - self.asr_low) + self.asr_low
         words = self._said_features.index_select(0, said).scatter_reduce_(1, columns, confidence, "amax")
         if not bool(accepted.all()):
             words = torch.where(accepted.unsqueeze(1), words, self.d.words)
@@ -359,6 +364,18 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self._refresh()
 
         return self._output(reward)
+
+    def _heard(self, utterance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """What ``self.hearing`` makes of the user's utterances (B,): the act understood (B,) (-1 silence),
+        the heard words' feature columns (B, H) (the padding column for nothing) and their confidences (B, H)."""
+        words, confidence, understood = self.hearing.hear(utterance, self._rng)
+        n_words = len(self.model.words)
+        if words.dim() != 2 or words.shape != confidence.shape or understood.shape != utterance.shape:
+            raise ValueError(f"hearing {self.hearing!r} returned malformed shapes {tuple(words.shape)}, "
+                             f"{tuple(confidence.shape)}, {tuple(understood.shape)} for {tuple(utterance.shape)} utterances")
+        columns = words.long().clamp(0, n_words) + self.model.template_commands.shape[1]
+        understood = torch.where(understood >= 0, understood, self._silence)
+        return self._utterance_acts.index_select(0, understood), columns, confidence.float()
 
     def _reply_tables(self) -> tuple[torch.Tensor, torch.Tensor]:
         """The simulated user's reply tables (``envs.dialogue_tables.reply_tables``), read each step from

@@ -8,7 +8,8 @@ from typing import Any
 from envs.core import FIRST_CHOICES
 
 # starts: deprecated spelling of first; offer_taken_cells and dialogues: the paper's readings (docs/reproduction.md)
-OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues")
+OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues",
+                "hearing")
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:
@@ -65,3 +66,10 @@ def check_confidence(bounds: Any) -> tuple[float, float]:
     if not 0.0 <= low <= high <= 1.0:
         raise ValueError(f"asr_confidence must satisfy 0 <= low <= high <= 1, got {bounds!r}")
     return low, high
+
+
+def check_hearing(hearing: Any) -> Any:
+    """None (uniform ASR confidences) or an object with ``hear(utterances (B,), generator)`` (``speech.hearing``)."""
+    if hearing is not None and not callable(getattr(hearing, "hear", None)):
+        raise ValueError(f"hearing must be None or an object with a hear(utterances, generator) method, got {hearing!r}")
+    return hearing

@@ -42,6 +42,7 @@ MAX_BATCH = 65_536  # env games in parallel, sampled transitions per update
 MAX_WIDTH = 4_096  # units of one hidden layer (paper: 100 / 150)
 MAX_LAYERS = 16
 MAX_FRAMES = 10_000_000_000  # env frames of one run (paper: 400K)
+EveryFrames = Annotated[int, Field(gt=0, le=MAX_FRAMES)]  # a period in env frames: longer than any run is a typo
 MAX_SEED = 2**32 - 1
 MAX_GAMES = 10_000_000  # test games of one evaluation: hours of CPU already
 Fraction = Annotated[Number, Field(ge=0.0, le=1.0)]
@@ -70,7 +71,22 @@ class EnvConfig(Section):
     # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
+    # what the robot hears of the simulated user: uniform (the words said, uniform random confidences) | channel
+    # (words and confidences sampled from the ASR channel model fitted on TTS -> noise -> pocketsphinx round trips,
+    # docs/speech.md) at an SNR drawn per utterance in asr_snr_db, in asr_noise; asr_channel: None = shipped model
+    asr: Literal["uniform", "channel"] = "uniform"
+    asr_snr_db: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(default_factory=lambda: [10.0, 30.0])
+    asr_noise: Literal["white", "babble"] = "babble"
+    asr_channel: str | None = None
     options: dict[str, Any] = Field(default_factory=dict)  # extra keyword arguments for envs.make_env
+
+    @model_validator(mode="after")
+    def _snr_order(self) -> EnvConfig:
+        if self.asr_snr_db[0] > self.asr_snr_db[1]:
+            raise ValueError(f"env.asr_snr_db must be [low, high] with low <= high, got {list(self.asr_snr_db)}")
+        if self.asr_channel is not None and not Path(self.asr_channel).is_file():
+            raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m speech.fit)")
+        return self
 
 
 class AgentConfig(Section):
@@ -154,7 +170,7 @@ class TrainConfig(Section):
     # stop at collector.total_frames or after this many finished training games, whichever comes first (the paper:
     # "400K learning steps or 20K games, whatever occurred first"); None = frames only
     max_games: Annotated[int, Field(gt=0, le=10**9)] | None = None
-    eval_every_frames: Positive = 10_000  # periodic greedy evaluation (logged with its wall time)
+    eval_every_frames: EveryFrames = 10_000  # periodic greedy evaluation (logged with its wall time)
     num_threads: Annotated[int, Field(gt=0, le=1_024)] = 1  # torch threads: small tensors are fastest on one thread
 
 
@@ -191,7 +207,7 @@ class LoggerConfig(Section):
 class CheckpointConfig(Section):
     """Periodic checkpoints (atomic write + rename) that `--resume` continues from."""
 
-    every_frames: Positive = 10_000
+    every_frames: EveryFrames = 10_000
     keep: Annotated[int, Field(gt=0, le=1_000)] = 2  # periodic checkpoints kept on disk
     save_buffer: bool = True  # include the replay buffer so a resumed run continues with the same experience
 
@@ -201,7 +217,7 @@ class SelfPlayConfig(Section):
 
     enabled: bool = False
     pool_size: Annotated[int, Field(gt=0, le=1_000)] = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
-    snapshot_every_frames: Positive = 5_000  # a snapshot of the learning Q-network every this many frames
+    snapshot_every_frames: EveryFrames = 5_000  # a snapshot of the learning Q-network every this many frames
     random_share: Fraction = 0.2  # share of the user's moves still made by the paper's uniformly random user
     epsilon: Fraction = 0.05  # random moves of a snapshot (keeps self-play games diverse)
 

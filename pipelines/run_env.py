@@ -5,6 +5,7 @@ thing everywhere.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 SEATS = {"first": "robot", "second": "human", "alternate": "alternate"}
@@ -16,6 +17,8 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
     from envs import make_env
 
     readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues}
+    if env_config.asr == "channel":
+        readings["hearing"] = run_hearing(env_config)
     repeated = sorted(set(readings) & set(env_config.options))
     if repeated:
         raise ValueError(f"env.options.{repeated[0]} repeats the config key env.{repeated[0]}: set env.{repeated[0]} only")
@@ -31,6 +34,25 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
         **readings,
         **env_config.options,
     )
+
+
+def run_hearing(env_config: Any):
+    """The env's ears for ``env.asr: channel``: the fitted ASR channel model over this game's utterances."""
+    return _channel_hearing(env_config.game, env_config.dialogues, env_config.asr_channel,
+                            tuple(float(v) for v in env_config.asr_snr_db), env_config.asr_noise)
+
+
+@lru_cache(maxsize=8)
+def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[float, float], noise: str):
+    """Cached: evaluation builds envs every few thousand frames; the hearing holds no state (the env's generator
+    draws its noise), so games and seeds can share one."""
+    from envs.dialogue import build_dialogue_model
+    from speech.channel import DEFAULT_CHANNEL, ChannelModel
+    from speech.hearing import ChannelHearing
+
+    dialogue = build_dialogue_model(game, dialogues)
+    model = ChannelModel.load(DEFAULT_CHANNEL if path is None else path)
+    return ChannelHearing(model, dialogue.utterance_texts, dialogue.words, snr_db, noise)
 
 
 def seat_to_first(seat: str) -> str:
