@@ -159,6 +159,7 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, firs
     if free_move is not None and free_move != config.env.free_move:
         raise ValueError(f"--free-move {free_move} does not match the checkpoint's {config.env.free_move}")
     config.env.options = {**config.env.options, "asr_confidence": (1.0, 1.0)}
+    config.env.asr = "uniform"  # the person types: the ASR channel model is for simulated speech, not for text
     human = human_factory(config.env.game, config.env.free_move)
     env = make_run_env(config.env, batch_size=1, seed=seed, first=first, opponent=human)
     return env, policy, config.agent.name
