@@ -40,7 +40,7 @@ class PlannedRun:
 
 def load_grid(path: str | Path) -> dict[str, Any]:
     """The ablation grid, read through the one safe YAML loader and checked shape by shape (one line each)."""
-    from pipelines.config import read_yaml
+    from fileio.yaml_file import read_yaml
 
     path = Path(path)
     expected = "a YAML mapping with 'suites' and 'grid', e.g. pipelines/configs/ablation.yaml"

@@ -298,7 +298,8 @@ def resolve_run(config_path: str | None, overrides: list[str], *, out: str | Non
                 episodes: int | None, resume: str | None, mcap: bool) -> tuple[RunConfig, Path, bool]:
     """CLI arguments -> (config, run folder, resume?). With --resume the run's own config.yaml is the base.
     --seed and --episodes are validated with the config (same bounds, one line naming the option)."""
-    from pipelines.config import MAX_SEED, apply_overrides, load_config, read_yaml
+    from fileio.yaml_file import read_yaml
+    from pipelines.config import MAX_SEED, apply_overrides, load_config
 
     if seed is not None and not 0 <= seed <= MAX_SEED:
         raise ValueError(f"--seed must be between 0 and {MAX_SEED}, got {seed}")

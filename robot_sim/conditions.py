@@ -158,9 +158,9 @@ def load_conditions(spec: str | Path) -> ConditionRanges:
     path = Path(text)
     if not path.is_file():
         raise FileNotFoundError(f"conditions {text!r} is neither a preset ({', '.join(PRESETS_NAMES)}) nor a YAML file")
-    import yaml
+    from fileio.yaml_file import read_yaml
 
-    data = yaml.safe_load(path.read_text()) or {}
+    data = read_yaml(path, "conditions file", "a YAML mapping: base: <preset> plus fields to override") or {}
     if not isinstance(data, dict):
         raise ValueError(f"conditions file {path} must hold a mapping of fields; got {type(data).__name__}")
     base = data.pop("base", "lab")

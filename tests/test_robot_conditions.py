@@ -158,3 +158,15 @@ def test_unknown_conditions_are_one_line(monkeypatch, capsys):
         main()
     err = capsys.readouterr().err
     assert exit_info.value.code == 2 and "neither a preset" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_conditions_file_that_is_not_yaml_is_named_in_one_line(tmp_path):
+    """Conditions files go through the one safe YAML loader (fileio.yaml_file), so its errors name the file."""
+    binary, broken = tmp_path / "photo.yaml", tmp_path / "broken.yaml"
+    binary.write_bytes(b"\x89PNG\r\n\x1a\n\xd0\xff")
+    broken.write_text("light_intensity: [0.3,\n")
+    for path, problem in ((binary, "is not UTF-8 text"), (broken, "is not valid YAML")):
+        with pytest.raises(ValueError) as error:
+            load_conditions(path)
+        message = str(error.value)
+        assert f"conditions file {str(path)!r} {problem}" in message and "\n" not in message
