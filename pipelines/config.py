@@ -23,7 +23,6 @@ from pydantic.fields import FieldInfo
 
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
-FIRST = ("robot", "human", "alternate", "random")  # who opens a game (one name everywhere: `first`)
 
 
 def _yaml_number(value: Any) -> Any:
