@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,11 +109,59 @@ def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None 
     return planned
 
 
-def _run_local(run: PlannedRun) -> tuple[str, int]:
+class _Children:
+    """The `ncbot train` processes the local pool has running, so a stopped grid stops them too.
+
+    Why: the pool's worker threads block in `wait()`; without this, Ctrl-C or SIGTERM on `ncbot ablate` would wait
+    for the running trainings and then start every queued one (the executor drains its queue on shutdown).
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._running: set[subprocess.Popen] = set()
+        self.stopping = False
+
+    def start(self, command: list[str], log) -> subprocess.Popen | None:
+        with self._lock:
+            if self.stopping:
+                return None
+            child = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
+            self._running.add(child)
+            return child
+
+    def finished(self, child: subprocess.Popen) -> None:
+        with self._lock:
+            self._running.discard(child)
+
+    def stop(self, grace_s: float = 60.0) -> None:
+        """SIGTERM every running training (each saves nothing half-written and exits 143, resumable), then wait."""
+        with self._lock:
+            self.stopping = True
+            running = list(self._running)
+        for child in running:
+            child.terminate()
+        for child in running:
+            try:
+                child.wait(timeout=grace_s)
+            except subprocess.TimeoutExpired:
+                child.kill()
+
+
+_CHILDREN = _Children()
+STOPPED = -15  # the code a run reports when the grid was stopped before it started
+
+
+def _run_local(run: PlannedRun, children: _Children = _CHILDREN) -> tuple[str, int]:
     """One `ncbot train` subprocess; its output goes to the run's train.log."""
     run.run_dir.mkdir(parents=True, exist_ok=True)
     with open(run.run_dir / "train.log", "a") as log:
-        code = subprocess.run(run.command(), stdout=log, stderr=subprocess.STDOUT).returncode
+        child = children.start(run.command(), log)
+        if child is None:
+            return run.name, STOPPED
+        try:
+            code = child.wait()
+        finally:
+            children.finished(child)
     return run.name, code
 
 
@@ -142,12 +191,19 @@ def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, bac
     failed: list[str] = []
     bar = progress_bar(total=len(todo), unit="run", desc="ablate")
     if backend == "local":
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            for future in as_completed([pool.submit(_run_local, run) for run in todo]):
+        children = _Children()
+        pool = ThreadPoolExecutor(max_workers=workers)
+        try:
+            for future in as_completed([pool.submit(_run_local, run, children) for run in todo]):
                 name, code = future.result()
                 if code != 0:
                     failed.append(name)
                 bar.update(1)
+        except BaseException:  # Ctrl-C, SIGTERM (pipelines.errors.Terminated), a bug: stop, leave runs resumable
+            pool.shutdown(wait=False, cancel_futures=True)
+            children.stop()
+            raise
+        pool.shutdown()
     else:
         import ray
 

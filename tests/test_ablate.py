@@ -57,3 +57,31 @@ def test_grid_runs_in_parallel_skips_finished_and_tabulates(tmp_path: Path) -> N
     assert "Proposed + temporal" in text and "0.9980" in text  # the paper's task success beside ours
     assert (tmp_path / "curves_fast_standard.png").stat().st_size > 0
 
+
+
+def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None:
+    """A stopped grid must not keep training: SIGTERM reaches the running `ncbot train` (resumable, exit 143) and no
+    queued run starts (the thread pool would otherwise drain its queue on shutdown)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    base = write_tiny_config(tmp_path, collector={"total_frames": 10_000_000}, eval={"games": 20, "periodic_games": 10})
+    grid = {"runs_dir": str(tmp_path / "runs"), "suites": {"fast": {"standard": {"config": base.name}}},
+            "grid": {"suite": ["fast"], "game": ["standard"], "agent": ["proposed"], "temporal": [False]}}
+    (tmp_path / "grid.yaml").write_text(yaml.safe_dump(grid))
+    grid_run = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ablate", str(tmp_path / "grid.yaml"),
+                                 "--seeds", "2", "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+    first = tmp_path / "runs" / "fast" / "standard" / "proposed-notemporal" / "seed0"
+    deadline = time.monotonic() + 120
+    while not (first / "scalars").is_dir() and time.monotonic() < deadline:  # the training is under way
+        time.sleep(0.2)
+    assert (first / "scalars").is_dir(), "the first training never started"
+    os.kill(grid_run.pid, signal.SIGTERM)
+    _, err = grid_run.communicate(timeout=90)
+    assert grid_run.returncode == 143, err
+    assert "terminated (SIGTERM)" in (first / "train.log").read_text()  # the child was stopped, not orphaned
+    assert not (first.parent / "seed1").exists()  # the queued run never started
