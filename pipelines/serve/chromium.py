@@ -152,7 +152,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--url", default="http://127.0.0.1:8000/")
     parser.add_argument("--games", type=int, default=3)
-    parser.add_argument("--screenshots", type=Path, default=None, help="folder for start.png, mid-game.png, end.png")
+    parser.add_argument("--screenshots", type=Path, default=None, help="folder for start.png, answer.png, mid-game.png, end.png")
     args = parser.parse_args()
     shots = args.screenshots
     if shots is not None:
@@ -167,8 +167,22 @@ def main() -> None:
                 time.sleep(0.5)  # let the latest camera frame arrive
                 d.save_screenshot(str(shots / "mid-game.png"))
 
+        def answer(d, n: int) -> None:  # a cooperative person who types the answer to "shall we play?"
+            from selenium.webdriver.common.by import By
+
+            if d.find_element(By.ID, "robot-says").text.startswith("Would you like to play"):
+                box = d.find_element(By.ID, "say-text")
+                box.send_keys("yes please")
+                if shots is not None and not outcomes:
+                    time.sleep(0.5)
+                    d.save_screenshot(str(shots / "answer.png"))
+                d.find_element(By.ID, "say-button").click()
+                wait_for(d, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the typed answer")
+            else:
+                answer_with_button(d)
+
         for game in range(args.games):
-            outcomes.append(play_to_end(driver, on_turn=photograph))
+            outcomes.append(play_to_end(driver, on_turn=photograph, answer=answer))
             wait_for(driver, lambda d: d.find_element(By.ID, "play-again").is_displayed(), what="the end screen")
             if shots is not None and game == 0:
                 time.sleep(0.5)
