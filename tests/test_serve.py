@@ -105,13 +105,21 @@ def test_forged_and_junk_requests_get_errors_and_change_nothing(tmp_path):
             await wb.send(json.dumps({"type": "move", "cell": free}))
             after = await _state(wb, lambda m: m["board"][free] == "o", timeout=120)
             assert after["board"][taken] == "x"
+        # A person who never answers: after --answer-seconds the robot hears silence and goes on talking.
+        c = httpx.post(url + "/api/session", json={}).json()["session"]
+        async with websockets.connect(f"{ws_url}/ws/{c}", max_size=None) as wc:
+            await wc.send(json.dumps({"type": "start", "first": "robot"}))
+            asked = await _state(wc, lambda m: m["answering"])
+            silent = await _state(wc, lambda m: "said nothing" in m["heard"], timeout=60)
+            assert not silent["answering"]
+            await _state(wc, lambda m: m["says_seq"] > asked["says_seq"], timeout=60)
         # A closed socket for an unknown session: a clear error, then closed.
         async with websockets.connect(f"{ws_url}/ws/{'0' * 16}") as ws:
             message = json.loads(await ws.recv())
             assert message["type"] == "error" and "unknown" in message["error"]
         assert httpx.get(url + "/healthz").json()["ok"]
 
-    with running_server(out, "--idle-seconds", "30") as url:
+    with running_server(out, "--idle-seconds", "30", "--answer-seconds", "3") as url:
         asyncio.run(scenario(url))
 
 
