@@ -119,7 +119,8 @@ def test_forged_and_junk_requests_get_errors_and_change_nothing(tmp_path):
             assert message["type"] == "error" and "unknown" in message["error"]
         assert httpx.get(url + "/healthz").json()["ok"]
 
-    with running_server(out, "--idle-seconds", "30", "--answer-seconds", "3") as url:
+    # --no-parallel: the one-simulator-lock mode stays tested (the other tests run the default, parallel sessions)
+    with running_server(out, "--idle-seconds", "30", "--answer-seconds", "3", "--no-parallel") as url:
         asyncio.run(scenario(url))
 
 
