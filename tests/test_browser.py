@@ -3,6 +3,7 @@ with answers typed and pressed (a "no" that changes what the robot says next, te
 on a taken cell and a reload mid-game; the robot learns every move through its camera."""
 from __future__ import annotations
 
+import httpx
 import pytest
 from selenium.webdriver.common.by import By
 
@@ -81,6 +82,11 @@ def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
             assert seen["acts"] == ["yes", "no", "silence"]  # only answers that fit "shall we play?"
             assert seen["after_no"][1] not in (MOVE_LINE, "Yes, let's play!")  # "no" never starts the game
             assert page_latencies(driver), "the page timed no click-to-reply"
+            voice = driver.execute_script("return window.ncbotAudio")  # espeak-ng is installed here: every line spoken
+            assert voice and httpx.get(url + voice[0]).content[:4] == b"RIFF"
+            driver.find_element(By.ID, "mute").click()
+            assert driver.find_element(By.ID, "mute").text.startswith("Unmute")
+            assert driver.execute_script("return localStorage.getItem('ncbot-muted')") == "1"
         finally:
             driver.quit()
         study = summarize_study(out)
