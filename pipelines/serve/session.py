@@ -341,8 +341,8 @@ class Session:
         self._publish_state()
 
     def _wait(self, source: queue.Queue) -> Any:
-        """Give up the simulator and wait for the person's next item on `source` (None: the session closed);
-        returns None after `answer_seconds` when `source` is the answers' queue (the person stayed silent)."""
+        """Give up the simulator and wait for the person's next item on `source` (None: the session closed). On
+        the answers' queue, after `answer_seconds` without an answer the person said nothing (a silence answer)."""
         self._sim.release()
         waited = 0.0
         try:
