@@ -129,12 +129,19 @@ def serve(
     idle_seconds: float = typer.Option(300.0, help="Close a session (and finish its log) after this long without a message."),
     max_sessions: int = typer.Option(8, min=1, help="Sessions at once; more get a 'server full' error."),
     audio: bool = typer.Option(True, help="Speak the robot's utterances as WAV (speech.tts) when an engine is installed."),
-    seed: int = typer.Option(0, help="Seed of the look-ahead policy and the robot's marks."),
+    seed: int = typer.Option(0, help="Seed of the look-ahead policy, the robot's marks and the conditions."),
+    conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
+    answer_seconds: float = typer.Option(30.0, help="Seconds the robot waits for the person's answer before it hears silence."),
+    parallel: bool = typer.Option(True, help="Sessions render at once (--no-parallel: one simulator lock for all)."),
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
+    from robot_sim.conditions import load_conditions
     from robot_sim.scene import check_game
 
     check_game(game)
+    load_conditions(conditions)  # a bad preset or file: one line now, not a failed game later
+    if answer_seconds <= 0:
+        raise ValueError(f"--answer-seconds must be positive; got {answer_seconds}")
     if checkpoint is not None and not checkpoint.is_file():
         raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
     if idle_seconds <= 0:
@@ -148,8 +155,9 @@ def serve(
     torch.set_num_threads(1)
     config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
                          camera_width=width, camera_height=height, idle_seconds=idle_seconds,
-                         max_sessions=max_sessions, audio=audio, seed=seed)
-    typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, logs in {out})", err=True)
+                         max_sessions=max_sessions, audio=audio, seed=seed, conditions=conditions,
+                         answer_seconds=answer_seconds, parallel=parallel)
+    typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})", err=True)
     try:
         run_server(config, host=host, port=port)
     except SimulatorUnavailable as error:

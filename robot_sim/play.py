@@ -69,13 +69,18 @@ class RobotGameRunner:
     def __init__(self, config: RobotPlayConfig, policy: Callable, out_dir: str | Path | None = None,
                  logger: Any = None, human_cell: Callable[[Any, int], int] | None = None,
                  on_frame: Callable[[np.ndarray, float], None] | None = None,
-                 episode_tags: dict[str, Any] | None = None) -> None:
+                 episode_tags: dict[str, Any] | None = None,
+                 user_reply: Callable[[Any, int], None] | None = None) -> None:
         """`human_cell(true_state, human_mark)` lets a real person choose the cell the simulated hand draws
         (`ncbot robot serve`: a click in the browser) instead of the simulated opponent model; the robot still
         learns the move only through its camera. `on_frame` sees every rendered mouth-camera frame;
-        `episode_tags` go into every logged `/episode` summary (e.g. the browser session id)."""
+        `episode_tags` go into every logged `/episode` summary (e.g. the browser session id).
+        `user_reply(env, action)` runs after each robot act and before the env steps, so a real person's answer
+        (serve: a button or typed words) replaces the env's simulated user's reply; its words are then heard
+        at confidence 1 (as `ncbot play` does for typed text)."""
         config.validate()
         self.human_cell = human_cell
+        self.user_reply = user_reply
         self.on_frame = on_frame
         self.episode_tags = dict(episode_tags or {})
         self.config = config
@@ -238,7 +243,9 @@ class RobotGameRunner:
         first = cfg.first
         if first == "alternate":
             first = "robot" if index % 2 == 0 else "human"
-        env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent)
+        heard = {"asr_confidence": (1.0, 1.0)} if self.user_reply is not None else {}
+        env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent,
+                       **heard)
         td = env.reset()
         robot_first = bool(td["robot_first"].item())
         self._robot_mark = 1 if robot_first else 2
@@ -262,6 +269,8 @@ class RobotGameRunner:
                 record.robot_move_cpu_seconds.append(time.process_time() - cpu_started)
             else:
                 record.dialogue_act_seconds.append(time.perf_counter() - started)
+            if self.user_reply is not None:
+                self.user_reply(env, action)
             td = env.step(td)
             record.actions += 1
             if self.logger is not None:

@@ -1,8 +1,8 @@
 """The web app of `ncbot robot serve` (FastAPI + uvicorn): the page, one websocket per tab, sessions, idle reaper.
 
 Protocol (JSON text frames from the page, each may carry `"session"`; a mismatch is an error):
-`{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "act", "act": NAME}`,
-`{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends
+`{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "act", "act": NAME}` (an
+answer button), `{"type": "say", "text": "..."}` (a typed answer), `{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends
 `{"type": "state", ...}` (the whole page state), `{"type": "audio", "url": ...}`, `{"type": "error", "error": ...}` and camera frames
 as binary JPEG messages. Any bad request gets an error and changes nothing; the server never dies from a client.
 """
@@ -46,11 +46,13 @@ def load_policy(config: ServeConfig) -> tuple[Callable, str]:
 
 def warm_up(config: ServeConfig) -> None:
     """Build and render one scene so the first person does not wait for shader start-up (seconds on lavapipe)."""
+    from robot_sim.conditions import load_conditions
     from robot_sim.scene import PepperScene, SceneConfig
 
     with SIM_LOCK:
         scene = PepperScene(SceneConfig(game=config.game, camera_width=config.camera_width,
-                                        camera_height=config.camera_height))
+                                        camera_height=config.camera_height,
+                                        conditions=load_conditions(config.conditions), conditions_seed=config.seed))
         scene.render()
         scene.render_overview(config.overview_width, config.overview_height)
 
@@ -122,7 +124,7 @@ def create_app(config: ServeConfig):
     @app.get("/healthz")
     async def health() -> dict[str, Any]:
         return {"ok": True, "ready": ready.is_set(), "sessions": len(sessions.live), "game": config.game,
-                "agent": agent_name}
+                "agent": agent_name, "conditions": config.conditions, "parallel": config.parallel}
 
     @app.post("/api/session")
     async def new_session(request: Request) -> dict[str, Any]:
@@ -239,6 +241,8 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
             session.move(message.get("cell"))
         elif kind == "act":
             session.act(message.get("act"))
+        elif kind == "say":
+            session.say(message.get("text"))
         elif kind == "view":
             session.set_view(message.get("view"))
             return session.state_message()
@@ -250,7 +254,7 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
         elif kind == "ping":
             return {"type": "pong"}
         else:
-            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, act, view, again, close, ping")
+            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, act, say, view, again, close, ping")
         return None
     except SessionError as error:
         return {"type": "error", "error": str(error), "request": request}

@@ -14,7 +14,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from pipelines.serve.answers import PREFERRED_ACTS
+
 OUTCOMES = ("win", "loss", "draw")
+ANSWERING = "Answer the robot"
 
 
 def open_chromium(width: int = 1100, height: int = 900):
@@ -65,6 +68,33 @@ def click_cell(driver, cell: int) -> None:
     driver.find_element(By.CSS_SELECTOR, f'[data-cell="{cell}"]').click()
 
 
+def enabled_acts(driver) -> list[str]:
+    """The answer buttons the page enables now (`data-act`)."""
+    from selenium.webdriver.common.by import By
+
+    return [b.get_attribute("data-act") for b in driver.find_elements(By.CSS_SELECTOR, "[data-act]") if b.is_enabled()]
+
+
+def answer_with_button(driver, act: str | None = None) -> str:
+    """Press `act` (default: the first enabled of PREFERRED_ACTS) and wait until the robot took it."""
+    from selenium.webdriver.common.by import By
+
+    act = act or next(a for a in PREFERRED_ACTS if a in enabled_acts(driver))
+    driver.find_element(By.CSS_SELECTOR, f'[data-act="{act}"]').click()
+    wait_for(driver, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the answer to be taken")
+    return act
+
+
+def type_answer(driver, text: str) -> None:
+    """Type `text` in the answer box, press Say and wait until the robot took it."""
+    from selenium.webdriver.common.by import By
+
+    box = driver.find_element(By.ID, "say-text")
+    box.send_keys(text)
+    driver.find_element(By.ID, "say-button").click()
+    wait_for(driver, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the typed answer to be taken")
+
+
 def start_game(driver, url: str, first: str = "robot", screenshot: Path | None = None) -> None:
     """Open the page, wait for the start screen (optionally photograph it) and press Start."""
     from selenium.webdriver.common.by import By
@@ -78,19 +108,25 @@ def start_game(driver, url: str, first: str = "robot", screenshot: Path | None =
     driver.find_element(By.ID, "start-button").click()
 
 
-def play_to_end(driver, choose=None, on_turn=None, timeout: float = 300.0) -> str:
-    """Click a cell on every 'Your turn' until the status ends with an outcome; returns it (the person's side).
+def play_to_end(driver, choose=None, on_turn=None, answer=None, timeout: float = 300.0) -> str:
+    """Click a cell on every 'Your turn' and answer the robot whenever it waits for an answer, until the status
+    ends with an outcome; returns it (the person's side).
 
     `choose(board) -> cell` picks the cell (default: the first free one); `on_turn(driver, turn)` runs before
-    each click (tests use it to click a taken cell or reload the page).
+    each click (tests use it to click a taken cell or reload the page); `answer(driver, n)` answers the n-th
+    time the robot waits (default: `answer_with_button`, a cooperative person).
     """
     deadline = time.monotonic() + timeout
-    turn = 0
+    turn = answers = 0
     while time.monotonic() < deadline:
-        text = wait_for(driver, lambda d: (s := status(d)) and (s.startswith("Your turn") or s.endswith(OUTCOMES)) and s,
-                        timeout=max(1.0, deadline - time.monotonic()), what="your turn or the game's end")
+        text = wait_for(driver, lambda d: (s := status(d)) and (s.startswith(("Your turn", ANSWERING)) or s.endswith(OUTCOMES)) and s,
+                        timeout=max(1.0, deadline - time.monotonic()), what="your turn, an answer or the game's end")
         if text.endswith(OUTCOMES):
             return text.rsplit(" ", 1)[-1]
+        if text.startswith(ANSWERING):
+            (answer or (lambda d, n: answer_with_button(d)))(driver, answers)
+            answers += 1
+            continue
         if on_turn is not None:
             on_turn(driver, turn)
             if not status(driver).startswith("Your turn"):
@@ -116,7 +152,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--url", default="http://127.0.0.1:8000/")
     parser.add_argument("--games", type=int, default=3)
-    parser.add_argument("--screenshots", type=Path, default=None, help="folder for start.png, mid-game.png, end.png")
+    parser.add_argument("--screenshots", type=Path, default=None, help="folder for start.png, answer.png, mid-game.png, end.png")
     args = parser.parse_args()
     shots = args.screenshots
     if shots is not None:
@@ -131,8 +167,22 @@ def main() -> None:
                 time.sleep(0.5)  # let the latest camera frame arrive
                 d.save_screenshot(str(shots / "mid-game.png"))
 
+        def answer(d, n: int) -> None:  # a cooperative person who types the answer to "shall we play?"
+            from selenium.webdriver.common.by import By
+
+            if d.find_element(By.ID, "robot-says").text.startswith("Would you like to play"):
+                box = d.find_element(By.ID, "say-text")
+                box.send_keys("yes please")
+                if shots is not None and not outcomes:
+                    time.sleep(0.5)
+                    d.save_screenshot(str(shots / "answer.png"))
+                d.find_element(By.ID, "say-button").click()
+                wait_for(d, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the typed answer")
+            else:
+                answer_with_button(d)
+
         for game in range(args.games):
-            outcomes.append(play_to_end(driver, on_turn=photograph))
+            outcomes.append(play_to_end(driver, on_turn=photograph, answer=answer))
             wait_for(driver, lambda d: d.find_element(By.ID, "play-again").is_displayed(), what="the end screen")
             if shots is not None and game == 0:
                 time.sleep(0.5)

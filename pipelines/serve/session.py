@@ -3,9 +3,10 @@
 Why a thread per session: `robot_sim.play.RobotGameRunner` is a blocking loop (policy, speech, motion, and
 inside the env's step the human's turn). The person's click reaches it through the runner's `human_cell`
 hook: the thread waits for the click, the simulated hand draws that mark into the scene, and the robot learns
-the move only through its camera and the move recogniser, exactly as in `ncbot robot play`. SAPIEN work of
-all sessions is serialised by one process-wide lock (lavapipe rendering is not safe to interleave), which the
-thread gives up while it waits for the person.
+the move only through its camera and the move recogniser, exactly as in `ncbot robot play`. The person's
+answers (buttons, typed words) reach it through the runner's `user_reply` hook and go through the env as the
+user's dialogue act (`pipelines.serve.answers`). Sessions render in parallel (each has its own SAPIEN scene and
+render world; `ServeConfig.parallel`), or, with `parallel=False`, one at a time under one process-wide lock.
 """
 from __future__ import annotations
 
@@ -22,12 +23,11 @@ from typing import Any
 
 import numpy as np
 
-#: Serialises every SAPIEN / policy call of every session in this process.
+#: Serial mode (`parallel=False`): serialises every SAPIEN / policy call of every session in this process.
 SIM_LOCK = threading.Lock()
+#: Parallel mode: the policy is one object shared by every session, so its calls still take turns (~ms each).
+POLICY_LOCK = threading.Lock()
 FIRST_CHOICES = ("robot", "human")
-#: The person's dialogue act buttons (the env's user acts, shown as plain words), logged on `/dialogue`.
-PERSON_ACTS = {"hello": "Salutation(greeting)", "yes": "Reply(playGame=yes)", "no": "Reply(playGame=no)",
-               "feedback": "Provide(feedback)", "bye": "Salutation(closing)"}
 PERSON_SIDE = {"win": "loss", "loss": "win", "draw": "draw", "unfinished": "unfinished"}
 
 
@@ -57,6 +57,12 @@ class ServeConfig:
     frame_interval: float = 0.3
     audio: bool = True
     seed: int = 0
+    #: The field's conditions (robot_sim.conditions): lab, office, atrium, random, or a YAML file of ranges.
+    conditions: str = "lab"
+    #: Seconds the robot waits for the person's answer to an utterance before it takes silence.
+    answer_seconds: float = 30.0
+    #: Sessions render at once (own scenes); False: one simulator lock for the whole process.
+    parallel: bool = True
 
 
 @dataclass
@@ -73,6 +79,9 @@ class Snapshot:
     games: int = 0
     mark: str = ""
     legal: list[int] = field(default_factory=list)  # cells the person may click now (Ultimate: one small board)
+    answering: bool = False      # the robot waits for the person's answer (buttons / typed words)
+    acts: list[str] = field(default_factory=list)  # the answer buttons that make sense now (`data-act`)
+    heard: str = ""              # what the robot understood of the person's last answer
 
 
 class Session:
@@ -92,6 +101,10 @@ class Session:
         self.outcomes: list[str] = []
         self.dialogue: list[dict[str, Any]] = []
         self._moves: queue.Queue[int | None] = queue.Queue()
+        self._answers: queue.Queue[dict[str, Any] | None] = queue.Queue()
+        self._answer_model = None  # pipelines.serve.answers.EnvAnswers of the game being played
+        self._answer_type = 0  # the act type the person is answering
+        self._sim = SIM_LOCK if not config.parallel else threading.Lock()
         self._commands: queue.Queue[str | None] = queue.Queue()
         self._awaiting = False
         self._legal: list[int] = []
@@ -103,8 +116,7 @@ class Session:
         self.dir = Path(config.out) / f"session-{self.id}"
         self._thread: threading.Thread | None = None
         self._runner = None
-        self._utterances = 0
-        self._pending_acts: list[dict[str, Any]] = []
+        self._voice = None
 
     # ------------------------------------------------------------------ what clients call (event-loop thread)
     def subscribe(self, loop: asyncio.AbstractEventLoop) -> asyncio.Queue:
@@ -123,7 +135,7 @@ class Session:
 
     def idle_for(self, now: float) -> float:
         """Seconds the session has waited for the person (0 while the robot acts or waits for the simulator)."""
-        waiting = self._awaiting or self.snapshot.screen in ("start", "over")
+        waiting = self._awaiting or self.snapshot.answering or self.snapshot.screen in ("start", "over")
         return now - self.last_seen if waiting else 0.0
 
     def start(self, first: Any, participant: Any = "") -> None:
@@ -169,17 +181,40 @@ class Session:
         self._moves.put(cell)
 
     def act(self, name: Any) -> None:
-        """A dialogue act button: logged with the game (the env's simulated ASR still carries the game's dialogue)."""
-        if not isinstance(name, str) or name not in PERSON_ACTS:
-            raise SessionError(f"unknown dialogue act {name!r}; acts: {', '.join(PERSON_ACTS)}")
-        from envs.dialogue import USER_ACTS
+        """An answer button: the user act it stands for goes through the env (only buttons that fit now)."""
+        from pipelines.serve.answers import BUTTONS
 
-        turn = {"speaker": "user", "act": USER_ACTS.index(PERSON_ACTS[name]), "act_name": PERSON_ACTS[name],
-                "text": name, "move": -1, "source": "browser", "session": self.id,
-                "t": round(time.monotonic() - self.created, 3)}
-        self.dialogue.append(turn)
-        with self._lock:  # written to the log by the game thread (the logger is not thread safe)
-            self._pending_acts.append(turn)
+        if not isinstance(name, str) or name not in BUTTONS:
+            raise SessionError(f"unknown dialogue act {str(name)[:40]!r}; acts: {', '.join(BUTTONS)}")
+        with self._lock:
+            self._check_answering()
+            if name not in self.snapshot.acts:
+                raise SessionError(f"{name!r} does not answer what the robot said; answers now: {', '.join(self.snapshot.acts)}")
+            utterance = self._answer_model.button_utterance(name)
+            self._take_answer({"input": "button", "text": name, "utterance": utterance})
+
+    def say(self, text: Any) -> None:
+        """A typed answer: understood on the server (words the env does not know: silence, not an error)."""
+        from pipelines.serve.answers import MAX_TYPED
+
+        if not isinstance(text, str):
+            raise SessionError("text must be a string")
+        text = " ".join(text.split())
+        if len(text) > MAX_TYPED:
+            raise SessionError(f"the answer is too long ({len(text)} characters; at most {MAX_TYPED})")
+        with self._lock:
+            self._check_answering()
+            utterance = self._answer_model.understand(text, self._answer_type) if text else None
+            self._take_answer({"input": "typed", "text": text, "utterance": utterance})
+
+    def _check_answering(self) -> None:
+        if not self.snapshot.answering or self._answer_model is None:
+            raise SessionError("the robot is not waiting for an answer now")
+
+    def _take_answer(self, answer: dict[str, Any]) -> None:
+        """(holding self._lock) Close the answer window and hand the answer to the game thread."""
+        self.snapshot = replace(self.snapshot, answering=False, acts=[], status="The robot is listening.")
+        self._answers.put(answer)
 
     def set_view(self, view: Any) -> None:
         if view not in ("overview", "mouth"):
@@ -192,6 +227,7 @@ class Session:
             return
         self.closed.set()
         self._moves.put(None)
+        self._answers.put(None)
         self._commands.put(None)
         self.snapshot = replace(self.snapshot, screen="closed", status="This session was closed.", your_turn=False)
         self._publish_state()
@@ -234,25 +270,30 @@ class Session:
         import torch
 
         from logs import EpisodeLogger
+        from pipelines.serve.voice import BroadcastSpeaker, Voice
         from robot_sim.human import HumanConfig
         from robot_sim.play import RobotGameRunner, RobotPlayConfig
 
         torch.set_num_threads(1)
         config = RobotPlayConfig(game=self.config.game, games=1, seed=self.config.seed, first=self._first,
                                  camera_width=self.config.camera_width, camera_height=self.config.camera_height,
-                                 human=HumanConfig(), agent_name=self.agent_name)
+                                 human=HumanConfig(), agent_name=self.agent_name, conditions=self.config.conditions)
         tags = {"session": self.id, "participant": self.participant}
         logger = EpisodeLogger(self.dir, run_info={"robot_serve": {**tags, "game": self.config.game,
-                                                                   "agent": self.agent_name}})
+                                                                   "agent": self.agent_name,
+                                                                   "conditions": self.config.conditions}})
+        if self.config.audio:
+            self._voice = Voice(self.dir / "audio", f"/audio/{self.id}",
+                                lambda url, seq: self._publish({"type": "audio", "url": url, "seq": seq}))
         index = 0
         try:
-            with torch.no_grad():
-                runner = RobotGameRunner(config, self.policy, out_dir=self.dir, logger=logger,
+            with torch.no_grad(), self._sim:
+                runner = RobotGameRunner(config, self._policy, out_dir=self.dir, logger=logger,
                                          human_cell=self._wait_for_click, on_frame=self._frame,
-                                         episode_tags=tags)
-                runner.speaker = _BroadcastSpeaker(self)
+                                         episode_tags=tags, user_reply=self._wait_for_answer)
+                runner.speaker = BroadcastSpeaker(self.utterance, self.config.audio)
                 self._runner = runner
-                while (command := self._commands.get()) is not None and not self.closed.is_set():
+                while self._command() is not None and not self.closed.is_set():
                     self._play_one(runner, index)
                     index += 1
         except SessionClosed:
@@ -260,33 +301,71 @@ class Session:
         except Exception as error:  # a broken game must end this session, never the server
             traceback.print_exc()  # the server's log keeps the cause; the page gets one line
             self.snapshot = replace(self.snapshot, screen="over", status=f"The robot failed: {error}. Outcome: unfinished",
-                                    outcome="unfinished", your_turn=False)
+                                    outcome="unfinished", your_turn=False, answering=False, acts=[])
             self._publish_state()
         finally:
-            with SIM_LOCK:
+            with self._sim:
                 logger.close()
+            if self._voice is not None:
+                self._voice.close()
+
+    def _policy(self, td):
+        if self._sim is SIM_LOCK:
+            return self.policy(td)
+        with POLICY_LOCK:
+            return self.policy(td)
+
+    def _command(self) -> str | None:
+        """The next command (`play`), the simulator given up while the person is on the end screen."""
+        self._sim.release()
+        try:
+            return self._commands.get()
+        finally:
+            self._sim.acquire()
 
     def _play_one(self, runner, index: int) -> None:
         robot_mark = "x" if self._first == "robot" else "o"
         person_mark = "o" if robot_mark == "x" else "x"
         self.snapshot = replace(self.snapshot, screen="game", board=[""] * self.config_cells, outcome=None,
-                                status="The robot's turn.", your_turn=False, mark=person_mark)
+                                status="The robot's turn.", your_turn=False, mark=person_mark, heard="")
         self._publish_state()
-        with SIM_LOCK:
-            record = runner.play_game(index)
-            self._push_frame(runner, force=True)
-            self._log_person_acts(runner)
-            runner.logger.flush()  # the finished game is on disk now, not when the session closes
+        record = runner.play_game(index)
+        self._push_frame(runner, force=True)
+        runner.logger.flush()  # the finished game is on disk now, not when the session closes
         outcome = PERSON_SIDE[record.outcome]
         self.outcomes.append(outcome)
         self._refresh_board(runner)
         self.touch()
-        self.snapshot = replace(self.snapshot, screen="over", outcome=outcome, your_turn=False,
+        self.snapshot = replace(self.snapshot, screen="over", outcome=outcome, your_turn=False, answering=False, acts=[],
                                 games=self.snapshot.games + 1, status=f"Game over. Outcome: {outcome}")
         self._publish_state()
 
+    def _wait(self, source: queue.Queue) -> Any:
+        """Give up the simulator and wait for the person's next item on `source` (None: the session closed). On
+        the answers' queue, after `answer_seconds` without an answer the person said nothing (a silence answer)."""
+        self._sim.release()
+        waited = 0.0
+        try:
+            while True:
+                try:
+                    item = source.get(timeout=1.0)
+                except queue.Empty:
+                    if self.closed.is_set():
+                        raise SessionClosed(self.id) from None
+                    waited += 1.0
+                    if source is self._answers and waited >= self.config.answer_seconds:
+                        with self._lock:
+                            if self.snapshot.answering:  # nobody answered meanwhile: silence
+                                self._take_answer({"input": "timeout", "text": "", "utterance": None})
+                    continue
+                if item is None:
+                    raise SessionClosed(self.id)
+                return item
+        finally:
+            self._sim.acquire()
+
     def _wait_for_click(self, true_state, human_mark: int) -> int:
-        """The runner's `human_cell` hook: publish 'your turn', give up the sim lock, wait for a valid click."""
+        """The runner's `human_cell` hook: publish 'your turn', give up the simulator, wait for a valid click."""
         runner = self._runner
         self._legal = list(runner.rules.legal(true_state))
         self._refresh_board(runner, true_state)
@@ -295,30 +374,36 @@ class Session:
         self.touch()  # idle time counts from the robot's last action, not the person's last click
         self.snapshot = replace(self.snapshot, your_turn=True, status="Your turn: click a cell.", legal=list(self._legal))
         self._publish_state()
-        self._log_person_acts(runner)
-        SIM_LOCK.release()
         try:
-            while True:
-                try:
-                    cell = self._moves.get(timeout=1.0)
-                except queue.Empty:
-                    if self.closed.is_set():
-                        raise SessionClosed(self.id) from None
-                    continue
-                if cell is None:
-                    raise SessionClosed(self.id)
-                return cell
+            return self._wait(self._moves)
         finally:
             self._awaiting = False
-            SIM_LOCK.acquire()
 
-    def _log_person_acts(self, runner) -> None:
+    def _wait_for_answer(self, env, action: int) -> None:
+        """The runner's `user_reply` hook: the person answers the robot's utterance; the env hears it as the user."""
+        from pipelines.serve.answers import EnvAnswers, act_type_of, answer_turn, needs_answer
+
+        if self._answer_model is None or self._answer_model.replies.model is not env.model:
+            self._answer_model = EnvAnswers(env)  # a new game: a new env
+        model, act_type = self._answer_model, act_type_of(env, action)
+        if not needs_answer(act_type):
+            model.set_without_asking(act_type)
+            return
+        self._answer_type = act_type
+        self.touch()
         with self._lock:
-            acts, self._pending_acts = self._pending_acts, []
-        record = getattr(runner, "_record", None)  # the game being played: its index is the log's episode id
-        for turn in acts:
-            runner.logger.log_dialogue({**turn, "episode": record.index if record else -1,
-                                        "step": record.actions if record else -1})
+            self.snapshot = replace(self.snapshot, answering=True, acts=model.buttons_for(act_type), your_turn=False,
+                                    status="Answer the robot: press a button or type, or say nothing.")
+        self._publish_state()
+        answer = self._wait(self._answers)
+        model.set(act_type, answer["utterance"])
+        record = getattr(self._runner, "_record", None)  # the game being played: its index is the log's episode id
+        turn, heard = answer_turn(model, answer, record)
+        turn.update(session=self.id, t=round(time.monotonic() - self.created, 3))
+        self.snapshot = replace(self.snapshot, heard=heard, status="The robot's turn.")
+        self._publish_state()
+        self.dialogue.append(turn)
+        self._runner.logger.log_dialogue(turn)
 
     def _refresh_board(self, runner, state=None) -> None:
         state = state if state is not None else runner.true_state
@@ -326,7 +411,7 @@ class Session:
         self.snapshot = replace(self.snapshot, board=[marks[int(v)] for v in state.board])
 
     def _frame(self, frame: np.ndarray, t: float) -> None:
-        """The runner's `on_frame` hook (game thread, sim lock held): push a JPEG to the tab now and then."""
+        """The runner's `on_frame` hook (game thread, simulator held): push a JPEG to the tab now and then."""
         if self._runner is not None and time.perf_counter() - self._last_frame_push >= self.config.frame_interval:
             self._push_frame(self._runner, frame=frame)
 
@@ -348,7 +433,7 @@ class Session:
             self._publish({"type": "frame", "jpeg": self.latest_jpeg}, droppable=True)
 
     def utterance(self, text: str) -> None:
-        """The robot said `text`: show it, time the reply to the last click, synthesise audio when possible."""
+        """The robot said `text`: show it, time the reply to the last click, queue its audio."""
         if self._click_time is not None:
             self.latencies.append(time.perf_counter() - self._click_time)
             self._click_time = None
@@ -357,36 +442,5 @@ class Session:
                                 status="The robot's turn.", your_turn=False)
         self._publish_state()
         self.dialogue.append({"speaker": "robot", "text": text, "t": round(time.monotonic() - self.created, 3)})
-        if self.config.audio and text:
-            url = self._speak(text)
-            if url:
-                self._publish({"type": "audio", "url": url, "seq": self.snapshot.says_seq})
-
-    def _speak(self, text: str) -> str | None:
-        try:
-            from speech.audio import write_wav
-            from speech.tts import ROBOT_VOICE, speak
-
-            samples = speak(text, ROBOT_VOICE)
-        except (ValueError, OSError, RuntimeError):
-            return None  # no TTS engine here: text alone
-        name = f"utterance-{self._utterances:04d}.wav"
-        self._utterances += 1
-        write_wav(self.dir / "audio" / name, samples)
-        return f"/audio/{self.id}/{name}"
-
-
-class _BroadcastSpeaker:
-    """Stands in for robot_sim's Speaker: keeps the text (as it does) and sends it to the session's tabs."""
-
-    def __init__(self, session: Session) -> None:
-        self.session = session
-        self.said: list[str] = []
-
-    @property
-    def has_audio(self) -> bool:
-        return self.session.config.audio
-
-    def say(self, text: str) -> None:
-        self.said.append(text)
-        self.session.utterance(text)
+        if self._voice is not None:
+            self._voice.say(text, self.snapshot.says_seq)

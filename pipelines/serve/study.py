@@ -3,7 +3,8 @@ protocol as the page, and the click-to-reply latency is timed on the client side
 
 Why: the human evaluation needs a rehearsal (does the kit log what the analysis needs?) and a load figure
 (several people at once) without recruiting anyone. Each scripted person clicks a random free cell (seeded),
-presses one dialogue button per game, and plays `games` games in one session.
+answers the robot with the first button that fits (a cooperative person: yes, hello, name, good game, ...),
+and plays `games` games in one session.
 
     python -m pipelines.serve.study --url http://127.0.0.1:8000 --sessions 10 --games 3 --parallel 4
 """
@@ -16,6 +17,8 @@ import random
 import statistics
 import time
 from typing import Any
+
+from pipelines.serve.answers import PREFERRED_ACTS
 
 
 async def play_session(url: str, games: int, seed: int, first: str = "robot", timeout: float = 600.0) -> dict[str, Any]:
@@ -33,6 +36,7 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
     latencies: list[float] = []
     outcomes: list[str] = []
     clicked: tuple[float, int] | None = None
+    answered = -1  # the utterance last answered (a state is sent more than once per utterance)
     deadline = time.monotonic() + timeout
     async with websockets.connect(ws_url, max_size=None) as ws:
         await ws.send(json.dumps({"type": "start", "first": first, "participant": f"scripted-{seed}"}))
@@ -57,8 +61,11 @@ async def play_session(url: str, games: int, seed: int, first: str = "robot", ti
             if message["screen"] == "over" and len(outcomes) < message["games"]:
                 outcomes.append(message["outcome"])
                 if len(outcomes) < games:
-                    await ws.send(json.dumps({"type": "act", "act": "feedback"}))
                     await ws.send(json.dumps({"type": "again"}))
+            elif message.get("answering") and message["says_seq"] != answered:
+                answered = message["says_seq"]
+                act = next(a for a in PREFERRED_ACTS if a in message["acts"])
+                await ws.send(json.dumps({"type": "act", "act": act}))
             elif message["screen"] == "game" and message["your_turn"]:
                 free = message.get("legal") or [i for i, mark in enumerate(message["board"]) if not mark]
                 clicked = (time.perf_counter(), message["says_seq"])
