@@ -1,4 +1,4 @@
-"""`--backend ray` of `ncbot ablate` / `ncbot reproduce`: the planned runs as Ray tasks, on a local instance or a cluster.
+"""`--backend ray` of `ncbot ablate` / `ncbot reproduce`: the planned runs as Ray tasks, locally or on a cluster.
 
 Why a shared folder, checked first: each run is an `ncbot train` process that writes its folder (checkpoints, the
 replay buffer, eval.json) while it runs and resumes from it when restarted, so the folder must outlive the node
@@ -15,7 +15,8 @@ import uuid
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-SHARED_FOLDER_DOC = "mount it at the same absolute path on every node (e.g. NFS); docs/reproduction.md, 'Past one machine'"
+SHARED_FOLDER_DOC = ("mount it at the same absolute path on every node (e.g. NFS); docs/reproduction.md, "
+                     "'Past one machine'")
 
 
 def ray_available() -> bool:

@@ -156,8 +156,9 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
         from pipelines.reproduce_dialogues import run_dialogue_agents
 
         dialogue_runs = Path(runs) / f"dialogues-{budget.name}"
-        result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs, workers=workers, backend=backend,
-                                                      configs=configs, address=address)
+        result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs,
+                                                      config=row_config("standard", configs), workers=workers,
+                                                      backend=backend, address=address)
         result["budget_report"] = write_budget_report(budget, runs_dir=runs_dir, out=out, command=command,
                                                       dialogue_runs=dialogue_runs)
     return result

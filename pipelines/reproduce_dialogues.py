@@ -12,6 +12,7 @@ user and the agent trained in that simulation need (the title's "a dozen dialogu
 """
 from __future__ import annotations
 
+import textwrap
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -51,15 +52,15 @@ def dialogue_budget(games: tuple[str, ...]) -> list[dict[str, Any]]:
     return records
 
 
-def plan_dialogue_runs(budget: Any, runs_dir: Path, configs: Path | None = None) -> list[Any]:
+def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
     """The dialogue budget's training runs: Proposed + temporal on 3x3 (paper config, env.dialogues: paper) learnt
-    from k example dialogues, k in ``budget.dialogue_points``, ``budget.dialogue_subsets`` subsets each; subset s also trains
-    with seed s. Runs go to RUNS_DIR/kNN/seedS (resumable like the table's)."""
+    from k example dialogues, k in ``budget.dialogue_points``, ``budget.dialogue_subsets`` subsets each; subset s
+    also trains with seed s; ``config``: the 3x3 paper config (`pipelines.reproduce.row_config`). Runs go to RUNS_DIR/kNN/seedS
+    (resumable like the table's)."""
     from pipelines.ablate import PlannedRun
     from pipelines.config import load_config
-    from pipelines.reproduce import PAPER_CONFIGS, row_config
 
-    config = row_config(DIALOGUE_ROW, configs or PAPER_CONFIGS).resolve()
+    config = Path(config).resolve()
     planned = []
     for k in budget.dialogue_points:
         for seed in range(budget.dialogue_subsets):
@@ -68,17 +69,17 @@ def plan_dialogue_runs(budget: Any, runs_dir: Path, configs: Path | None = None)
                          "agent.name=proposed", "env.temporal=true", "env.dialogues=paper",
                          f"env.dialogue_subset.k={k}", f"env.dialogue_subset.seed={seed}", f"train.seed={seed}"]
             load_config(config, overrides)  # a bad config fails here, before any run starts
-            planned.append(PlannedRun(name=f"dialogues/k{k:02d}/seed{seed}", run_dir=runs_dir / f"k{k:02d}" / f"seed{seed}",
-                                      config=config, overrides=overrides))
+            planned.append(PlannedRun(name=f"dialogues/k{k:02d}/seed{seed}", config=config, overrides=overrides,
+                                      run_dir=runs_dir / f"k{k:02d}" / f"seed{seed}"))
     return planned
 
 
-def run_dialogue_agents(budget: Any, *, runs_dir: Path, workers: int, backend: str = "local",
-                        configs: Path | None = None, address: str | None = None) -> dict[str, Any]:
+def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: int, backend: str = "local",
+                        address: str | None = None) -> dict[str, Any]:
     """Train the unfinished dialogue-budget runs through `ncbot ablate`'s runner (local processes or Ray)."""
     from pipelines.ablate import execute_runs
 
-    planned = plan_dialogue_runs(budget, Path(runs_dir), configs)
+    planned = plan_dialogue_runs(budget, Path(runs_dir), config)
     todo = [run for run in planned if not run.finished]
     failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir, desc="dialogues")
     return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
@@ -138,7 +139,7 @@ def dialogue_section(records: list[dict[str, Any]], budget: Any) -> list[str]:
              f"seed s), {budget.dialogue_games} training games (or 400K steps), robot-first test games; mean [95 % "
              "t-interval over subsets]. The paper's 3x3 Proposed + temporal, after 20K games: task success "
              f"{PAPER_PROPOSED_3X3[0]}, length {PAPER_PROPOSED_3X3[1]}.", "",
-             "| game | dialogues | subsets | filter agreement (all 24) | (the dozen) | agent runs | task success | "
+             "| game | dialogues | filter subsets | filter agreement (all 24) | (the dozen) | agent runs | task success | "
              "dialogue length |", "|---|---|---|---|---|---|---|---|"]
     for r in records:
         lines.append(f"| {r['game']} | {r['dialogues']} | {r['subsets']} | {r['filter_agreement']:.3f} | "
@@ -157,7 +158,8 @@ def plot_dialogues(records: list[dict[str, Any]], path: Path, label: str) -> Pat
         rows = [r for r in records if r["game"] == game]
         ks = [r["dialogues"] for r in rows]
         axes[0].plot(ks, [r["filter_agreement"] for r in rows], marker="o", label=f"{game}: vs all 24")
-        axes[0].plot(ks, [r["filter_agreement_dozen"] for r in rows], marker="x", linestyle=":", label=f"{game}: vs the dozen")
+        axes[0].plot(ks, [r["filter_agreement_dozen"] for r in rows], marker="x", linestyle=":",
+                     label=f"{game}: vs the dozen")
     agents = [r for r in records if r["game"] == DIALOGUE_ROW and r.get("task_success") is not None]
     for ax, key, paper, name in ((axes[1], "task_success", PAPER_PROPOSED_3X3[0], "task success (robot first)"),
                                  (axes[2], "avg_length", PAPER_PROPOSED_3X3[1], "dialogue length (acts)")):
@@ -173,11 +175,16 @@ def plot_dialogues(records: list[dict[str, Any]], path: Path, label: str) -> Pat
         ax.set_ylabel(name)
     axes[0].set_ylabel("act filter agreement")
     axes[0].set_ylim(0, 1.02)
+    axes[1].set_ylim(0, 1.05)  # the view only: a t-interval from few subsets may reach past [0, 1] (the table keeps it)
+    axes[2].set_ylim(bottom=0)
     for ax in axes:
         ax.axvline(PAPER_DIALOGUES, color="grey", linestyle="--", label="paper: a dozen")
         ax.set_xscale("log", base=2)
+        ax.set_xlim(0.8, 30)
+        ax.set_xticks(DIALOGUE_POINTS, [str(k) for k in DIALOGUE_POINTS])
         ax.set_xlabel("example dialogues per game (13-24: ours)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(label[:160], fontsize=7)
+    fig.suptitle(textwrap.fill(label, 180), fontsize=7)
+    fig.tight_layout()
     return save_figure(fig, path)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pipelines.reproduce import BUDGETS, Budget, reproduce, write_grid
+from pipelines.reproduce import BUDGETS, Budget, reproduce, row_config, write_grid
 from pipelines.reproduce_dialogues import filter_agreement, plan_dialogue_runs
 from tests.learning_helpers import ncbot, write_tiny_config
 
@@ -72,7 +72,7 @@ def test_grid_applies_the_budget_to_the_paper_configs(tmp_path: Path) -> None:
 
 
 def test_dialogue_runs_cover_every_k_with_the_paper_config(tmp_path: Path) -> None:
-    runs = plan_dialogue_runs(BUDGETS["full"], tmp_path)
+    runs = plan_dialogue_runs(BUDGETS["full"], tmp_path, row_config("standard"))
     assert len(runs) == 6 * 5 and runs[-1].run_dir == tmp_path / "k24" / "seed4"
     assert runs[0].config.name == "standard_proposed_temporal.yaml"
     assert {"env.dialogue_subset.k=24", "env.dialogue_subset.seed=4", "train.seed=4", "train.max_games=5000",
