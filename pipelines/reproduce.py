@@ -145,6 +145,9 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
     budget = budget_name if isinstance(budget_name, Budget) else budget_of(budget_name)
     if workers <= 0:
         raise ValueError(f"--workers must be positive, got {workers}")
+    from pipelines.ablate import check_backend
+
+    check_backend(backend, workers, address)  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
     result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command,
                               "runs": run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend,

@@ -90,3 +90,11 @@ def test_filter_agreement_is_one_with_every_dialogue_and_less_with_one() -> None
 def test_cli_rejects_an_unknown_budget_in_one_line(tmp_path: Path) -> None:
     result = ncbot("reproduce", "table", "--budget", "medium", "--out", str(tmp_path), "--runs", str(tmp_path))
     assert result.returncode == 2 and result.stderr.strip() == "ncbot: error: --budget must be one of full, quick; got 'medium'"
+
+
+def test_cli_rejects_an_address_without_ray_before_writing_anything(tmp_path: Path) -> None:
+    result = ncbot("reproduce", "budget", "--budget", "quick", "--address", "1.2.3.4:6379", "--out", str(tmp_path / "o"),
+                   "--runs", str(tmp_path / "r"))
+    assert result.returncode == 2 and result.stderr.strip() == (
+        "ncbot: error: --address 1.2.3.4:6379 needs --backend ray (it is the Ray cluster's HOST:PORT)")
+    assert not (tmp_path / "r").exists()
