@@ -30,6 +30,8 @@ def make_env(
     uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100), ``hearing`` None (the
     words said, at those uniform confidences) or an object with ``hear(utterances, generator)`` that decides what
     the robot hears (``speech.hearing.ChannelHearing``; built by ``pipelines.run_env`` for ``env.asr: channel``).
+    ``dialogue_subset`` None (every example dialogue) or (k, seed): the act filter and the simulated user learnt from
+    a seeded subset of k example dialogues (the data-budget curve; ``envs.dialogue.subset_examples``).
     """
     for name in options:
         if name not in OPTION_NAMES:

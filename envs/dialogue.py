@@ -8,6 +8,7 @@ table over their 11 x 9 x 7 = 693 combinations, computed once and looked up per 
 """
 from __future__ import annotations
 
+import random
 import re
 from dataclasses import dataclass
 from functools import lru_cache
@@ -19,6 +20,8 @@ import yaml
 
 DATA_FILE = Path(__file__).with_name("data") / "example_dialogues.yaml"
 PAPER_DATA_FILE = Path(__file__).with_name("data") / "example_dialogues_paper.yaml"
+# ours, authored for the data-budget curve's k = 24 (dialogues 13-24 per game, same acts, templates and words)
+PAPER_EXTRA_FILE = Path(__file__).with_name("data") / "example_dialogues_paper_extra.yaml"
 
 # System dialogue-act types. Action ids: GameMove(gridloc=c) is action c (c < cells); type k >= 1 is action
 # cells + k - 1, so acts are [moves..., greeting, name, ..., closing].
@@ -86,13 +89,14 @@ class DialogueSet:
     path: Path
     templates: tuple[str, ...]
     user_moves_after: tuple[int, ...]
+    extra_path: Path | None = None  # more examples of the same shape, used only by subsets of k > a dozen
 
 
 DIALOGUE_SETS = {
     # ours: the user answers each robot move at once with its own move; "your turn" only opens a user-first game
     "compact": DialogueSet("compact", DATA_FILE, TEMPLATES, (MOVE, REQUEST_USER_MOVE)),
     # the paper's shape: "your turn" before every user move, the opening in full ("Nice. Let me start.")
-    "paper": DialogueSet("paper", PAPER_DATA_FILE, PAPER_TEMPLATES, (REQUEST_USER_MOVE,)),
+    "paper": DialogueSet("paper", PAPER_DATA_FILE, PAPER_TEMPLATES, (REQUEST_USER_MOVE,), PAPER_EXTRA_FILE),
 }
 DIALOGUE_CHOICES = tuple(DIALOGUE_SETS)
 
@@ -198,21 +202,56 @@ def _parse_user(act: str | None, where: str) -> tuple[int, int]:
     raise ValueError(f"{where}: unknown user act {act!r}; expected GameMove(gridloc=N), null or one of {', '.join(USER_ACTS)}")
 
 
-@lru_cache(maxsize=8)
-def build_dialogue_model(game: str, dialogues: str = "compact") -> DialogueModel:
+@lru_cache(maxsize=32)
+def build_dialogue_model(game: str, dialogues: str = "compact", subset: tuple[int, int] | None = None) -> DialogueModel:
     """Replay ``game``'s example dialogues of the set ``dialogues`` with the exact rules and fit the filter and the
     user model; the vocabulary is the set's templates' words and its users' words.
+
+    ``subset`` (k, seed): learn the filter and the user from ``subset_examples`` instead (env option
+    ``dialogue_subset``), keeping the whole set's vocabulary. Why a fixed vocabulary: the observation's word
+    features are the network's input, so every k gives the same input size (73 / 289 features) and the same
+    network; a word no chosen dialogue uses is simply never heard (its feature stays 0). Otherwise the curve
+    over k would compare networks of different sizes, not only different data.
 
     Each dialogue is replayed under its own ``free_move`` rule (default "anywhere", the paper's); what is
     learnt (acts per dialogue context, user replies) does not depend on the variant the env is run with.
     """
     chosen = dialogue_set(dialogues)
-    return fit_dialogue_model(game, load_dialogues(game, chosen.path), chosen)
+    if subset is None:
+        return fit_dialogue_model(game, load_dialogues(game, chosen.path), chosen)
+    k, seed = subset
+    words = build_dialogue_model(game, chosen.name).words
+    return fit_dialogue_model(game, subset_examples(game, chosen, k, seed), chosen, vocabulary=words)
 
 
-def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet) -> DialogueModel:
+def example_pool(game: str, chosen: DialogueSet) -> list[dict]:
+    """Every example dialogue a subset may draw from: the set's dozen, then its extra file's (if any)."""
+    pool = load_dialogues(game, chosen.path)
+    return pool + (load_dialogues(game, chosen.extra_path) if chosen.extra_path is not None else [])
+
+
+def subset_examples(game: str, chosen: DialogueSet, k: int, seed: int) -> list[dict]:
+    """A seeded subset of ``k`` example dialogues, in file order (so k = the whole dozen is the set itself).
+
+    k up to the set's dozen: drawn from the dozen. Larger k: the whole dozen plus k - 12 drawn from the extra
+    file (ours, authored), so every larger subset contains the paper-sized one.
+    """
+    dozen, pool = load_dialogues(game, chosen.path), example_pool(game, chosen)
+    if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= len(pool):
+        raise ValueError(f"dialogue_subset k must be an integer between 1 and {len(pool)} (the {chosen.name} set's "
+                         f"example dialogues for {game}), got {k!r}")
+    rng = random.Random(seed)
+    if k <= len(dozen):
+        return [dozen[i] for i in sorted(rng.sample(range(len(dozen)), k))]
+    extra = pool[len(dozen):]
+    return dozen + [extra[i] for i in sorted(rng.sample(range(len(extra)), k - len(dozen)))]
+
+
+def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet,
+                       vocabulary: tuple[str, ...] | None = None) -> DialogueModel:
     """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape;
-    any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``)."""
+    any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``). ``vocabulary``:
+    use these words (ValueError if a dialogue says another) instead of the ones the dialogues give."""
     from envs.rules import make_game
 
     contexts: list[tuple[int, int, int]] = []
@@ -256,6 +295,12 @@ def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet) ->
     texts = [text for (_, text) in utterances]
     system_words = {w for t in chosen.templates for w in tokenize(t)}
     words = tuple(sorted(system_words | {w for t in texts for w in tokenize(t)}))
+    if vocabulary is not None:
+        unknown = sorted(set(words) - set(vocabulary))
+        if unknown:
+            raise ValueError(f"example dialogues say {unknown[0]!r}, outside the {chosen.name} set's fixed vocabulary "
+                             f"of {len(vocabulary)} words")
+        words = tuple(vocabulary)
     index = {w: i for i, w in enumerate(words)}
 
     def bag(text: str) -> np.ndarray:

@@ -19,7 +19,8 @@ Two options read the paper more literally (both off by default, on in the paper 
 ``offer_taken_cells`` offers the robot's taken squares in ``action_mask`` on its turn (choosing one is a refused
 act: -5, the board and the dialogue stay, the user does not move, the robot chooses again), and
 ``dialogues="paper"`` learns the act filter, the vocabulary and the user from the paper-shaped example
-dialogues ("your turn" before every user move).
+dialogues ("your turn" before every user move). ``dialogue_subset=(k, seed)`` learns them from a seeded subset of
+k example dialogues (the data-budget curve), with the whole set's vocabulary so the features keep their size.
 """
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests a
     AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
 )
 from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
-from envs.env_options import check_batch, check_confidence, check_hearing, first_of, resolve_opponent
+from envs.env_options import check_batch, check_confidence, check_hearing, check_subset, first_of, resolve_opponent
 from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 
 STARTS_CHOICES = FIRST_CHOICES  # the deprecated spelling's name, kept for old imports
@@ -71,6 +72,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         offer_taken_cells: bool = False,
         dialogues: str = "compact",
         hearing: Any = None,
+        dialogue_subset: tuple[int, int] | None = None,
     ) -> None:
         batch = check_batch(batch_size)
         check_game(game)
@@ -85,9 +87,10 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
         self.offer_taken_cells, self.dialogues = offer_taken_cells, dlg.dialogue_set(dialogues).name
+        self.dialogue_subset = check_subset(dialogue_subset)
         self.engine = make_engine(game, free_move)
         self.cells = self.engine.cells
-        self.model = dlg.build_dialogue_model(game, self.dialogues)
+        self.model = dlg.build_dialogue_model(game, self.dialogues, self.dialogue_subset)
         self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
         self.hearing = check_hearing(hearing)
         for name, value in describe(self.model, self.cells, self.temporal).items():

@@ -9,7 +9,7 @@ from envs.core import FIRST_CHOICES
 
 # starts: deprecated spelling of first; offer_taken_cells and dialogues: the paper's readings (docs/reproduction.md)
 OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues",
-                "hearing")
+                "hearing", "dialogue_subset")
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:
@@ -73,3 +73,19 @@ def check_hearing(hearing: Any) -> Any:
     if hearing is not None and not callable(getattr(hearing, "hear", None)):
         raise ValueError(f"hearing must be None or an object with a hear(utterances, generator) method, got {hearing!r}")
     return hearing
+
+
+def check_subset(subset: Any) -> tuple[int, int] | None:
+    """None (every example dialogue of the set) or (k, seed): learn from a seeded subset of k dialogues.
+
+    The upper bound of k depends on the set and the game; ``envs.dialogue.subset_examples`` checks it.
+    """
+    if subset is None:
+        return None
+    try:
+        k, seed = subset
+    except (TypeError, ValueError):
+        raise ValueError(f"dialogue_subset must be None or (k, seed), two integers, got {subset!r}") from None
+    if any(not isinstance(v, int) or isinstance(v, bool) for v in (k, seed)) or k < 1 or seed < 0:
+        raise ValueError(f"dialogue_subset must be (k, seed) with an integer k >= 1 and seed >= 0, got {subset!r}")
+    return int(k), int(seed)

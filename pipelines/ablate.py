@@ -165,58 +165,70 @@ def _run_local(run: PlannedRun, children: _Children = _CHILDREN) -> tuple[str, i
     return run.name, code
 
 
-def _ray_available() -> bool:
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
-                 out: str | Path | None = None, only: str | None = None) -> dict[str, Any]:
-    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
-    from pipelines.progress import progress_bar
+def check_backend(backend: str, workers: int, address: str | None = None) -> None:
+    """One-line ValueError for a backend, worker count or address that cannot run (before anything is planned)."""
+    from pipelines.ray_backend import ray_available
 
     if backend not in ("local", "ray"):
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
-    if backend == "ray" and not _ray_available():
+    if address is not None and backend != "ray":
+        raise ValueError(f"--address {address} needs --backend ray (it is the Ray cluster's HOST:PORT)")
+    if backend == "ray" and not ray_available():
         raise ValueError("backend 'ray' needs the optional extra: pip install 'ncbot[ray]' (ray is not importable)")
     if not 0 < workers <= 256:
         raise ValueError(f"--workers must be a positive number of parallel runs (at most 256), got {workers}")
-    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
-    if only:
-        planned = [run for run in planned if only in run.name]
-    todo = [run for run in planned if not run.finished]
+
+
+def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local", address: str | None = None,
+                 runs_dir: str | Path | None = None, desc: str = "ablate") -> list[str]:
+    """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names.
+
+    Ray (pipelines/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
+    every node must see ``runs_dir`` at the same absolute path (checked before any run starts).
+    """
+    from pipelines.progress import progress_bar
+    from pipelines.ray_backend import run_on_ray
+
+    check_backend(backend, workers, address)
     failed: list[str] = []
-    bar = progress_bar(total=len(todo), unit="run", desc="ablate")
+    bar = progress_bar(total=len(todo), unit="run", desc=desc)
+
+    def done(name: str, code: int) -> None:
+        if code != 0:
+            failed.append(name)
+        bar.update(1)
+
     if backend == "local":
         children = _Children()
         pool = ThreadPoolExecutor(max_workers=workers)
         try:
             for future in as_completed([pool.submit(_run_local, run, children) for run in todo]):
-                name, code = future.result()
-                if code != 0:
-                    failed.append(name)
-                bar.update(1)
+                done(*future.result())
         except BaseException:  # Ctrl-C, SIGTERM (pipelines.errors.Terminated), a bug: stop, leave runs resumable
             pool.shutdown(wait=False, cancel_futures=True)
             children.stop()
             raise
         pool.shutdown()
-    else:
-        import ray
-
-        ray.init(num_cpus=workers, include_dashboard=False, ignore_reinit_error=True, log_to_driver=False)
-        remote = ray.remote(num_cpus=1)(_run_local)
-        pending = [remote.remote(run) for run in todo]
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            name, code = ray.get(ready[0])
-            if code != 0:
-                failed.append(name)
-            bar.update(1)
+    elif todo:
+        root = Path(runs_dir or todo[0].run_dir.parent).resolve()
+        absolute = [PlannedRun(run.name, run.run_dir.resolve(), run.config.resolve(), list(run.overrides)) for run in todo]
+        outside = [run.name for run in absolute if root not in run.run_dir.parents]
+        if outside:
+            raise ValueError(f"run {outside[0]} is not under the runs folder {root} that the Ray nodes share")
+        run_on_ray(absolute, _run_local, workers=workers, address=address, runs_dir=root, on_done=done)
     bar.close()
+    return failed
+
+
+def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
+                 out: str | Path | None = None, only: str | None = None, address: str | None = None) -> dict[str, Any]:
+    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
+    check_backend(backend, workers, address)
+    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
+    if only:
+        planned = [run for run in planned if only in run.name]
+    todo = [run for run in planned if not run.finished]
     runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
+    failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir)
     return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
             "failed_runs": failed, "runs_dir": str(runs_dir)}

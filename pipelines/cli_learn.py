@@ -128,6 +128,8 @@ def ablate_command(
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray."),
     out: Optional[str] = typer.Option(None, "--out", help="Runs folder (default from the grid file)."),
     only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
+    address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
+                                          "(default: a local instance); every node must see the runs folder."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
     from pipelines.ablate import run_ablation
@@ -135,7 +137,7 @@ def ablate_command(
     if out is not None:
         check_writable_dir(out, "--out")
 
-    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only)
+    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:

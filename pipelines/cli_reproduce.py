@@ -14,6 +14,8 @@ def reproduce_command(
     out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md and PNGs."),
     runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget)."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
+    address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
+                                          "(default: a local instance); every node must see --runs at the same path."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (budget: {vision, dialogues, games})."),
 ) -> None:
     """Reproduce the paper's findings with the faithful options: runs (finished ones skipped), table, claims, budgets."""
@@ -23,7 +25,8 @@ def reproduce_command(
     from pipelines.reproduce import reproduce
 
     command = "ncbot " + shlex.join(sys.argv[1:])
-    result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command)
+    result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,
+                       address=address)
     if as_json:
         report = result.get("budget_report")
         if part == "budget":
@@ -35,11 +38,15 @@ def reproduce_command(
     typer.echo(result["label"])
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), {summary['failed']} "
                f"failed; runs in {summary['runs_dir']}")
+    dialogue_runs = result.get("dialogue_runs")
+    if dialogue_runs:
+        typer.echo(f"dialogue budget: {dialogue_runs['done']} runs finished, {dialogue_runs['skipped']} skipped, "
+                   f"{dialogue_runs['failed']} failed; runs in {dialogue_runs['runs_dir']}")
     if "table" in result:
         typer.echo(f"wrote {result['table']['table']} and {result['table']['claims']}")
     if "budget_report" in result:
         typer.echo(f"wrote {out}/data_budget.md and {', '.join(result['budget_report']['figures'])}")
-    if summary["failed"]:
+    if summary["failed"] or (dialogue_runs or {}).get("failed"):
         raise typer.Exit(1)
 
 

@@ -55,6 +55,16 @@ class Section(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
 
 
+class DialogueSubset(Section):
+    """Learn the act filter and the simulated user from a seeded subset of k example dialogues (`ncbot reproduce
+    budget`); the vocabulary stays the whole set's, so the network's input size does not depend on k."""
+
+    # null = every dialogue of the set (the default, bit-identical to no subset); up to 12 = a seeded draw from the
+    # set's dozen; 13-24 = the dozen plus k - 12 of our authored dialogues (dialogues=paper only)
+    k: Annotated[int, Field(gt=0, le=24)] | None = None
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0  # which k dialogues are drawn
+
+
 class EnvConfig(Section):
     """The dialogue game the robot learns (envs.make_env)."""
 
@@ -72,6 +82,13 @@ class EnvConfig(Section):
     # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
+    dialogue_subset: DialogueSubset | None = None  # the data budget: learn from k of those dialogues; null = all
+
+    @property
+    def subset(self) -> tuple[int, int] | None:
+        """The env's ``dialogue_subset`` option: None (every dialogue) or (k, seed)."""
+        chosen = self.dialogue_subset
+        return None if chosen is None or chosen.k is None else (chosen.k, chosen.seed)
     # what the robot hears of the simulated user: uniform (the words said, uniform random confidences) | channel
     # (words and confidences sampled from the ASR channel model fitted on TTS -> noise -> pocketsphinx round trips,
     # docs/speech.md) at an SNR drawn per utterance in asr_snr_db, in asr_noise; asr_channel: None = shipped model
@@ -85,6 +102,9 @@ class EnvConfig(Section):
     def _snr_order(self) -> EnvConfig:
         if self.asr_snr_db[0] > self.asr_snr_db[1]:
             raise ValueError(f"env.asr_snr_db must be [low, high] with low <= high, got {list(self.asr_snr_db)}")
+        if self.dialogues == "compact" and self.subset is not None and self.subset[0] > 12:
+            raise ValueError(f"env.dialogue_subset.k must be <= 12 with env.dialogues: compact (a dozen example "
+                             f"dialogues per game; 13-24 exist for dialogues: paper), got {self.subset[0]}")
         if self.asr_channel is not None and not Path(self.asr_channel).is_file():
             raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m speech.fit)")
         return self
@@ -277,6 +297,8 @@ def _type_name(annotation: Any) -> str:
         return " or ".join(_type_name(a) for a in typing.get_args(annotation))
     if annotation is type(None):
         return "null"
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return f"a mapping of {', '.join(annotation.model_fields)}"
     if origin is list:
         return f"a list of {_type_name(typing.get_args(annotation)[0])}"
     if origin is dict:
@@ -315,6 +337,8 @@ def _describe(loc: tuple[Any, ...]) -> tuple[str, Any, FieldInfo | None, type[Ba
             field = model.model_fields[part]
             key = f"{key}.{part}" if key else str(part)
             annotation = field.annotation
+            if typing.get_origin(annotation) in (typing.Union, types.UnionType) and loc[-1] != part:  # `Section | None`
+                annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
             if isinstance(annotation, type) and issubclass(annotation, BaseModel):
                 model, annotation, field = annotation, None, None
         elif isinstance(part, int):

@@ -4,7 +4,9 @@ Why one command: the paper's findings need dozens of runs with the faithful opti
 and a fixed protocol (seeds, games, test games). `table` writes an ablation grid for the budget and runs it
 through the same runner as `ncbot ablate` (pipelines/ablate.py: parallel processes, finished runs skipped, a
 killed run resumed from its checkpoint), then `pipelines.table.write_report` writes the table and the claims.
-`budget` reads the data budgets off those runs and the example dialogues (pipelines/reproduce_budget.py).
+`budget` reads the data budgets off those runs and the example dialogues, and trains the dialogue-budget agents
+(pipelines/reproduce_budget.py). `--backend ray [--address HOST:PORT]` runs every run as a Ray task
+(pipelines/ray_backend.py: the runs folder must be shared by every node, checked before any run starts).
 
 Budgets: `full` is the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games, every game row);
 `quick` is a smoke version that fits in < 30 min on 2 cores, and says so in every file it writes.
@@ -37,6 +39,11 @@ class Budget:
     game_points: tuple[int, ...]  # training games at which the games-budget curve is read
     label: str  # one line every output of this budget starts with
     extra_overrides: tuple[str, ...] = field(default_factory=tuple)
+    # the dialogue data budget's agents (pipelines/reproduce_budget.py): Proposed + temporal on 3x3 per k example
+    # dialogues, this many subsets (each its own training seed) per k, capped at this many training games
+    dialogue_subsets: int = 2
+    dialogue_games: int = 1_000
+    dialogue_points: tuple[int, ...] = (1, 2, 4, 8, 12, 24)  # k of the agents (the filter agreement: always all six)
 
 
 BUDGETS = {
@@ -45,7 +52,9 @@ BUDGETS = {
         max_games={"standard": 20_000, "ultimate100": 20_000, "ultimate150": 20_000}, eval_games=3000,
         eval_every_frames={"standard": 5_000, "ultimate100": 20_000, "ultimate150": 20_000},
         game_points=(1_000, 2_000, 5_000, 10_000, 20_000),
-        label="Budget full: the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games per seat).",
+        label="Budget full: the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games per seat); "
+              "dialogue budget: 5 subsets x 5K games per k.",
+        dialogue_subsets=5, dialogue_games=5_000,
     ),
     "quick": Budget(
         name="quick", seeds=2, rows=("standard", "ultimate100"),
@@ -53,8 +62,9 @@ BUDGETS = {
         eval_every_frames={"standard": 5_000, "ultimate100": 20_000},
         game_points=(500, 1_000, 2_000),
         label="QUICK BUDGET (smoke run, not the paper's protocol): 2 seeds, 2K training games on 3x3 and 600 on "
-              "Ultimate (100), 500 test games per seat, no Ultimate (150); claims cannot be decided (< 5 seeds). "
-              "Run `--budget full` for the paper's numbers.",
+              "Ultimate (100), 500 test games per seat, no Ultimate (150); claims cannot be decided (< 5 seeds); "
+              "dialogue budget: 2 subsets x 1K games per k. Run `--budget full` for the paper's numbers.",
+        dialogue_subsets=2, dialogue_games=1_000,
     ),
 }
 
@@ -104,12 +114,12 @@ def labelled(path: Path, budget: Budget) -> None:
 
 
 def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
-             configs: Path = PAPER_CONFIGS) -> dict[str, Any]:
+             configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
     """Run the budget's grid through `ncbot ablate`'s runner: finished runs skipped, killed ones resumed."""
     from pipelines.ablate import run_ablation
 
     grid = write_grid(budget, runs_dir, configs)
-    return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir)
+    return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir, address=address)
 
 
 def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
@@ -126,22 +136,32 @@ def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: st
 
 def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "results", runs: str | Path = "runs/reproduce",
               workers: int = 2, backend: str = "local", command: str = "ncbot reproduce",
-              configs: Path = PAPER_CONFIGS) -> dict[str, Any]:
+              configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
     """`ncbot reproduce PART --budget NAME`: the runs, then the table and claims (table), the data budgets
-    (budget; its games curve reads the same runs), or both (all)."""
+    (budget; its games curve reads the same runs, its dialogue curve trains agents on k example dialogues in
+    RUNS/dialogues-NAME), or both (all). ``backend="ray"``: every run a Ray task (``address``: a cluster's head)."""
     if part not in PARTS:
         raise ValueError(f"part must be one of {', '.join(PARTS)}; got {part!r}")
     budget = budget_name if isinstance(budget_name, Budget) else budget_of(budget_name)
     if workers <= 0:
         raise ValueError(f"--workers must be positive, got {workers}")
+    from pipelines.ablate import check_backend
+
+    check_backend(backend, workers, address)  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
     result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command,
                               "runs": run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend,
-                                               configs=configs)}
+                                               configs=configs, address=address)}
     if part in ("table", "all"):
         result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
     if part in ("budget", "all"):
         from pipelines.reproduce_budget import write_budget_report
+        from pipelines.reproduce_dialogues import run_dialogue_agents
 
-        result["budget_report"] = write_budget_report(budget, runs_dir=runs_dir, out=out, command=command)
+        dialogue_runs = Path(runs) / f"dialogues-{budget.name}"
+        result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs,
+                                                      config=row_config("standard", configs), workers=workers,
+                                                      backend=backend, address=address)
+        result["budget_report"] = write_budget_report(budget, runs_dir=runs_dir, out=out, command=command,
+                                                      dialogue_runs=dialogue_runs)
     return result

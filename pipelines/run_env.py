@@ -16,7 +16,8 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
     """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random)."""
     from envs import make_env
 
-    readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues}
+    readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues,
+                "dialogue_subset": env_config.subset}
     if env_config.asr == "channel":
         readings["hearing"] = run_hearing(env_config)
     repeated = sorted(set(readings) & set(env_config.options))
@@ -39,18 +40,19 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
 def run_hearing(env_config: Any):
     """The env's ears for ``env.asr: channel``: the fitted ASR channel model over this game's utterances."""
     return _channel_hearing(env_config.game, env_config.dialogues, env_config.asr_channel,
-                            tuple(float(v) for v in env_config.asr_snr_db), env_config.asr_noise)
+                            tuple(float(v) for v in env_config.asr_snr_db), env_config.asr_noise, env_config.subset)
 
 
 @lru_cache(maxsize=8)
-def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[float, float], noise: str):
+def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[float, float], noise: str,
+                     subset: tuple[int, int] | None = None):
     """Cached: evaluation builds envs every few thousand frames; the hearing holds no state (the env's generator
     draws its noise), so games and seeds can share one."""
     from envs.dialogue import build_dialogue_model
     from speech.channel import DEFAULT_CHANNEL, ChannelModel
     from speech.hearing import ChannelHearing
 
-    dialogue = build_dialogue_model(game, dialogues)
+    dialogue = build_dialogue_model(game, dialogues, subset)
     model = ChannelModel.load(DEFAULT_CHANNEL if path is None else path)
     return ChannelHearing(model, dialogue.utterance_texts, dialogue.words, snr_db, noise)
 

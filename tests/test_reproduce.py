@@ -7,13 +7,15 @@ import shutil
 from pathlib import Path
 
 import pytest
+import yaml
 
-from pipelines.reproduce import BUDGETS, Budget, reproduce, write_grid
-from pipelines.reproduce_budget import filter_agreement
+from pipelines.reproduce import BUDGETS, Budget, reproduce, row_config, write_grid
+from pipelines.reproduce_dialogues import filter_agreement, plan_dialogue_runs
 from tests.learning_helpers import ncbot, write_tiny_config
 
 TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4}, eval_games=20,
-              eval_every_frames={"standard": 64}, game_points=(2, 4), label="TINY BUDGET (test)")
+              eval_every_frames={"standard": 64}, game_points=(2, 4), label="TINY BUDGET (test)",
+              dialogue_subsets=2, dialogue_games=4, dialogue_points=(2,))
 
 
 def _configs(folder: Path) -> Path:
@@ -37,7 +39,15 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
     table = (out / "paper_table.md").read_text()
     assert "| 3x3 (100) | DQN-Original | paper | 1 |" in table
     budget = result["budget_report"]
-    assert {r["dialogues"] for r in budget["dialogues"]} == {1, 2, 4, 8, 12}
+    assert {r["dialogues"] for r in budget["dialogues"]} == {1, 2, 4, 8, 12, 24}
+    # the dialogue-budget agents: 2 subsets at k = 2, their test games read back per k (3x3 only)
+    assert (result["dialogue_runs"]["done"], result["dialogue_runs"]["failed"]) == (2, 0), result["dialogue_runs"]
+    trained = {r["dialogues"]: r for r in budget["dialogues"] if r["game"] == "standard" and r["task_success"] is not None}
+    assert set(trained) == {2} and trained[2]["runs"] == 2 and trained[2]["avg_length"] > 5
+    assert 0 <= trained[2]["task_success"] <= 1 and len(trained[2]["task_success_ci95"]) == 2
+    config = yaml.safe_load((runs / "dialogues-tiny" / "k02" / "seed1" / "config.yaml").read_text())
+    assert config["env"]["dialogue_subset"] == {"k": 2, "seed": 1} and config["train"]["seed"] == 1
+    assert "| standard | 24 | 1 |" in (out / "data_budget.md").read_text()
     assert {r["games"] for r in budget["games"]} == {2, 4} and len({r["agent"] for r in budget["games"]}) == 4
     assert budget["vision"] == [] and "not yet" in budget["vision_note"]
     for run in (runs / "tiny").glob("paper/standard/*/seed0"):
@@ -47,11 +57,10 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
         assert saved["first"]["games"] == 20
     again = reproduce("budget", TINY, out=out, runs=runs, workers=1, configs=configs)
     assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 4)  # resumable: finished runs skipped
+    assert (again["dialogue_runs"]["done"], again["dialogue_runs"]["skipped"]) == (0, 2)
 
 
 def test_grid_applies_the_budget_to_the_paper_configs(tmp_path: Path) -> None:
-    import yaml
-
     grid = yaml.safe_load(write_grid(BUDGETS["quick"], tmp_path).read_text())
     cell = grid["suites"]["paper"]["standard"]
     assert cell["config"].endswith("paper/standard_proposed_temporal.yaml")
@@ -62,13 +71,30 @@ def test_grid_applies_the_budget_to_the_paper_configs(tmp_path: Path) -> None:
     assert "train.max_games=20000" in full["suites"]["paper"]["ultimate150"]["overrides"]
 
 
+def test_dialogue_runs_cover_every_k_with_the_paper_config(tmp_path: Path) -> None:
+    runs = plan_dialogue_runs(BUDGETS["full"], tmp_path, row_config("standard"))
+    assert len(runs) == 6 * 5 and runs[-1].run_dir == tmp_path / "k24" / "seed4"
+    assert runs[0].config.name == "standard_proposed_temporal.yaml"
+    assert {"env.dialogue_subset.k=24", "env.dialogue_subset.seed=4", "train.seed=4", "train.max_games=5000",
+            "env.dialogues=paper", "agent.name=proposed"} <= set(runs[-1].overrides)
+
+
 def test_filter_agreement_is_one_with_every_dialogue_and_less_with_one() -> None:
-    assert filter_agreement("standard", 12, 0) == 1.0
+    assert filter_agreement("standard", 24, 0) == 1.0 and filter_agreement("standard", 12, 0, reference=12) == 1.0
     assert 0.0 < filter_agreement("standard", 1, 0) < 1.0
-    with pytest.raises(ValueError, match="between 1 and 12"):
-        filter_agreement("standard", 13, 0)
+    assert filter_agreement("standard", 12, 0) < 1.0  # the authored dozen shows turns the first dozen never does
+    with pytest.raises(ValueError, match="between 1 and 24"):
+        filter_agreement("standard", 25, 0)
 
 
 def test_cli_rejects_an_unknown_budget_in_one_line(tmp_path: Path) -> None:
     result = ncbot("reproduce", "table", "--budget", "medium", "--out", str(tmp_path), "--runs", str(tmp_path))
     assert result.returncode == 2 and result.stderr.strip() == "ncbot: error: --budget must be one of full, quick; got 'medium'"
+
+
+def test_cli_rejects_an_address_without_ray_before_writing_anything(tmp_path: Path) -> None:
+    result = ncbot("reproduce", "budget", "--budget", "quick", "--address", "1.2.3.4:6379", "--out", str(tmp_path / "o"),
+                   "--runs", str(tmp_path / "r"))
+    assert result.returncode == 2 and result.stderr.strip() == (
+        "ncbot: error: --address 1.2.3.4:6379 needs --backend ray (it is the Ray cluster's HOST:PORT)")
+    assert not (tmp_path / "r").exists()

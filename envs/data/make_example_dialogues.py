@@ -11,6 +11,9 @@ below by hand; only the game moves inside them are sampled (seeded) by playing l
 rules (robot: take a winning square if there is one, else random; user: random), keeping games whose result
 matches the skeleton's feedback. Run ``python -m envs.data.make_example_dialogues`` to regenerate both files
 (same seeds -> same files; each set has its own random stream, so adding one never changed the other).
+
+``example_dialogues_paper_extra.yaml`` (ours, authored): dialogues 13-24 per game in the paper's shape, so the
+data-budget curve can be measured at k = 24; env.dialogues=paper alone never reads it (docs/reproduction.md).
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ from envs.rules import Standard, Ultimate
 
 OUT = Path(__file__).with_name("example_dialogues.yaml")
 OUT_PAPER = Path(__file__).with_name("example_dialogues_paper.yaml")
+OUT_PAPER_EXTRA = Path(__file__).with_name("example_dialogues_paper_extra.yaml")
 
 # (robot_first, pre-game opening, result) per dialogue; the same twelve skeletons for both games.
 SKELETONS = [
@@ -49,6 +53,27 @@ PAPER_SKELETONS = [
 PAPER_GREETINGS = ["hello", "hello pepper", "hello nice to meet you", "hello pepper nice to meet you"]
 PAPER_USER_ASKS = ["lets play a game", "lets play"]
 PAPER_MOVE_WORDS = ["done", "this one", "my move is done", "done pepper"]
+
+
+# The authored second dozen of the paper set (ours, dialogues 13-24 per game, file example_dialogues_paper_extra.yaml):
+# the same acts, robot lines and 39 words, new sequences; used only when a data-budget subset asks for k > 12.
+# (robot_first, opening, result, user's first move, after the feedback) per dialogue.
+EXTRA_SKELETONS = [
+    (True, "declines_twice", "win", "at_once", "replies"), (True, "silent_greeting", "draw", "slow", "replies"),
+    (False, "name_twice", "win", "slow", "replies"), (True, "asks_first", "win", "at_once", "silent"),
+    (False, "misheard_play", "draw", "at_once", "replies"), (True, "misheard_name", "lose", "at_once", "replies"),
+    (False, "declines_twice", "lose", "slow", "silent"), (True, "no_name", "win", "at_once", "replies"),
+    (False, "silent_greeting", "win", "at_once", "replies"), (True, "name_twice", "draw", "slow", "replies"),
+    (False, "no_name", "draw", "at_once", "silent"), (True, "misheard_play", "win", "at_once", "replies"),
+]
+EXTRA_GREETINGS = ["hello", "nice to meet you pepper", "hello pepper", "hello nice to meet you"]
+EXTRA_NAMES = ["sam", "my name is sam", "name is sam"]
+EXTRA_YES = ["yes lets play", "sure", "yes please", "sure lets play a game", "yes"]
+EXTRA_NO = ["no", "no thank you", "no no"]
+EXTRA_MOVE_WORDS = ["done", "your turn pepper", "this one", "my move is done", "done your turn"]
+EXTRA_USER_WON = ["i won", "good game pepper"]
+EXTRA_FEEDBACK_REPLIES = ["good game", "thank you pepper", "well done", "it is a draw"]
+EXTRA_CLOSINGS = ["goodbye", "thank you goodbye", "goodbye pepper nice to meet you"]
 
 
 def play_game(game, robot_first: bool, want: str, rng: random.Random) -> list[tuple[str, int]]:
@@ -141,6 +166,58 @@ def paper_dialogue_lines(game, name: str, index: int, robot_first: bool, opening
     return lines
 
 
+def extra_dialogue_lines(game, name: str, index: int, robot_first: bool, opening: str, result: str, first_move: str,
+                         after: str, rng: random.Random) -> list[str]:
+    """One authored dialogue of the paper's shape (number 13 + index) with one of the openings and turns the first
+    dozen never shows: refusals, silence, the name asked twice, misheard questions, no name, the user asking first."""
+    pick = lambda options, k=0: options[(index + k) % len(options)]  # noqa: E731
+    lines = [f"  - id: {name}-paper-{index + 13:02d}", f"    game: {name}", f"    robot_first: {str(robot_first).lower()}",
+             "    turns:"]
+    if opening == "silent_greeting":  # the user does not answer the first greeting
+        lines.append(turn("Salutation(greeting)", None, None))
+    lines.append(turn("Salutation(greeting)", "Salutation(greeting)", pick(EXTRA_GREETINGS)))
+    if opening == "asks_first":  # the user asks to play before the robot gives its name; the robot opens
+        lines.append(turn("Provide(name)", "Request(playGame)", "lets play a game"))
+        lines.append(turn('"Reply(playGame=yes)"', None, None))
+    else:
+        if opening == "name_twice":  # no answer to the name question: asked again
+            lines.append(turn("Provide(name)", None, None))
+        if opening == "misheard_name":  # the user hears a greeting, not the question, and greets back
+            lines.append(turn("Provide(name)", "Salutation(greeting)", "hello pepper"))
+        if opening != "no_name":
+            lines.append(turn("Provide(name)", "Provide(name)", pick(EXTRA_NAMES)))
+        if opening == "declines_twice":
+            lines.append(turn("Request(playGame)", '"Reply(playGame=no)"', pick(EXTRA_NO)))
+            lines.append(turn("Request(playGame)", '"Reply(playGame=no)"', pick(EXTRA_NO, 1)))
+        if opening == "misheard_play":  # the user answers the play question with its name again
+            lines.append(turn("Request(playGame)", "Provide(name)", pick(EXTRA_NAMES, 1)))
+        lines.append(turn("Request(playGame)", '"Reply(playGame=yes)"', pick(EXTRA_YES)))
+        if robot_first:
+            lines.append(turn('"Reply(playGame=yes)"', None, None))
+    moves = play_game(game, robot_first, result, rng)
+    slow = first_move == "slow"  # the user has not drawn yet at the first "your turn": asked again
+    for k, (who, cell) in enumerate(moves):
+        last = k == len(moves) - 1
+        if who == "robot":
+            ending = AFTER_ROBOT_WINS if result == "win" else AFTER_DRAW_MOVE
+            user, says = ("Provide(feedback)", pick(ending, k)) if last else (None, None)
+            lines.append(turn(f'"GameMove(gridloc={cell})"', user, says))
+        else:
+            if slow:
+                lines.append(turn("Request(userGameMove)", None, None))
+                slow = False
+            lines.append(turn("Request(userGameMove)", f'"GameMove(gridloc={cell})"', pick(EXTRA_MOVE_WORDS, k)))
+    feedback = {"win": "win", "lose": "loose", "draw": "draw"}[result]
+    if after == "silent":
+        lines.append(turn(f'"Provide(feedback={feedback})"', None, None))
+    else:
+        replies = EXTRA_USER_WON if result == "lose" else EXTRA_FEEDBACK_REPLIES
+        says = "it is a draw" if result == "draw" else pick([r for r in replies if r != "it is a draw"])
+        lines.append(turn(f'"Provide(feedback={feedback})"', "Provide(feedback)", says))
+    lines.append(turn("Salutation(closing)", "Salutation(closing)", pick(EXTRA_CLOSINGS)))
+    return lines
+
+
 HEADER = """\
 # Example dialogues of the robot (system) and the user, a dozen per game.
 # Written by envs/data/make_example_dialogues.py (skeletons and utterances by hand, game moves sampled).
@@ -166,13 +243,23 @@ PAPER_HEADER = HEADER.replace(
 )
 
 
+EXTRA_HEADER = PAPER_HEADER.replace(
+    "# Example dialogues in the paper's shape (env option dialogues=paper), a dozen per game: the robot says\n",
+    "# OURS (authored, not the paper's): dialogues 13-24 per game of the paper-shaped set, read only when a data-budget\n"
+    "# subset asks for more than a dozen (env.dialogue_subset.k > 12); env.dialogues=paper alone uses the first\n"
+    "# dozen (example_dialogues_paper.yaml). Same acts, robot lines and 39 words; new sequences: refusals, silence,\n"
+    "# the name asked twice, misheard questions, no name, the user asking first, a slow first move.\n"
+    "# Example dialogues in the paper's shape (env option dialogues=paper): the robot says\n",
+)
+
+
 def write_set(out: Path, header: str, skeletons: list, make_lines, seed: int) -> None:
     """One dialogue file: both games, the given skeletons, game moves from its own seeded stream."""
     rng = random.Random(seed)
     lines = [header.rstrip("\n")]
     for name, game in (("standard", Standard()), ("ultimate", Ultimate("anywhere"))):
-        for index, (robot_first, opening, result) in enumerate(skeletons):
-            lines += make_lines(game, name, index, robot_first, opening, result, rng)
+        for index, skeleton in enumerate(skeletons):
+            lines += make_lines(game, name, index, *skeleton, rng)
     out.write_text("\n".join(lines) + "\n")
     print(f"wrote {out}")
 
@@ -180,6 +267,7 @@ def write_set(out: Path, header: str, skeletons: list, make_lines, seed: int) ->
 def main() -> None:
     write_set(OUT, HEADER, SKELETONS, dialogue_lines, 2019)
     write_set(OUT_PAPER, PAPER_HEADER, PAPER_SKELETONS, paper_dialogue_lines, 2020)
+    write_set(OUT_PAPER_EXTRA, EXTRA_HEADER, EXTRA_SKELETONS, extra_dialogue_lines, 2021)
 
 
 if __name__ == "__main__":
