@@ -82,3 +82,28 @@ def test_logger_writes_audio_and_notes_beside_the_dialogue(tmp_path):
     (message,) = list(LogReader(tmp_path).messages(["/audio/user"]))
     assert np.array_equal(samples_from_raw_audio(message.data), samples)
     assert message.data.timestamp.ToNanoseconds() == 1_500_000_000
+
+
+def test_misheard_replies_go_through_the_env_as_user_acts():
+    """In loud white noise most replies are heard wrongly or as nothing: the dialogue goes on (the robot asks
+    again), every misheard reply is an ordinary user act, and the game still ends within the env's cap."""
+    from envs import make_env
+    from modules.masks import LookaheadOnlyPolicy
+    from robot_sim.conditions import ConditionRanges
+    from robot_sim.speech import GameSpeech
+    from torchrl.envs.utils import step_mdp
+
+    loud = GameSpeech("standard", ConditionRanges(name="loud", speech_noise=("white",), speech_snr_db=(-5.0, 0.0)))
+    hearing = loud.hearing(3)
+    env = make_env("standard", batch_size=(1,), seed=3, hearing=hearing)
+    policy, td, actions = LookaheadOnlyPolicy(seed=3), env.reset(), []
+    for _ in range(100):
+        td = env.step(policy(td))
+        actions.append(int(td["action"]))
+        if bool(td["next", "done"]):
+            break
+        td = step_mdp(td)
+    assert bool(td["next", "done"]) or len(actions) == 100
+    misheard = [h for h in hearing.log if h.understood < 0 or hearing.texts[h.understood] != h.said]
+    assert len(misheard) >= len(hearing.log) // 3 and hearing.word_error_rate() > 0.3
+    assert any(a == b for a, b in zip(actions, actions[1:]))  # the robot asked again
