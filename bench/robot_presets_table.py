@@ -16,43 +16,56 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def preset_row(folders: list[Path]) -> dict:
+    """Counts from the finished games' `/episode` summaries (so a run cut short still counts the games it
+    finished); the time split from report.json where the run finished (None otherwise)."""
     from logs import LogReader, read_episodes
 
-    reports = [json.loads((folder / "report.json").read_text()) for folder in folders]
-    total = {key: sum(r[key] for r in reports) for key in ("games", "wins", "draws", "losses", "human_moves",
-                                                           "robot_moves", "misrecognised_moves", "unseen_moves")}
-    moves = total["robot_moves"]
-
-    def weighted(key: str) -> float | None:
-        if any(r.get(key) is None for r in reports):
-            return None
-        return sum(r[key] * r["robot_moves"] for r in reports) / moves
-
-    words = errors = 0
+    episodes = [e for folder in folders for e in read_episodes(folder) if e.get("phase") == "robot"]
+    extras = [e["extra"] for e in episodes]
+    outcomes = [x["true_outcome"] for x in extras]
+    robot_seconds = [s for x in extras for s in x["robot_move_seconds"]]
     confidences: list[float] = []
-    understood = replies = 0
+    replies = understood = 0
     for folder in folders:
-        for episode in read_episodes(folder):
-            words += episode["extra"].get("asr_words", 0)
-            errors += episode["extra"].get("asr_word_errors", 0)
         for message in LogReader(folder).messages(["/dialogue"]):
-            confidences += [c for _, c in message.data.get("heard_words", [])]
+            turn = message.data
+            if "heard_words" in turn:
+                confidences += [c for _, c in turn["heard_words"]]
+    reports = [json.loads((f / "report.json").read_text()) for f in folders if (f / "report.json").is_file()]
+    finished = len(reports) == len(folders)
     for r in reports:
-        if r.get("asr_understood_rate") is not None:
-            understood += r["asr_understood_rate"] * r["asr_utterances"]
-            replies += r["asr_utterances"]
-    return {**total, "preset": reports[0]["conditions"],
-            "asr_word_error_rate": errors / words if words else None,
+        replies += r["asr_utterances"] or 0
+        understood += (r["asr_understood_rate"] or 0) * (r["asr_utterances"] or 0)
+
+    def weighted(key: str, weight: str = "robot_moves") -> float | None:
+        if not finished or any(r.get(key) is None for r in reports):
+            return None
+        return sum(r[key] * r[weight] for r in reports) / max(sum(r[weight] for r in reports), 1)
+
+    words = sum(x.get("asr_words", 0) for x in extras)
+    return {"preset": (extras[0]["conditions"]["preset"] if extras else "?"), "games": len(extras),
+            "wins": outcomes.count("win"), "draws": outcomes.count("draw"), "losses": outcomes.count("loss"),
+            "unfinished": outcomes.count("unfinished"),
+            "human_moves": sum(len(x["human_turn_seconds"]) for x in extras),
+            "robot_moves": len(robot_seconds),
+            "misrecognised_moves": sum(x["misrecognised_moves"] for x in extras),
+            "unseen_moves": sum(x["unseen_moves"] for x in extras),
+            "asr_word_error_rate": sum(x.get("asr_word_errors", 0) for x in extras) / words if words else None,
             "asr_mean_confidence": sum(confidences) / len(confidences) if confidences else None,
-            "asr_utterances": replies, "asr_understood_rate": understood / replies if replies else None,
-            "seconds_per_robot_turn": weighted("seconds_per_robot_turn"),
-            "max_seconds_per_robot_turn": max(r["max_seconds_per_robot_turn"] for r in reports),
+            "asr_replies": sum(x.get("utterances", {}).get("user", 0) for x in extras),
+            "asr_understood_rate": understood / replies if finished and replies else None,
+            "seconds_per_robot_turn": sum(robot_seconds) / len(robot_seconds) if robot_seconds else None,
+            "max_seconds_per_robot_turn": max(robot_seconds, default=None),
             "cpu_seconds_per_robot_turn": weighted("cpu_seconds_per_robot_turn"),
             "render_seconds_per_robot_turn": weighted("render_seconds_per_robot_turn"),
             "tts_seconds_per_robot_turn": weighted("tts_seconds_per_robot_turn"),
-            "asr_seconds_per_utterance": sum(r["asr_seconds_per_utterance"] * r["asr_utterances"] for r in reports) / replies if replies else None,
-            "person_tts_seconds_per_utterance": sum(r["person_tts_seconds_per_utterance"] * r["asr_utterances"] for r in reports) / replies if replies else None,
-            "load_average": [r["load_average"] for r in reports]}
+            "person_tts_seconds_per_utterance": weighted("person_tts_seconds_per_utterance", "asr_utterances"),
+            "asr_seconds_per_utterance": weighted("asr_seconds_per_utterance", "asr_utterances"),
+            "finished_runs": f"{len(reports)}/{len(folders)}", "load_average": [r["load_average"] for r in reports]}
+
+
+def _f(value, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
 
 
 def main() -> None:
@@ -63,12 +76,12 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['preset']} | {r['games']} ({r['wins']}/{r['draws']}/{r['losses']}) | {r['human_moves']} | "
-              f"**{r['misrecognised_moves']}** | {r['unseen_moves']} | {r['asr_word_error_rate']:.3f} | "
-              f"{r['asr_mean_confidence']:.3f} | {r['asr_utterances']} ({r['asr_understood_rate']:.2f}) | "
-              f"{r['seconds_per_robot_turn']:.2f} ({r['max_seconds_per_robot_turn']:.2f}) | "
-              f"{r['cpu_seconds_per_robot_turn']:.2f} | {r['render_seconds_per_robot_turn']:.2f} | "
-              f"{r['tts_seconds_per_robot_turn']:.3f} | {r['person_tts_seconds_per_utterance']:.3f} | "
-              f"{r['asr_seconds_per_utterance']:.3f} |")
+              f"**{r['misrecognised_moves']}** | {r['unseen_moves']} | {_f(r['asr_word_error_rate'], 3)} | "
+              f"{_f(r['asr_mean_confidence'], 3)} | {r['asr_replies']} ({_f(r['asr_understood_rate'])}) | "
+              f"{_f(r['seconds_per_robot_turn'])} ({_f(r['max_seconds_per_robot_turn'])}) | "
+              f"{_f(r['cpu_seconds_per_robot_turn'])} | {_f(r['render_seconds_per_robot_turn'])} | "
+              f"{_f(r['tts_seconds_per_robot_turn'], 3)} | {_f(r['person_tts_seconds_per_utterance'], 3)} | "
+              f"{_f(r['asr_seconds_per_utterance'], 3)} |")
 
 
 if __name__ == "__main__":

@@ -356,6 +356,7 @@ class RobotGameRunner:
                 "robot_first": record.robot_first, "conditions": record.conditions,
                 "human_turn_seconds": [round(s, 3) for s in record.human_turn_seconds],
                 "robot_move_seconds": [round(s, 3) for s in record.robot_move_seconds],
+                "robot_move_cpu_seconds": [round(s, 3) for s in record.robot_move_cpu_seconds],
                 **({"utterances": record.utterances, "asr_words": record.asr_words,
                     "asr_word_errors": record.asr_word_errors} if self.speech is not None else {}), **self.episode_tags}
 

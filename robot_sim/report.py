@@ -54,6 +54,8 @@ class GameRecord:
     asr_understood: int = 0
     person_tts_seconds: list[float] = field(default_factory=list)
     asr_seconds: list[float] = field(default_factory=list)
+    #: CPU seconds of each decode (steadier than wall time on a shared machine).
+    asr_cpu_seconds: list[float] = field(default_factory=list)
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -91,6 +93,7 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "tts_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_tts_seconds]) if real else None,
         "person_tts_seconds_per_utterance": mean([s for r in records for s in r.person_tts_seconds]) if real else None,
         "asr_seconds_per_utterance": mean([s for r in records for s in r.asr_seconds]) if real else None,
+        "asr_cpu_seconds_per_utterance": mean([s for r in records for s in r.asr_cpu_seconds]) if real else None,
         "human_moves": sum(r.human_moves for r in records),
         "robot_moves": sum(r.robot_moves for r in records),
         "own_mark_misread": sum(r.own_mark_misreads for r in records),

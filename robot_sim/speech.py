@@ -131,6 +131,7 @@ class SpeechLog:
             record.asr_understood += int(understood >= 0 and hearing.texts[understood] == utterance.said)
             record.person_tts_seconds.append(utterance.tts_wall_s)
             record.asr_seconds.append(utterance.asr_wall_s)
+            record.asr_cpu_seconds.append(utterance.asr_cpu_s)
             if self.logger is not None:
                 self.logger.note_dialogue("user", heard=utterance.heard.text, snr_db=utterance.snr_db,
                                           heard_words=[[w, round(c, 3)] for w, c in
