@@ -75,6 +75,7 @@ def play(env, policy, games: int) -> dict[str, float]:
             td = root
     return {"games": games, "task_success": round(float(success.float().mean()), 4),
             "dialogue_length": round(float(length.mean()), 3),
+            "dialogue_length_se": round(float(length.std() / games ** 0.5), 3) if games > 1 else None,
             "ask_again_rate": round(repeats / max(dialogue_acts, 1), 4)}
 
 
@@ -121,6 +122,7 @@ def main() -> None:
                     understood += [h.understood >= 0 and ears.texts[h.understood] == h.said for h in ears.log]
                 row = {key: round(sum(p[key] * p["games"] for p in parts) / sum(p["games"] for p in parts), 4)
                        for key in ("task_success", "dialogue_length", "ask_again_rate")}
+                row["dialogue_length_se"] = None  # pooled over voices: see each voice's games for spread
                 row["games"] = sum(p["games"] for p in parts)
                 row["understood_rate"] = round(sum(understood) / max(len(understood), 1), 4)
             else:
@@ -135,10 +137,11 @@ def main() -> None:
             row.update(agent=name, hearing=hearing, seconds=round(time.perf_counter() - started, 1))
             results.append(row)
             print(json.dumps(row), flush=True)
-    print("| agent | hearing | games | task success | dialogue length | asks again | replies understood |")
+    print("| agent | hearing | games | task success | dialogue length (± s.e.) | asks again | replies understood |")
     print("|---|---|---|---|---|---|---|")
     for r in results:
-        print(f"| {r['agent']} | {r['hearing']} | {r['games']} | {r['task_success']:.3f} | {r['dialogue_length']:.2f} | "
+        se = "" if r["dialogue_length_se"] is None else f" ± {r['dialogue_length_se']:.2f}"
+        print(f"| {r['agent']} | {r['hearing']} | {r['games']} | {r['task_success']:.3f} | {r['dialogue_length']:.2f}{se} | "
               f"{r['ask_again_rate']:.3f} | {r['understood_rate']:.3f} |")
 
 
