@@ -28,6 +28,7 @@ _PROTOBUF_TYPES = {
     "foxglove.JointStates": ("foxglove_schemas_protobuf.JointStates_pb2", "JointStates"),
     "foxglove.FrameTransform": ("foxglove_schemas_protobuf.FrameTransform_pb2", "FrameTransform"),
     "foxglove.RawImage": ("foxglove_schemas_protobuf.RawImage_pb2", "RawImage"),
+    "foxglove.RawAudio": ("foxglove_schemas_protobuf.RawAudio_pb2", "RawAudio"),
 }
 
 

@@ -100,6 +100,15 @@ DIALOGUE_SCHEMA: dict = {
         "move": {"type": "integer", "description": "cell taken with this turn, -1 none"},
         "words": {"type": "array", "items": {"type": "array"},
                   "description": "user words as [word, ASR confidence] pairs"},
+        "heard": {"type": "string", "description": "real speech: what the recogniser heard (may be empty)"},
+        "heard_words": {"type": "array", "items": {"type": "array"},
+                        "description": "real speech: the recogniser's words as [word, confidence] pairs"},
+        "snr_db": {"type": ["number", "null"], "description": "real speech: SNR of the background noise, null clean"},
+        "audio": {"type": "array", "description": "real speech: this turn's utterances on /audio/robot or "
+                  "/audio/user (foxglove.RawAudio, pcm-s16, 16 kHz mono), each with its text and where it is",
+                  "items": {"type": "object", "properties": {
+                      "topic": {"type": "string"}, "t": {"type": "number", "description": "message timestamp, s"},
+                      "seconds": {"type": "number"}, "text": {"type": "string"}}}},
     },
     "required": ["episode", "step", "speaker", "act"],
 }

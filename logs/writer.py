@@ -103,6 +103,7 @@ class EpisodeLogger:
         self._names_source: int | None = None
         self._assemblers: dict[tuple, EpisodeAssembler] = {}
         self._open_episodes: dict[tuple, dict[int, list]] = {}  # per-action phases: ids of running episodes
+        self._dialogue_notes: dict[str, dict[str, Any]] = {}  # speaker -> fields for its next /dialogue turn
         self._clock_anchor_ns = time.time_ns() - time.monotonic_ns()
         self._opened = time.monotonic()
         self._last_log_time = 0
@@ -205,7 +206,13 @@ class EpisodeLogger:
                 step_dicts, turns, boards = expand_episode(episode_id, rows[b, t:t + 1], present, self._names)
                 self._write_json(schemas.STEP_TOPIC, step_dicts[0])
                 for turn_dict in turns:
+                    turn_dict.update(self._dialogue_notes.pop(turn_dict["speaker"], {}))
                     self._write_json(schemas.DIALOGUE_TOPIC, turn_dict)
+                if "user" in self._dialogue_notes:  # a reply heard as nothing the env understood: still logged
+                    self._write_json(schemas.DIALOGUE_TOPIC, {"episode": episode_id, "step": step_dicts[0]["step"],
+                                                              "speaker": "user", "act": -1, "act_name": "not understood",
+                                                              **self._dialogue_notes.pop("user")})
+                self._dialogue_notes.clear()  # notes belong to this step's turns only
                 self._write_json(schemas.BOARD_TOPIC, boards[0])
                 if draw:
                     self.log_board_image(boards[0]["cells"], last_move=changed_cell(previous, boards[0]["cells"]),
@@ -230,6 +237,14 @@ class EpisodeLogger:
     def log_dialogue(self, turn: dict[str, Any]) -> None:
         """Write one `/dialogue` message (keys per `schemas.DIALOGUE_SCHEMA`)."""
         self._write_json(schemas.DIALOGUE_TOPIC, schemas.checked_message(turn, schemas.DIALOGUE_SCHEMA))
+
+    def note_dialogue(self, speaker: str, **fields: Any) -> None:
+        """Fields (per `schemas.DIALOGUE_SCHEMA`, e.g. what the recogniser heard, the audio's place) merged into
+        `speaker`'s `/dialogue` turn of the next streamed step (one game, B = 1): the robot game knows them, the
+        env's TensorDict does not. A user note without a user turn (heard as silence) is written as act -1."""
+        if speaker not in ("robot", "user"):
+            raise ValueError(f"speaker must be robot or user, got {speaker!r}")
+        self._dialogue_notes.setdefault(speaker, {}).update(fields)
 
     def log_board(self, board: dict[str, Any], image: bool = False) -> None:
         """Write one `/board` message (keys per `schemas.BOARD_SCHEMA`), and its picture if `image`."""
@@ -262,6 +277,15 @@ class EpisodeLogger:
         timestamp; the MCAP log time always comes from the logger's clock.
         """
         self._write_protobuf(topic, foxglove.compressed_image(image, image_format, frame_id), t)
+
+    def log_audio(self, audio: Any, *, topic: str, t: float | None = None) -> None:
+        """Write a `foxglove.RawAudio` message (e.g. `speech.audio.raw_audio(samples)`) on `topic`
+        (`/audio/robot`, `/audio/user`); `t` is the producer's time of the sound's start, as in `log_camera`."""
+        if getattr(getattr(type(audio), "DESCRIPTOR", None), "full_name", None) != "foxglove.RawAudio":
+            raise ValueError(f"log_audio needs a foxglove.RawAudio message, got {type(audio).__name__}")
+        if not topic.startswith("/audio/"):
+            raise ValueError(f"audio topics live under /audio/, got {topic!r}")
+        self._write_protobuf(topic, audio, t)
 
     def log_joint_states(self, names: Sequence[str], positions: Sequence[float],
                          velocities: Sequence[float] | None = None, efforts: Sequence[float] | None = None,

@@ -56,7 +56,8 @@ def play(
     nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
     robot_frame_period: float = typer.Option(1.0, help="Simulated seconds between logged camera frames while the robot moves."),
     robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
-    audio: bool = typer.Option(False, help="Speak through espeak-ng into OUT/speech/*.wav when installed."),
+    audio: bool = typer.Option(False, help="Also write the robot's utterances as OUT/speech/*.wav."),
+    speech: str = typer.Option("real", help="real: the robot speaks (espeak-ng), the person answers (flite) over the conditions' noise and the robot hears it through pocketsphinx, audio in the MCAP log; text: nothing spoken or heard (simulated ASR, quicker)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
@@ -77,6 +78,8 @@ def play(
     check_meshes(meshes)
     if out is not None:
         check_writable_dir(out, "--out")
+    if speech not in ("real", "text"):
+        raise ValueError(f"--speech must be real or text; got {speech!r}")
     if robot_frame_period <= 0:
         raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
@@ -102,7 +105,7 @@ def play(
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
-        meshes_dir=None if meshes is None else str(meshes), conditions=conditions)
+        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech)
     config.validate()
     try:
         with torch.no_grad():

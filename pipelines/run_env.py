@@ -12,13 +12,16 @@ SEATS = {"first": "robot", "second": "human", "alternate": "alternate"}
 
 
 def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | None = None,
-                 opponent: str | None = None):
-    """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random)."""
+                 opponent: str | None = None, hearing: Any = None):
+    """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random); `hearing`
+    (e.g. a `speech.hearing.RecogniserHearing`) replaces the ears `env.asr` would give it."""
     from envs import make_env
 
     readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues,
                 "dialogue_subset": env_config.subset}
-    if env_config.asr == "channel":
+    if hearing is not None:
+        readings["hearing"] = hearing
+    elif env_config.asr == "channel":
         readings["hearing"] = run_hearing(env_config)
     repeated = sorted(set(readings) & set(env_config.options))
     if repeated:

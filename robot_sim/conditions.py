@@ -90,6 +90,10 @@ class ConditionRanges:
     #: view with `bystander_arm_probability` and stays a few frames.
     bystander_probability: float = 0.0
     bystander_arm_probability: float = 0.0
+    #: What the robot hears behind the person's voice (speech.noise; `ncbot robot play --speech real`): noise
+    #: kinds (one drawn per game) and the SNR range in dB (drawn per utterance); None = a quiet room, clean.
+    speech_noise: tuple[str, ...] = ("babble",)
+    speech_snr_db: Range | None = None
 
     def validate(self) -> None:
         for item in dataclasses.fields(self):
@@ -108,6 +112,14 @@ class ConditionRanges:
         if abs(self.sheet_yaw[0]) > 30 or abs(self.sheet_yaw[1]) > 30 or self.sheet_offset[1] > 0.05:
             raise ValueError(f"conditions {self.name!r}: the sheet may turn at most 30 degrees and move at most 0.05 m "
                              f"(the robot must still reach it); got yaw {self.sheet_yaw}, offset {self.sheet_offset}")
+        from speech.noise import NOISE_KINDS
+
+        if not self.speech_noise or any(kind not in NOISE_KINDS for kind in self.speech_noise):
+            raise ValueError(f"conditions {self.name!r}: speech_noise must be a non-empty list of {', '.join(NOISE_KINDS)}; "
+                             f"got {list(self.speech_noise)}")
+        if self.speech_snr_db is not None and not (len(self.speech_snr_db) == 2 and -10 <= self.speech_snr_db[0] <= self.speech_snr_db[1] <= 60):
+            raise ValueError(f"conditions {self.name!r}: speech_snr_db must be (low, high) dB within [-10, 60], or null "
+                             f"for clean speech; got {self.speech_snr_db}")
         if self.jpeg_quality is not None and not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
             raise ValueError(f"conditions {self.name!r}: jpeg_quality must be (low, high) in [1, 100]; got {self.jpeg_quality}")
 
@@ -148,6 +160,13 @@ PRESETS: dict[str, ConditionRanges] = {
         exposure=(0.7, 1.3), white_balance=(0.6, 1.0), noise=(0.0, 5.0), blur_probability=0.35, blur_px=(0.0, 3.5),
         jpeg_quality=(50, 95), vignette=(0.0, 0.35), bystander_probability=0.5, bystander_arm_probability=0.08),
 }
+
+# What the robot hears behind the person (kept apart from the scene's fields above): the lab is quiet; an office
+# has colleagues talking a few metres away; the atrium is a busy hall of talkers; random spans the channel
+# model's fitted range (5-30 dB) in either kind. docs/speech.md gives the recogniser's figures at these levels.
+for _name, _kinds, _snr in (("office", ("babble",), (20.0, 30.0)), ("atrium", ("babble",), (10.0, 20.0)),
+                            ("random", ("white", "babble"), (5.0, 30.0))):
+    PRESETS[_name] = dataclasses.replace(PRESETS[_name], speech_noise=_kinds, speech_snr_db=_snr)
 
 
 def load_conditions(spec: str | Path) -> ConditionRanges:

@@ -8,6 +8,8 @@ from robot_sim.conditions import ConditionRanges, load_conditions
 from robot_sim.human import HumanConfig
 from robot_sim.scene import check_game
 
+SPEECH_MODES = ("real", "text")
+
 
 @dataclass
 class RobotPlayConfig:
@@ -37,8 +39,15 @@ class RobotPlayConfig:
     #: The robot accepts a move once the recogniser reported the same cell and mark this many frames in a row.
     confirm_frames: int = 2
     jpeg_quality: int = 80
-    #: Speak through espeak-ng into WAV files (only if installed).
+    #: Also write every robot utterance as a WAV file under OUT/speech/ (with `speech: real`, or text mode when
+    #: the TTS engine is installed).
     audio: bool = False
+    #: real: the robot speaks its templates (espeak-ng), the simulated person answers with a flite voice over the
+    #: conditions' background noise and the robot hears it through pocketsphinx (the env's `hearing`); every
+    #: utterance's audio goes to the MCAP log. text: nothing is spoken or heard, the env's simulated ASR gives
+    #: the words said at uniform random confidences (the training env's default). `ncbot robot play` defaults to
+    #: real; this dataclass to text, so library callers (tests, `robot serve`) keep their behaviour unless asked.
+    speech: str = "text"
     agent_name: str = "lookahead"
     #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
     meshes_dir: str | None = None
@@ -52,6 +61,8 @@ class RobotPlayConfig:
             raise ValueError(f"games must be at least 1; got {self.games}")
         if self.first not in FIRST_CHOICES:
             raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {self.first!r}")
+        if self.speech not in SPEECH_MODES:
+            raise ValueError(f"speech must be one of {', '.join(SPEECH_MODES)}; got {self.speech!r}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")
         self.condition_ranges()

@@ -1,7 +1,9 @@
 """The closed loop: Pepper plays whole games in the simulator against the simulated human.
 
 The robot perceives only through rendered mouth-camera frames (the vision package's move recogniser,
-Algorithm 1 of the paper) and the dialogue (the env's simulated ASR); it decides with a policy over the SAME
+Algorithm 1 of the paper) and the dialogue: with `speech: real` it speaks its templates and hears the simulated
+person's spoken replies through the real recogniser (`robot_sim.speech`), with `speech: text` the env's
+simulated ASR gives it the words said at random confidences. It decides with a policy over the SAME
 dialogue env state the agent was trained on, and acts through the simulator. The glue is an "external"
 opponent handed to the env: when the env needs the human's move, the simulated person draws on the sheet
 (choosing on the TRUE board), the recogniser watches the frames, and the cell it reports is what the env,
@@ -9,12 +11,14 @@ and therefore the robot's state, believes. Wins, draws and losses are judged on 
 the recogniser got wrong is counted.
 
 One game = one episode: everything goes through `logs.EpisodeLogger` (camera frames as
-`foxglove.CompressedImage`, joint states, transforms, dialogue, the believed board per step, and the true board
-per step in the episode summary); a PNG snapshot of the camera view closes each game.
+`foxglove.CompressedImage`, joint states, transforms, dialogue, with real speech every utterance's audio as
+`foxglove.RawAudio` on `/audio/robot` and `/audio/user` and what was heard on `/dialogue`, the believed board per
+step, and the true board per step in the episode summary); a PNG snapshot of the camera view closes each game.
 """
 from __future__ import annotations
 
 import math
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -31,7 +35,7 @@ from robot_sim.motion import RobotMotion
 from robot_sim.report import GameRecord, games_report, write_report
 from robot_sim.scene import PepperScene, SceneConfig, check_game
 from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
-from robot_sim.speech import Speaker
+from robot_sim.speech import GameSpeech, Speaker, SpeechLog
 
 __all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
@@ -89,16 +93,26 @@ class RobotGameRunner:
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         self.logger = logger
-        self.speaker = Speaker(self.out_dir / "speech" if (config.audio and self.out_dir) else None)
+        self._ranges = config.condition_ranges()
+        self.speech = GameSpeech(config.game, self._ranges) if config.speech == "real" else None
+        self.speaker = self._robot_speaker()
         self.records: list[GameRecord] = []
         from envs.rules import make_game
         from vision.recogniser import MoveRecogniser
 
         self.rules = make_game(config.game, config.free_move)
-        self._ranges = config.condition_ranges()
         self.grid = check_game(config.game)
         self.recogniser = MoveRecogniser(grid=self.grid, tau=config.recogniser_tau)
         self.last_frame: np.ndarray | None = None
+
+    def _robot_speaker(self) -> Speaker:
+        """The robot's voice: espeak-ng with real speech (or for --audio WAVs when installed), else text only."""
+        from speech.tts import ROBOT_VOICE
+
+        audio_dir = self.out_dir / "speech" if (self.config.audio and self.out_dir) else None
+        if self.speech is not None:
+            return Speaker(audio_dir, ROBOT_VOICE, self.speech.cache)
+        return Speaker(audio_dir, ROBOT_VOICE if audio_dir and shutil.which("espeak-ng") else None)
 
     # ------------------------------------------------------------------ logging of sensor streams
     def _log_frame(self, frame: np.ndarray, t: float) -> None:
@@ -173,7 +187,7 @@ class RobotGameRunner:
             # Nothing recognised: the robot asks where the move went and the person answers (ASR).
             record.unseen_moves += 1
             self._keep_evidence(f"unseen-{record.human_moves:02d}-true{true_cell}")
-            self.speaker.say("I could not see your move, where did you draw?")
+            self._say("I could not see your move, where did you draw?")
             cell = true_cell
         if not legal[cell]:  # cannot happen (known marks every illegal cell), kept as a guard for the env
             cell = int(np.flatnonzero(legal)[0])
@@ -194,7 +208,7 @@ class RobotGameRunner:
     # ------------------------------------------------------------------ the robot's turn
     def _act(self, action: int, env) -> None:
         """Say the act's template and do its command: a gesture, or the game move in the scene."""
-        self.speaker.say(env.templates[action])
+        self._say(env.templates[action])
         command = env.robot_commands[action]
         if action < env.cells:
             record = self._record
@@ -225,6 +239,23 @@ class RobotGameRunner:
         elif command in ("hello", "please", "happy", "no", "think", "asr", "read"):
             self.motion.gesture(command)
 
+    # ------------------------------------------------------------------ speech
+    def _say(self, text: str) -> None:
+        samples = self.speaker.say(text)
+        tts = getattr(self.speaker, "tts_seconds", None)  # `robot serve` swaps in a speaker of its own
+        if samples is not None:
+            self._record.robot_tts_seconds += tts[-1] if tts else 0.0
+            self._speech_log.utterance("robot", samples, text, self.scene.time)
+
+    def _timed_render(self, render: Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:
+        """`scene.render`, adding its wall time to the game's render clock (where a turn's time goes)."""
+        def timed() -> np.ndarray:
+            started = time.perf_counter()
+            frame = render()
+            self._render_seconds += time.perf_counter() - started
+            return frame
+        return timed
+
     # ------------------------------------------------------------------ one game
     def play_game(self, index: int) -> GameRecord:
         from envs import make_env
@@ -236,6 +267,8 @@ class RobotGameRunner:
                                              camera_height=cfg.camera_height,
                                              meshes_dir=cfg.meshes_dir, conditions=self._ranges,
                                              conditions_seed=seed))
+        self._render_seconds = 0.0
+        self.scene.render = self._timed_render(self.scene.render)  # every frame of the game goes through it
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
         self._mark_rng = np.random.default_rng(seed + 17)
@@ -243,7 +276,10 @@ class RobotGameRunner:
         first = cfg.first
         if first == "alternate":
             first = "robot" if index % 2 == 0 else "human"
+        hearing = self.speech.hearing(seed) if self.speech is not None else None
         heard = {"asr_confidence": (1.0, 1.0)} if self.user_reply is not None else {}
+        if hearing is not None:
+            heard["hearing"] = hearing
         env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent,
                        **heard)
         td = env.reset()
@@ -254,12 +290,17 @@ class RobotGameRunner:
         self._diverged = False
         self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0,
                                            conditions=self.scene.conditions.summary())
+        if hearing is not None:
+            record.conditions = {**record.conditions, "speech": {"voice": hearing.voice.spec, "noise": hearing.kind,
+                                                                 "snr_db": hearing.snr_db}}
+        self._speech_log = SpeechLog(self.logger, record)
         self._log_frame(self.scene.render(), self.scene.time)
         self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
         if self._sheet_estimate is None:
             raise ValueError("the mouth camera cannot see the game sheet at the home posture; check the scene configuration")
         while True:
             started, cpu_started = time.perf_counter(), time.process_time()
+            render_started, tts_started = self._render_seconds, record.robot_tts_seconds
             td = self.policy(td)
             action = int(td["action"].reshape(-1)[0])
             self._act(action, env)
@@ -267,11 +308,17 @@ class RobotGameRunner:
                 self._check_own_mark(action)
                 record.robot_move_seconds.append(time.perf_counter() - started)
                 record.robot_move_cpu_seconds.append(time.process_time() - cpu_started)
+                record.robot_move_render_seconds.append(self._render_seconds - render_started)
+                record.robot_move_tts_seconds.append(record.robot_tts_seconds - tts_started)
             else:
                 record.dialogue_act_seconds.append(time.perf_counter() - started)
             if self.user_reply is not None:
                 self.user_reply(env, action)
+            heard_before = len(hearing.log) if hearing is not None else 0
             td = env.step(td)
+            if hearing is not None:
+                self._speech_log.heard(hearing, hearing.log[heard_before:], self.scene.time)
+            self._speech_log.flush()
             record.actions += 1
             if self.logger is not None:
                 done = bool(td["next", "done"].item())
@@ -318,7 +365,10 @@ class RobotGameRunner:
                 "misrecognised_moves": record.misrecognised_moves, "unseen_moves": record.unseen_moves,
                 "robot_first": record.robot_first, "conditions": record.conditions,
                 "human_turn_seconds": [round(s, 3) for s in record.human_turn_seconds],
-                "robot_move_seconds": [round(s, 3) for s in record.robot_move_seconds], **self.episode_tags}
+                "robot_move_seconds": [round(s, 3) for s in record.robot_move_seconds],
+                "robot_move_cpu_seconds": [round(s, 3) for s in record.robot_move_cpu_seconds],
+                **({"utterances": record.utterances, "asr_words": record.asr_words,
+                    "asr_word_errors": record.asr_word_errors} if self.speech is not None else {}), **self.episode_tags}
 
     def _annotated(self, frame: np.ndarray, record: GameRecord) -> np.ndarray:
         import cv2

@@ -41,6 +41,21 @@ class GameRecord:
     conditions: dict[str, Any] = field(default_factory=dict)
     #: Camera frames kept for misrecognised or unseen moves (with --out).
     evidence: list[str] = field(default_factory=list)
+    #: Where a robot move's wall time went: rendering frames, and synthesising its utterance.
+    robot_move_render_seconds: list[float] = field(default_factory=list)
+    robot_move_tts_seconds: list[float] = field(default_factory=list)
+    #: Real speech (`speech: real`): utterances spoken per speaker, and what the recogniser made of the person's.
+    utterances: dict[str, int] = field(default_factory=dict)
+    robot_tts_seconds: float = 0.0
+    asr_words: int = 0
+    asr_word_errors: int = 0
+    asr_confidences: list[float] = field(default_factory=list)
+    #: The person's replies understood as the utterance said (speech.understand).
+    asr_understood: int = 0
+    person_tts_seconds: list[float] = field(default_factory=list)
+    asr_seconds: list[float] = field(default_factory=list)
+    #: CPU seconds of each decode (steadier than wall time on a shared machine).
+    asr_cpu_seconds: list[float] = field(default_factory=list)
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -53,6 +68,11 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
     def mean(values: list[float]) -> float | None:
         return round(float(np.mean(values)), 3) if values else None
 
+    real = config.speech == "real"  # with text speech nothing is heard: the ASR keys are null
+    said = sum(r.asr_words for r in records)
+    heard = [c for r in records for c in r.asr_confidences]
+    replies = sum(r.utterances.get("user", 0) for r in records)
+
     return {
         "games": len(records),
         "wins": sum(r.outcome == "win" for r in records),
@@ -63,6 +83,17 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "conditions": config.conditions,
         "unfinished": sum(r.outcome == "unfinished" for r in records),
         "unseen_moves": sum(r.unseen_moves for r in records),
+        "speech": config.speech,
+        "asr_word_error_rate": round(sum(r.asr_word_errors for r in records) / said, 4) if real and said else None,
+        "asr_mean_confidence": round(float(np.mean(heard)), 4) if real and heard else None,
+        "asr_utterances": replies if real else None,
+        "asr_understood_rate": round(sum(r.asr_understood for r in records) / replies, 4) if real and replies else None,
+        "robot_utterances": sum(r.utterances.get("robot", 0) for r in records) if real else None,
+        "render_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_render_seconds]),
+        "tts_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_tts_seconds]) if real else None,
+        "person_tts_seconds_per_utterance": mean([s for r in records for s in r.person_tts_seconds]) if real else None,
+        "asr_seconds_per_utterance": mean([s for r in records for s in r.asr_seconds]) if real else None,
+        "asr_cpu_seconds_per_utterance": mean([s for r in records for s in r.asr_cpu_seconds]) if real else None,
         "human_moves": sum(r.human_moves for r in records),
         "robot_moves": sum(r.robot_moves for r in records),
         "own_mark_misread": sum(r.own_mark_misreads for r in records),

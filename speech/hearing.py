@@ -9,20 +9,18 @@ utterance with the person's voice, adds noise and runs the real recogniser (the 
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
-
-import torch
-
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
 from speech.align import word_errors
 from speech.asr import Heard, Recogniser
 from speech.channel import ChannelModel
 from speech.noise import add_noise
-from speech.tts import PERSON_VOICE, Voice, speak_timed
+from speech.tts import PERSON_VOICE, SpeechCache, Voice
 from speech.understand import closest_utterance, utterance_table
 
 
@@ -101,28 +99,38 @@ class HeardUtterance:
     samples: np.ndarray  # int16, 16 kHz mono, noise included
     heard: Heard
     understood: int  # utterance id, -1 silence
-    tts_cpu_s: float
+    snr_db: float | None  # None: clean
+    tts_cpu_s: float  # 0 when the clean speech came from the cache
     asr_cpu_s: float
+    tts_wall_s: float
+    asr_wall_s: float
+
+
+SnrSpec = float | tuple[float, float] | None
 
 
 class RecogniserHearing:
     """Real ears for the robot's game loop: speaks each utterance with ``voice``, adds ``kind`` noise at
-    ``snr_db`` (None = clean) and decodes it; every utterance heard is kept in ``log`` (audio for the MCAP log,
-    words for the game report's ASR figures)."""
+    ``snr_db`` (a level, a (low, high) range drawn uniformly per utterance, or None = clean) and decodes it;
+    every utterance heard is kept in ``log`` (audio for the MCAP log, words for the game report's ASR figures).
+    ``seed`` seeds the noise; ``cache`` (shared with the robot's voice) keeps each clean utterance's speech."""
 
     def __init__(
         self, utterance_texts: Sequence[str], env_words: Sequence[str], recogniser: Recogniser | None = None,
-        voice: Voice = PERSON_VOICE, snr_db: float | None = None, kind: str = "babble",
-        babble_pool: Sequence[np.ndarray] = (), seed: int = 0,
+        voice: Voice = PERSON_VOICE, snr_db: SnrSpec = None, kind: str = "babble",
+        babble_pool: Sequence[np.ndarray] = (), seed: int | Sequence[int] = 0, cache: SpeechCache | None = None,
     ) -> None:
         from envs.dialogue import tokenize
 
+        if isinstance(snr_db, tuple) and not (len(snr_db) == 2 and snr_db[0] <= snr_db[1]):
+            raise ValueError(f"snr_db must be a level, (low, high) with low <= high, or None for clean; got {snr_db!r}")
         if kind == "babble" and snr_db is not None and not babble_pool:
             raise ValueError("babble noise needs a babble_pool of other utterances (e.g. the robot's templates)")
         self.texts = [" ".join(tokenize(t)) for t in utterance_texts]
         self.env_words = list(env_words)
         self.recogniser = recogniser if recogniser is not None else Recogniser()
         self.voice, self.snr_db, self.kind, self.babble_pool = voice, snr_db, kind, list(babble_pool)
+        self.cache = cache if cache is not None else SpeechCache()
         self.rng = np.random.default_rng(seed)
         self.log: list[HeardUtterance] = []
 
@@ -136,24 +144,45 @@ class RecogniserHearing:
         confidence = torch.stack([torch.nn.functional.pad(r[1][0], (0, width - r[1].shape[1])) for r in rows])
         return columns, confidence, torch.cat([r[2] for r in rows])
 
+    def _level(self) -> float | None:
+        if isinstance(self.snr_db, tuple):
+            low, high = self.snr_db
+            return float(self.rng.uniform(low, high))
+        return self.snr_db
+
     def _hear_one(self, utterance: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         if not 0 <= utterance < len(self.texts):  # silence: nothing to hear
             return heard_tensors(Heard((), ()), self.texts, self.env_words)
         said = self.texts[utterance]
-        samples, tts_cpu = speak_timed(said, self.voice)
-        samples = add_noise(samples, self.kind, self.snr_db, self.rng, self.babble_pool)
-        started = time.process_time()
+        wall = time.perf_counter()
+        samples, tts_cpu = self.cache.speak(said, self.voice)
+        snr_db = self._level()
+        samples = add_noise(samples, self.kind, snr_db, self.rng, self.babble_pool)
+        tts_wall = time.perf_counter() - wall
+        wall, started = time.perf_counter(), time.process_time()
         heard = self.recogniser.recognise(samples)
-        asr_cpu = time.process_time() - started
+        asr_cpu, asr_wall = time.process_time() - started, time.perf_counter() - wall
         result = heard_tensors(heard, self.texts, self.env_words)
-        self.log.append(HeardUtterance(said, samples, heard, int(result[2][0]), tts_cpu, asr_cpu))
+        self.log.append(HeardUtterance(said, samples, heard, int(result[2][0]), snr_db, tts_cpu, asr_cpu,
+                                       tts_wall, asr_wall))
         return result
 
     def word_error_rate(self) -> float | None:
         """Word error rate over every utterance heard so far (None before the first)."""
-        words = sum(len(h.said.split()) for h in self.log)
-        return sum(word_errors(h.said.split(), h.heard.words) for h in self.log) / words if words else None
+        return word_error_rate(self.log)
 
     def mean_confidence(self) -> float | None:
-        confidences = [c for h in self.log for c in h.heard.confidences]
-        return float(np.mean(confidences)) if confidences else None
+        """Mean confidence of every word heard so far (None if nothing was heard)."""
+        return mean_confidence(self.log)
+
+
+def word_error_rate(log: Sequence[HeardUtterance]) -> float | None:
+    """Word errors over words said, over ``log`` (None when nothing was said)."""
+    words = sum(len(h.said.split()) for h in log)
+    return sum(word_errors(h.said.split(), h.heard.words) for h in log) / words if words else None
+
+
+def mean_confidence(log: Sequence[HeardUtterance]) -> float | None:
+    """Mean confidence of the words heard over ``log`` (None when no word was heard)."""
+    confidences = [c for h in log for c in h.heard.confidences]
+    return float(np.mean(confidences)) if confidences else None

@@ -13,7 +13,7 @@ import numpy as np
 
 from speech.asr import Heard, Recogniser
 from speech.noise import add_noise
-from speech.tts import Voice, speak, speak_timed
+from speech.tts import SpeechCache, Voice, speak
 
 
 @dataclass(frozen=True)
@@ -42,16 +42,11 @@ class RoundTripper:
     def __init__(self, recogniser: Recogniser, babble_pool: Sequence[np.ndarray] = ()) -> None:
         self.recogniser = recogniser
         self.babble_pool = list(babble_pool)
-        self._audio: dict[tuple[str, Voice], tuple[np.ndarray, float]] = {}
+        self.cache = SpeechCache()
 
     def audio(self, text: str, voice: Voice) -> tuple[np.ndarray, float]:
         """Clean samples of ``voice`` saying ``text`` and the CPU seconds it cost (0 after the first time)."""
-        key = (text, voice)
-        if key in self._audio:
-            return self._audio[key][0], 0.0
-        samples, cpu = speak_timed(text, voice)
-        self._audio[key] = (samples, cpu)
-        return samples, cpu
+        return self.cache.speak(text, voice)
 
     def run(self, trial: Trial) -> RoundTrip:
         samples, tts_cpu = self.audio(trial.text, trial.voice)

@@ -101,6 +101,27 @@ def speak_timed(text: str, voice: Voice = PERSON_VOICE) -> tuple[np.ndarray, flo
     return samples, cpu() - before
 
 
+class SpeechCache:
+    """Clean TTS samples per (text, voice): a voice says a text the same way every time, so each is synthesised
+    once (the robot repeats its templates, the person its replies; noise and decoding vary, the speech does not)."""
+
+    def __init__(self) -> None:
+        self._audio: dict[tuple[str, Voice], np.ndarray] = {}
+
+    def speak(self, text: str, voice: Voice) -> tuple[np.ndarray, float]:
+        """Samples of ``voice`` saying ``text`` and the CPU seconds it cost (0 when it came from the cache)."""
+        key = (text, voice)
+        if key in self._audio:
+            return self._audio[key], 0.0
+        samples, cpu = speak_timed(text, voice)
+        samples.setflags(write=False)  # shared by every caller: nobody may change it in place
+        self._audio[key] = samples
+        return samples, cpu
+
+    def __len__(self) -> int:
+        return len(self._audio)
+
+
 def resample(samples: np.ndarray, rate: int, target: int) -> np.ndarray:
     """Band-limited resampling of int16 samples by FFT (one utterance at a time, so the cost is tiny)."""
     if rate == target or samples.size == 0:

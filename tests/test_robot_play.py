@@ -10,12 +10,16 @@ pytestmark = pytest.mark.sapien
 
 
 def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_system, tmp_path):
+    """With real speech (the CLI's default): the robot speaks, hears the person through pocketsphinx, and the
+    log holds both voices' audio, decodable back to samples."""
     from logs import LogReader, read_episodes
     from robot_sim.game_config import RobotPlayConfig
     from robot_sim.play import play_robot_games
+    from speech import SAMPLE_RATE
+    from speech.audio import samples_from_raw_audio
 
     config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=320, camera_height=240,
-                             robot_frame_period=1.0)
+                             robot_frame_period=1.0, speech="real")
     report = play_robot_games(config, out_dir=tmp_path, progress=False)
 
     assert report["games"] == 1 and report["wins"] + report["draws"] + report["losses"] == 1, report
@@ -42,6 +46,30 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     boards = [m.data for m in reader.messages() if m.topic == "/board"]
     assert boards[-1]["cells"] == extra["true_boards"][-1]
 
+    # Speech: every utterance of both speakers is on /audio/*, 16 kHz mono pcm-s16, audible, as long as noted on
+    # /dialogue beside its text; the person's turns carry what the recogniser heard with per-word confidences.
+    assert report["asr_utterances"] >= 5 and 0.0 <= report["asr_word_error_rate"] <= 0.5, report
+    assert 0.5 < report["asr_mean_confidence"] <= 1.0 and report["robot_utterances"] > report["robot_moves"]
+    audio = {"/audio/robot": [], "/audio/user": []}
+    for message in reader.messages(list(audio)):
+        assert (message.data.format, message.data.sample_rate, message.data.number_of_channels) == ("pcm-s16", SAMPLE_RATE, 1)
+        samples = samples_from_raw_audio(message.data)
+        assert 0.3 < samples.size / SAMPLE_RATE < 5.0 and np.abs(samples).max() > 2000  # a spoken utterance
+        audio[message.topic].append((round(message.data.timestamp.ToNanoseconds() / 1e9, 4), samples.size))
+    assert len(audio["/audio/robot"]) == report["robot_utterances"] and len(audio["/audio/user"]) == report["asr_utterances"]
+    noted = {"/audio/robot": [], "/audio/user": []}
+    turns = [m.data for m in reader.messages(["/dialogue"])]
+    for turn in turns:
+        for item in turn.get("audio", []):
+            assert item["text"]
+            noted[item["topic"]].append((item["t"], item["seconds"] * SAMPLE_RATE))
+    for topic, logged in audio.items():  # the same utterances, in order, at the same times and lengths
+        assert [t for t, _ in noted[topic]] == [t for t, _ in logged]
+        assert np.allclose([n for _, n in noted[topic]], [n for _, n in logged], atol=1.0)
+    heard = [t for t in turns if t["speaker"] == "user"]
+    assert heard and all(len(t["heard_words"]) == len(t["heard"].split()) for t in heard)
+    assert all(0.0 <= c <= 1.0 for t in heard for _, c in t["heard_words"])
+
     # --rrd: the run exports to a rerun recording with the camera frames.
     from logs.rerun_export import export_to_rerun
 
@@ -55,7 +83,8 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
     from pipelines.cli import main
 
     for args, needle in ((["--rrd"], "--rrd needs --out"), (["--checkpoint", str(tmp_path / "missing.pt")], "does not exist"),
-                         (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder")):
+                         (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder"),
+                         (["--speech", "loud"], "--speech must be real or text")):
         monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", *args])
         with pytest.raises(SystemExit) as exit_info:
             main()
@@ -63,6 +92,23 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
         assert exit_info.value.code == 2, err
         assert needle in err and "Traceback" not in err
         assert len(err.strip().splitlines()) == 1
+
+
+def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
+    from robot_sim.game_config import RobotPlayConfig
+    from robot_sim.report import GameRecord, games_report
+
+    record = GameRecord(index=0, outcome="win", robot_first=True, actions=9, utterances={"robot": 9, "user": 4},
+                        asr_words=10, asr_word_errors=2, asr_confidences=[0.5, 1.0], asr_understood=3)
+    keys = ("asr_word_error_rate", "asr_mean_confidence", "asr_utterances", "asr_understood_rate", "robot_utterances")
+    text = games_report([record], RobotPlayConfig(speech="text"))
+    assert all(text[k] is None for k in keys) and text["speech"] == "text"
+    real = games_report([record], RobotPlayConfig(speech="real"))
+    assert [real[k] for k in keys] == [0.2, 0.75, 4, 0.75, 9]
+    for key in ("misrecognised_moves", "unseen_moves", "seconds_per_robot_turn", "conditions"):
+        assert key in real and key in text
+    with pytest.raises(ValueError, match="speech must be one of real, text"):
+        RobotPlayConfig(speech="loud").validate()
 
 
 def test_lookahead_policy_is_seeded_and_respects_masks():
