@@ -7,7 +7,8 @@
 - games: task success against training games, read off the `table` runs' periodic greedy evaluations (the first
   one at or after each point): a run capped at N games is the same run stopped there, because every schedule
   (epsilon, target updates) counts frames, not games.
-- vision: not yet (the cell-classifier budget belongs to the vision work; `ncbot vision train --budget N`).
+- vision: the cell classifier trained on N labelled cells, scored on held-out handwriting
+  (pipelines/reproduce_vision.py; its section and `data_budget_vision.png` come from there).
 """
 from __future__ import annotations
 
@@ -23,7 +24,6 @@ from pipelines.claims import CELL_LABELS, GAME_LABELS
 DIALOGUE_POINTS = (1, 2, 4, 8, 12)
 SUBSETS = 3
 PAPER_DIALOGUES = 12  # the paper's "a dozen dialogues" per game
-VISION_NOT_YET = "not yet: the cell-classifier data budget needs the vision helper's `ncbot vision train --budget N`"
 DIALOGUE_AGENT_NOT_YET = "not yet: training an agent on k example dialogues needs an env option that learns from a subset"
 
 
@@ -117,7 +117,7 @@ def _plot(dialogues: list[dict], games: list[dict], out: Path, label: str) -> li
 def render_budget(data: dict[str, Any], command: str, label: str) -> str:
     lines = ["# Data budgets (the title's claim: a dozen dialogues, a few hundred images)", "", f"> {label}", "",
              f"Made by `{command}`. Figures: `data_budget_dialogues.png`, `data_budget_games.png`.", "",
-             "## Vision: labelled cell images", "", VISION_NOT_YET + ".", "",
+             "## Vision: labelled cell images", "", data["vision_markdown"].rstrip(), "",
              "## Dialogues: example dialogues per game (paper set)", "",
              f"Act filter agreement: share of the 12 dialogues' system turns whose allowed acts are the same under the "
              f"filter learnt from k dialogues (mean over {SUBSETS} seeded subsets) as under all 12. Agent columns: "
@@ -141,9 +141,12 @@ def render_budget(data: dict[str, Any], command: str, label: str) -> str:
 def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
     """Write out/data_budget.md and its PNGs; return the `--json` object {vision, dialogues, games} (+ label)."""
     games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
-    data = {"label": budget.label, "command": command, "vision": [], "vision_note": VISION_NOT_YET,
+    from pipelines.reproduce_vision import vision_budget_part
+
+    data = {"label": budget.label, "command": command, **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out),
             "dialogues": dialogue_budget(games_of_rows), "games": games_budget(Path(runs_dir), budget.game_points)}
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(render_budget(data, command, budget.label), out / "data_budget.md")
     data["figures"] = [str(p) for p in _plot(data["dialogues"], data["games"], out, budget.label)]
+    data["figures"] += data.pop("vision_figures")
     return data
