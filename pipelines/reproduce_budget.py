@@ -143,7 +143,8 @@ def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str)
     games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
     from pipelines.reproduce_vision import vision_budget_part
 
-    data = {"label": budget.label, "command": command, **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out),
+    data = {"label": budget.label, "command": command,
+            **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out, command=command),
             "dialogues": dialogue_budget(games_of_rows), "games": games_budget(Path(runs_dir), budget.game_points)}
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(render_budget(data, command, budget.label), out / "data_budget.md")

@@ -206,13 +206,14 @@ def write_vision_report(budget: Any, *, runs_dir: Path, out: Path, command: str,
     shipped = shipped_reference(vb, root)
     out.mkdir(parents=True, exist_ok=True)
     md = atomic_write_text(render_experiments(vb, paper, results, shipped, command), out / "vision_experiments.md")
-    files = [md, plot_confusions(paper, results, shipped, out / "vision_experiments.png", vb.label),
-             plot_curve(records(results), shipped, out / "data_budget_vision.png", vb.label)]
+    files = [md, plot_confusions(paper, results, shipped, out / "vision_experiments.png", vb.label, command),
+             plot_curve(records(results), shipped, out / "data_budget_vision.png", vb.label, command)]
     return {"label": vb.label, "vision": records(results), "shipped": shipped, "paper_experiments": paper,
             "files": [str(p) for p in files]}
 
 
-def vision_budget_part(budget: Any, *, runs_dir: Path, out: Path, workers: int = 1) -> dict[str, Any]:
+def vision_budget_part(budget: Any, *, runs_dir: Path, out: Path, command: str = "ncbot reproduce budget",
+                       workers: int = 1) -> dict[str, Any]:
     """What `ncbot reproduce budget` shows of vision: the records, the markdown section and the curve's PNG
     (trainings already finished by the vision part are read back, missing ones trained here)."""
     vb = vision_budget_of(budget)
@@ -223,7 +224,7 @@ def vision_budget_part(budget: Any, *, runs_dir: Path, out: Path, workers: int =
     results = run_vision_budget(vb, root, workers)
     recs, shipped = records(results), shipped_reference(vb, root)
     Path(out).mkdir(parents=True, exist_ok=True)
-    figure = plot_curve(recs, shipped, Path(out) / "data_budget_vision.png", vb.label)
+    figure = plot_curve(recs, shipped, Path(out) / "data_budget_vision.png", vb.label, command)
     return {"vision": recs, "vision_note": vb.label, "vision_markdown": vision_section(recs, shipped, vb.label),
             "vision_figures": [str(figure)]}
 

@@ -87,8 +87,8 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
     lines = [f"> {label}", "",
              "The shipped classifier's recipe (`vision/training.py`: the paper's CNN + linear SVM, hinge loss, Adam "
              "3e-3 cosine, batch 64, flips/turns/shifts) trained on N labelled cells of the training handwriting "
-             f"(\"pen\"), with the shipped run's number of updates ({first['updates']:,} for N >= 64): fewer cells, "
-             "not less training. N splits as the paper's 109 clean : 201 noisy (clean = round(N x 109 / 310)); the "
+             f"(\"pen\"), with the shipped run's number of updates ({first['updates']:,}; below 64 cells a batch is the "
+             "whole set): fewer cells, not less training. N splits as the paper's 109 clean : 201 noisy (clean = round(N x 109 / 310)); the "
              "noisy part is half generated noisy cells, half cells the reader cut from training photos "
              "(`vision/budget.py`). Scored on held-out handwriting only: "
              f"{first['heldout_cells']:,} cells (\"sketch\" + \"hershey\", half noisy) and {first['heldout_photos']} "
@@ -111,7 +111,14 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
     return "\n".join(lines) + "\n"
 
 
-def plot_curve(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, path: Path, label: str) -> Path:
+def _suptitle(fig: Any, label: str, command: str) -> None:
+    import textwrap
+
+    fig.suptitle("\n".join(textwrap.wrap(f"{label} Made by: {command}", 170)), fontsize=7)
+
+
+def plot_curve(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, path: Path, label: str,
+               command: str) -> Path:
     """Cells and boards right against N (log axis), every seed a dot, the paper's 310 and the 98 % target marked."""
     from pipelines.plots import pyplot, save_figure
     from vision.budget import PAPER_IMAGES
@@ -135,7 +142,8 @@ def plot_curve(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, path:
         ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
-    fig.suptitle(label[:150], fontsize=7)
+    _suptitle(fig, label, command)
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
     return save_figure(fig, path)
 
 
@@ -205,7 +213,7 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
 
 
 def plot_confusions(paper: list[dict[str, Any]], results: list[dict[str, Any]], shipped: dict[str, Any],
-                    path: Path, label: str) -> Path:
+                    path: Path, label: str, command: str) -> Path:
     """The paper's matrix and ours side by side (row percentages)."""
     from pipelines.plots import pyplot, save_figure
     from vision.budget import PAPER_IMAGES
@@ -228,7 +236,8 @@ def plot_confusions(paper: list[dict[str, Any]], results: list[dict[str, Any]], 
         ax.set_xlabel("predicted", fontsize=8)
         ax.set_ylabel("true", fontsize=8)
         ax.set_title(title, fontsize=8)
-    fig.suptitle(label[:150], fontsize=7)
+    _suptitle(fig, label, command)
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
     return save_figure(fig, path)
 
 

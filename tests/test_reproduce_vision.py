@@ -101,3 +101,12 @@ def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, 
     stamps = [p.stat().st_mtime_ns for p in results]
     again = CliRunner().invoke(app, args)
     assert again.exit_code == 0 and [p.stat().st_mtime_ns for p in results] == stamps  # finished points skipped
+    # `budget` reads the same points back into data_budget.md's vision section and its --json "vision" list
+    from pipelines.reproduce_budget import write_budget_report
+
+    report = write_budget_report(TINY, runs_dir=runs / "tiny", out=out, command="ncbot reproduce budget --budget tiny")
+    assert [r["cell_accuracy"] for r in report["vision"]] == [r["cell_accuracy"] for r in data["vision"]]
+    section = (out / "data_budget.md").read_text().split("## Vision: labelled cell images")[1].split("## Dialogues")[0]
+    assert TOY.label in section and "| 6 | 2 + 4 (2 + 2) | 1 |" in section and "shipped weights" in section
+    assert str(out / "data_budget_vision.png") in report["figures"]
+    assert [p.stat().st_mtime_ns for p in results] == stamps
