@@ -83,12 +83,16 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
     """The data-budget table (markdown), shared by data_budget.md and vision_experiments.md."""
     if not recs:
         return (note or "No vision points at this budget.") + "\n"
+    from vision.budget import SHIPPED_UPDATES
+
     first = recs[0]
+    updates_note = ("as many as the shipped run" if abs(first["updates"] - SHIPPED_UPDATES) < 64
+                    else f"a smoke budget: the shipped run made {SHIPPED_UPDATES:,}")
     lines = [f"> {label}", "",
              "The shipped classifier's recipe (`vision/training.py`: the paper's CNN + linear SVM, hinge loss, Adam "
              "3e-3 cosine, batch 64, flips/turns/shifts) trained on N labelled cells of the training handwriting "
-             f"(\"pen\"), with the shipped run's number of updates ({first['updates']:,}; below 64 cells a batch is the "
-             "whole set): fewer cells, not less training. N splits as the paper's 109 clean : 201 noisy (clean = round(N x 109 / 310)); the "
+             f"(\"pen\"), with {first['updates']:,} updates ({updates_note}; below 64 cells a batch is the whole set): "
+             "fewer cells, not less training. N splits as the paper's 109 clean : 201 noisy (clean = round(N x 109 / 310)); the "
              "noisy part is half generated noisy cells, half cells the reader cut from training photos "
              "(`vision/budget.py`). Scored on held-out handwriting only: "
              f"{first['heldout_cells']:,} cells (\"sketch\" + \"hershey\", half noisy) and {first['heldout_photos']} "
@@ -206,7 +210,7 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
     for i, label in enumerate(LABEL_ORDER):
         lines.append(f"| {label} | " + " | ".join(" / ".join(f"{v:.1f}" for v in c[1][i]) for c in columns) + " |")
     lines += ["", "Commands: " + "; ".join(f"{c[0]}: {c[2]}" for c in columns[1:]) + ". "
-              f"Held-out cells: {shipped['cells']:,} (600 sketch + 600 hershey, half noisy; TEST_SEED + 1, + 2).", "",
+              f"Held-out cells: {shipped['cells']:,} ({vb.cells} sketch + {vb.cells} hershey, half noisy; TEST_SEED + 1, + 2).", "",
               "## Data budget: labelled cells against held-out accuracy", "",
               vision_section(records(results), shipped, vb.label).rstrip(), ""]
     return "\n".join(lines)
