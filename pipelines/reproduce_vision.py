@@ -132,8 +132,10 @@ def train_and_score(root: str, spec: dict[str, Any], heldout_file: str) -> dict[
     return result
 
 
-def run_vision_budget(vb: VisionBudget, root: Path, workers: int = 1, progress: Any = None) -> list[dict[str, Any]]:
-    """Every (N, seed) point of the budget: finished ones read back, the rest trained (``workers`` processes)."""
+def run_vision_budget(vb: VisionBudget, root: Path, workers: int = 1, progress: Any = None,
+                      train: bool = True) -> list[dict[str, Any]]:
+    """Every (N, seed) point of the budget: finished ones read back, the rest trained (``workers`` processes);
+    train=False returns the finished ones only (a report of a run still under way)."""
     import multiprocessing
 
     root = Path(root)
@@ -146,6 +148,8 @@ def run_vision_budget(vb: VisionBudget, root: Path, workers: int = 1, progress: 
     specs = [_spec(vb, n, seed) for _, seed, n in order]
     results = {(s["images"], s["seed"]): _done(root, s) for s in specs}
     todo = [s for s in specs if results[(s["images"], s["seed"])] is None]
+    if not train:
+        return [results[key] for key in sorted(results) if results[key] is not None]
     if todo and workers > 1:
         with ProcessPoolExecutor(min(workers, len(todo)), mp_context=multiprocessing.get_context("spawn")) as pool:
             futures = [pool.submit(train_and_score, str(root), s, str(data_file)) for s in todo]
@@ -194,14 +198,20 @@ def no_vision_note(budget: Any) -> str:
 
 
 def write_vision_report(budget: Any, *, runs_dir: Path, out: Path, command: str, workers: int = 1,
-                        progress: Any = None) -> dict[str, Any]:
+                        progress: Any = None, partial: str | None = None) -> dict[str, Any]:
     """The vision part: the budget's trainings, the paper's experiments, OUT/vision_experiments.{md,png} and
-    OUT/data_budget_vision.png. Returns {"vision": records, "shipped": ..., "paper_experiments": ..., "files"}."""
+    OUT/data_budget_vision.png. Returns {"vision": records, "shipped": ..., "paper_experiments": ..., "files"}.
+    ``partial`` (a sentence saying why): report the finished points only, without training, labelled PARTIAL."""
+    from dataclasses import replace
+
     vb = vision_budget_of(budget)
     if vb is None:
         raise ValueError(no_vision_note(budget))
     root, out = vision_root(runs_dir), Path(out)
-    results = run_vision_budget(vb, root, workers, progress)
+    results = run_vision_budget(vb, root, workers, progress, train=partial is None)
+    if partial is not None:
+        vb = replace(vb, label=f"PARTIAL ({len(results)} of {len(vb.points) * vb.seeds} points finished): {partial} "
+                               f"{vb.label}")
     paper = paper_experiments(vb, root, progress)
     shipped = shipped_reference(vb, root)
     out.mkdir(parents=True, exist_ok=True)

@@ -110,3 +110,12 @@ def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, 
     assert TOY.label in section and "| 6 | 2 + 4 (2 + 2) | 1 |" in section and "shipped weights" in section
     assert str(out / "data_budget_vision.png") in report["figures"]
     assert [p.stat().st_mtime_ns for p in results] == stamps
+    # a report of a run still under way: finished points only, nothing trained, labelled PARTIAL
+    import shutil
+
+    from pipelines.reproduce_vision import write_vision_report
+
+    shutil.rmtree(runs / "tiny" / "vision" / "n00009_seed0")
+    partial = write_vision_report(TINY, runs_dir=runs / "tiny", out=out, command="x", partial="stopped for a test.")
+    assert [r["images"] for r in partial["vision"]] == [6] and not (runs / "tiny" / "vision" / "n00009_seed0").exists()
+    assert (out / "vision_experiments.md").read_text().count("PARTIAL (1 of 2 points finished): stopped for a test.") == 2
