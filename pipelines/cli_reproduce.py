@@ -8,10 +8,10 @@ import typer
 
 
 def reproduce_command(
-    part: str = typer.Argument("all", help="table | budget | all."),
+    part: str = typer.Argument("all", help="table | vision | budget | all."),
     budget: str = typer.Option(..., "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full (the paper's protocol, resumable)."),
     workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
-    out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md and PNGs."),
+    out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md and PNGs."),
     runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget)."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
@@ -31,8 +31,14 @@ def reproduce_command(
         report = result.get("budget_report")
         if part == "budget":
             typer.echo(json.dumps({key: report[key] for key in ("vision", "dialogues", "games", "label")}))
+        elif part == "vision":
+            typer.echo(json.dumps({key: result["vision_report"][key] for key in ("vision", "label")}))
         else:
             typer.echo(json.dumps(result))
+        return
+    if "vision_report" in result:
+        typer.echo(f"{result['vision_report']['label']}\nwrote {', '.join(result['vision_report']['files'])}")
+    if "runs" not in result:  # the vision part trains no RL agents
         return
     summary = result["runs"]
     typer.echo(result["label"])

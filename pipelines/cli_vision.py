@@ -109,14 +109,36 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
           frames9: int = typer.Option(120, min=0, help="Generated 9x9 photos whose cells the reader cuts."),
           epochs: int = typer.Option(14, min=1, help="Passes over the training cells."),
           seed: int = typer.Option(0, help="Initial weights, batch order and augmentations."),
-          data_seed: Optional[int] = typer.Option(None, help="Data seed (default vision.data.TRAIN_SEED).")) -> None:
-    """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data."""
+          data_seed: Optional[int] = typer.Option(None, help="Data seed (default vision.data.TRAIN_SEED)."),
+          budget: Optional[int] = typer.Option(None, min=3, max=100_000, help="Data budget: train the same recipe on "
+                                               "only N labelled training-style cells (paper: 310); needs --out; "
+                                               "--seed picks the draw too (vision/budget.py)."),
+          updates: Optional[int] = typer.Option(None, min=1, help="--budget only: optimiser steps (default: as many "
+                                                "as the shipped run, 8,764)."),
+          ) -> None:
+    """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data, or with
+    --budget N the same recipe on N labelled cells (109 : 201 clean : noisy, as the paper)."""
     from vision.classifier import DEFAULT_WEIGHTS, TrainConfig, save_weights
     from vision.data import TRAIN_SEED
     from vision.training import DefaultTraining, train_default
 
     if out is not None:
         check_writable_file(out, "--out", (".pt",))
+    if budget is not None:
+        from vision.budget import train_budget
+
+        if out is None:
+            raise ValueError("--budget needs --out WEIGHTS.pt (it never overwrites the shipped weights)")
+        if data_seed is not None:
+            raise ValueError("--data-seed does not apply with --budget: --seed picks the draw (vision.data.BUDGET_SEED + 10,000 x seed)")
+        _setup_threads()
+        model, meta = train_budget(budget, seed, updates, progress=progress_bar)
+        path = save_weights(model, out, meta)
+        typer.echo(f"wrote {path} ({meta['clean']} clean + {meta['noisy_generated']} generated noisy + "
+                   f"{meta['noisy_photo']} photo cells, {meta['updates']} updates, seed {seed})")
+        return
+    if updates is not None:
+        raise ValueError("--updates applies only with --budget (the shipped recipe counts --epochs)")
     _setup_threads()
     config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9,
                              seed=TRAIN_SEED if data_seed is None else data_seed,

@@ -5,8 +5,10 @@ and a fixed protocol (seeds, games, test games). `table` writes an ablation grid
 through the same runner as `ncbot ablate` (pipelines/ablate.py: parallel processes, finished runs skipped, a
 killed run resumed from its checkpoint), then `pipelines.table.write_report` writes the table and the claims.
 `budget` reads the data budgets off those runs and the example dialogues, and trains the dialogue-budget agents
-(pipelines/reproduce_budget.py). `--backend ray [--address HOST:PORT]` runs every run as a Ray task
-(pipelines/ray_backend.py: the runs folder must be shared by every node, checked before any run starts).
+(pipelines/reproduce_budget.py). `vision` trains the cell classifier on N labelled cells and runs the paper's
+vision experiments (pipelines/reproduce_vision.py); it needs no RL runs. `--backend ray [--address HOST:PORT]`
+runs every run as a Ray task (pipelines/ray_backend.py: the runs folder must be shared by every node, checked
+before any run starts).
 
 Budgets: `full` is the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games, every game row);
 `quick` is a smoke version that fits in < 30 min on 2 cores, and says so in every file it writes.
@@ -22,7 +24,7 @@ import yaml
 from fileio import atomic_write_text
 
 PAPER_CONFIGS = Path(__file__).with_name("configs") / "paper"
-PARTS = ("table", "budget", "all")
+PARTS = ("table", "vision", "budget", "all")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
 
 
@@ -139,7 +141,8 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
               configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
     """`ncbot reproduce PART --budget NAME`: the runs, then the table and claims (table), the data budgets
     (budget; its games curve reads the same runs, its dialogue curve trains agents on k example dialogues in
-    RUNS/dialogues-NAME), or both (all). ``backend="ray"``: every run a Ray task (``address``: a cluster's head)."""
+    RUNS/dialogues-NAME), the vision experiments and budget (vision: no RL runs), or all of them (all).
+    ``backend="ray"``: every RL run a Ray task (``address``: a cluster's head)."""
     if part not in PARTS:
         raise ValueError(f"part must be one of {', '.join(PARTS)}; got {part!r}")
     budget = budget_name if isinstance(budget_name, Budget) else budget_of(budget_name)
@@ -149,9 +152,15 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
 
     check_backend(backend, workers, address)  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
-    result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command,
-                              "runs": run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend,
-                                               configs=configs, address=address)}
+    result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command}
+    if part in ("vision", "budget", "all"):  # the vision trainings in parallel; the vision files (vision, all)
+        from pipelines.reproduce_vision import run_vision_part
+
+        result.update(run_vision_part(part, budget, runs_dir=runs_dir, out=out, command=command, workers=workers))
+        if part == "vision":
+            return result
+    result["runs"] = run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend, configs=configs,
+                              address=address)
     if part in ("table", "all"):
         result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
     if part in ("budget", "all"):

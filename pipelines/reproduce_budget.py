@@ -6,7 +6,8 @@
 - games: task success against training games, read off the `table` runs' periodic greedy evaluations (the first
   one at or after each point): a run capped at N games is the same run stopped there, because every schedule
   (epsilon, target updates) counts frames, not games.
-- vision: not yet (the cell-classifier budget belongs to the vision work; `ncbot vision train --budget N`).
+- vision: the cell classifier trained on N labelled cells, scored on held-out handwriting
+  (pipelines/reproduce_vision.py; its section and `data_budget_vision.png` come from there).
 """
 from __future__ import annotations
 
@@ -19,7 +20,6 @@ from fileio import atomic_write_text
 from pipelines.claims import CELL_LABELS, GAME_LABELS
 from pipelines.reproduce_dialogues import dialogue_records, dialogue_section, plot_dialogues
 
-VISION_NOT_YET = "not yet: the cell-classifier data budget needs the vision helper's `ncbot vision train --budget N`"
 
 
 def _runs(runs_dir: Path) -> dict[tuple[str, str], list[list[dict[str, Any]]]]:
@@ -72,7 +72,7 @@ def _plot(dialogues: list[dict], games: list[dict], out: Path, label: str) -> li
 def render_budget(data: dict[str, Any], command: str, label: str, budget: Any) -> str:
     lines = ["# Data budgets (the title's claim: a dozen dialogues, a few hundred images)", "", f"> {label}", "",
              f"Made by `{command}`. Figures: `data_budget_dialogues.png`, `data_budget_games.png`.", "",
-             "## Vision: labelled cell images", "", VISION_NOT_YET + ".", "",
+             "## Vision: labelled cell images", "", data["vision_markdown"].rstrip(), "",
              *dialogue_section(data["dialogues"], budget)]
     lines += ["", "## Games: task success against training games (paper settings)", "",
               "Read off each run's periodic greedy evaluation (alternating seats) at the first evaluation at or after "
@@ -92,10 +92,14 @@ def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str,
     """Write out/data_budget.md and its PNGs; return the `--json` object {vision, dialogues, games} (+ label).
     ``dialogue_runs``: the dialogue-budget agents' runs folder (pipelines/reproduce_dialogues.py)."""
     games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
-    data = {"label": budget.label, "command": command, "vision": [], "vision_note": VISION_NOT_YET,
+    from pipelines.reproduce_vision import vision_budget_part
+
+    data = {"label": budget.label, "command": command,
+            **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out, command=command),
             "dialogues": dialogue_records(games_of_rows, dialogue_runs),
             "games": games_budget(Path(runs_dir), budget.game_points)}
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(render_budget(data, command, budget.label, budget), out / "data_budget.md")
     data["figures"] = [str(p) for p in _plot(data["dialogues"], data["games"], out, budget.label)]
+    data["figures"] += data.pop("vision_figures")
     return data

@@ -49,7 +49,7 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
     assert config["env"]["dialogue_subset"] == {"k": 2, "seed": 1} and config["train"]["seed"] == 1
     assert "| standard | 24 | 1 |" in (out / "data_budget.md").read_text()
     assert {r["games"] for r in budget["games"]} == {2, 4} and len({r["agent"] for r in budget["games"]}) == 4
-    assert budget["vision"] == [] and "not yet" in budget["vision_note"]
+    assert budget["vision"] == [] and "no vision points" in budget["vision_note"]
     for run in (runs / "tiny").glob("paper/standard/*/seed0"):
         saved = json.loads((run / "eval.json").read_text())
         # the budget's games cap or the config's frames, whichever first; the budget's test games

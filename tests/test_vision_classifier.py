@@ -56,8 +56,16 @@ def test_weights_round_trip_and_bad_files(tmp_path) -> None:
     with pytest.raises(FileNotFoundError, match="do not exist"):
         load_classifier(tmp_path / "missing.pt")
     (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
-    with pytest.raises(ValueError, match="not a CellCNN checkpoint"):
+    with pytest.raises(ValueError, match="junk.pt could not be loaded .*expected the {state_dict, meta} file"):
         load_classifier(tmp_path / "junk.pt")
+    torch.save({"state_dict": {"a": torch.zeros(2)}}, tmp_path / "foreign.pt")
+    with pytest.raises(ValueError, match=r"are not a CellCNN's \(missing \['features.0.bias'"):
+        load_classifier(tmp_path / "foreign.pt")
+    state = model.state_dict()
+    state["svm.weight"] = torch.zeros(4, 576)
+    torch.save({"state_dict": state}, tmp_path / "other_shape.pt")
+    with pytest.raises(ValueError, match="do not fit the CellCNN .*size mismatch for svm.weight"):
+        load_classifier(tmp_path / "other_shape.pt")
 
 
 @pytest.mark.parametrize("styles, floor", [(("pen",), 0.98), (("sketch",), 0.96), (("hershey",), 0.95)])

@@ -61,12 +61,26 @@ def load_classifier(path: str | Path | None = None) -> CellClassifier:
 def _load(path: Path) -> CellClassifier:
     if not path.is_file():
         raise FileNotFoundError(f"classifier weights {path} do not exist; train them with `ncbot vision train --out {path}`")
+    expected = "expected the {state_dict, meta} file `ncbot vision train` writes"
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
-        model = CellCNN()
+    except Exception as error:  # truncated, not torch, or pickled objects: say which file, not a pickle traceback
+        reason = next((line.strip() for line in str(error).splitlines() if line.strip()), "")[:200]
+        if "Weights only load failed" in reason:  # torch's advice (turn weights_only off) is the unsafe one
+            reason = "not a tensors-only torch file; ncbot never unpickles Python objects"
+        raise ValueError(f"classifier weights {path} could not be loaded ({type(error).__name__}: {reason}); {expected}") from None
+    if not isinstance(blob, dict) or not isinstance(blob.get("state_dict"), dict):
+        raise ValueError(f"classifier weights {path} hold no 'state_dict'; {expected}")
+    model = CellCNN()
+    missing, unexpected = model.state_dict().keys() - blob["state_dict"].keys(), blob["state_dict"].keys() - model.state_dict().keys()
+    if missing or unexpected:
+        raise ValueError(f"classifier weights {path} are not a CellCNN's (missing {sorted(missing)[:3]}, unexpected "
+                         f"{sorted(unexpected)[:3]}); {expected}")
+    try:
         model.load_state_dict(blob["state_dict"])
-    except Exception as error:  # a truncated or foreign file: say which file, not a pickle traceback
-        raise ValueError(f"classifier weights {path} are not a CellCNN checkpoint ({type(error).__name__}: {error})") from None
+    except RuntimeError as error:  # right names, wrong shapes: another network's weights
+        shapes = " ".join(str(error).split())
+        raise ValueError(f"classifier weights {path} do not fit the CellCNN ({shapes}); {expected}") from None
     return CellClassifier(model)
 
 

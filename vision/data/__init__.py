@@ -8,6 +8,7 @@ from __future__ import annotations
 CLEAN_SEED = 109_000      # the "clean" set (paper: 109 images)
 NOISY_SEED = 201_000      # the "noisy" set (paper: 201 images)
 TRAIN_SEED = 1_000_000    # the large varied set the shipped weights are trained on
+BUDGET_SEED = TRAIN_SEED + 500_000  # data-budget draws (vision.budget): training style, + 10,000 per draw seed
 TEST_SEED = 9_000_000     # held-out cells and frames used by tests and the reading figures
 N_CLEAN, N_NOISY = 109, 201
 # "harsh" photo conditions (vision.data.conditions): the reader was tuned on TUNING photos with "pen" marks
