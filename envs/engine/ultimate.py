@@ -33,6 +33,7 @@ class UltimateEngine(_Engine):
         self.positions = torch.arange(9).unsqueeze(0)  # (1, 9): the 9 squares of one subgrid, in position order
         self._is_position = torch.eye(9, dtype=torch.bool)  # row k: only subgrid k (a forced game's one row)
         self._grid_offsets = torch.arange(9) * 3**9  # (9,): subgrid k's block of the ``now`` table
+        self._not_position = 511 - (1 << self.positions)  # (1, 9): every subgrid bit but the position's
 
     def legal(self, state: Boards) -> torch.Tensor:
         # one row of the (10, 81) region table per game: its forced subgrid, or row 9 (free) for the rest
@@ -85,7 +86,8 @@ class UltimateEngine(_Engine):
 
         ``after[p]`` (3^9, 9): for each subgrid content and position, what ``p`` taking that square does to the
         subgrid (a taken square: the facts of the content as it is, as before this table): bits 0-1 its new owner if it was open (0, ``p`` or 3 drawn),
-        bit 2 the opponent can still complete a line in it, bit 3 ``p`` can. ``now[p]`` (9 * 3^9,): indexed by
+        bit 2 it stays open and the opponent can still complete a line in it, bit 11 the same for ``p`` (so
+        ``after >> 2 & 0x201`` shifted by the subgrid lines up with ``now``'s two bitmasks). ``now[p]`` (9 * 3^9,): indexed by
         subgrid * 3^9 + content, ``1 << subgrid`` if the opponent can complete a line there and
         ``1 << (9 + subgrid)`` if ``p`` can (so a sum over the open subgrids gives both bitmasks). ``meta[p]``
         (4^9,): owner grid: bit 0 line of ``p``, bit 1 dead, bits 2-10 the subgrids whose winning would complete
@@ -103,7 +105,9 @@ class UltimateEngine(_Engine):
             code_after = codes.unsqueeze(1) + empty * (p * pow3)  # a taken square leaves the content as it is
             wins, full = marks.has_line[p][code_after], marks.full[code_after]
             owner = torch.where(wins, p, torch.where(full, DRAWN, 0))
-            after[p] = owner | (marks.win_bits[q][code_after] != 0).long() << 2 | (marks.win_bits[p][code_after] != 0).long() << 3
+            # who can still complete a line there matters only while the subgrid stays open
+            still_open = (owner == 0).long()
+            after[p] = owner | (marks.win_bits[q][code_after] != 0).long() * still_open << 2 | (marks.win_bits[p][code_after] != 0).long() * still_open << 11
             sub = torch.arange(9).unsqueeze(1)
             now[p] = ((marks.win_bits[q] != 0).long() << sub | (marks.win_bits[p] != 0).long() << (9 + sub)).reshape(-1)
             meta[p] = owners.has_line[p].long() | owners.dead.long() << 1 | owners.win_bits[q] << 2 | owners.win_bits[p] << 11
@@ -140,6 +144,7 @@ class UltimateEngine(_Engine):
         # per-game facts, computed once per game and then spread over its rows
         meta_code = (state.owners * self.pow4).sum(1)  # (B,)
         now = (lookup(now_table[player], state.codes + self._grid_offsets) * open_grid).sum(1)  # bits 0-8 opponent, 9-17 player
+
         open_bits = (open_grid * self.bit9).sum(1)
         dead_before = lookup(meta_table[player], meta_code) & 2
         meta_code, now, open_bits, dead_before = (t.index_select(0, rows).unsqueeze(1) for t in (meta_code, now, open_bits, dead_before))
@@ -155,19 +160,19 @@ class UltimateEngine(_Engine):
 
         # Where the opponent is sent, and whether it can move at all.
         open_after = open_bits - (delta != 0) * bit  # (N, 9) undecided subgrids after each candidate move
-        target_open = (open_after >> pos) & 1 != 0
+        target_open = (open_after >> pos) & 1  # (N, 9) 0 / 1
         if self.free_move == "anywhere":
             free_has_moves = (state.n_marks.index_select(0, rows) < 80).unsqueeze(1)
         else:
             free_has_moves = open_after != 0
-        draw = ~win & ~target_open & ~free_has_moves
+        draw = ~win & (target_open == 0) & ~free_has_moves
 
-        # Open subgrids where each side could complete a line, after each candidate move.
-        still_open = (open_after & bit) != 0
-        opponent_threats = (now & 511 & ~bit) | ((still_open & (after & 4 != 0)) * bit)
-        player_threats = (now >> 9 & ~bit) | ((still_open & (after & 8 != 0)) * bit)
-        opponent_threats = opponent_threats & (meta_facts >> 2 & 511)
-        about_to_lose = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
-        about_to_draw = (meta_facts & 2 != 0) & (dead_before == 0)
-        about_to_win = (player_threats & (meta_facts >> 11 & 511)) != 0
+        # Open subgrids where each side could complete a line, after each candidate move (bits 0-8 the
+        # opponent, 9-17 the player), kept where winning them would complete a line of the owner grid.
+        threats = (now & ~(bit * 0x201)) | (((after >> 2 & 0x201) * is_open) << sub)
+        threats = threats & (meta_facts >> 2)
+        # sent to an open subgrid: the opponent's threat there; else (a free move): any of its threats
+        about_to_lose = (threats & (511 - target_open * self._not_position)) != 0
+        about_to_draw = (meta_facts & (2 - dead_before)) != 0  # dead_before is 0 or 2
+        about_to_win = threats > 511
         return prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
