@@ -157,6 +157,10 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
                 for p in range(2)]
     randoms = [random_agent.RandomAgent(player_id=p, num_actions=actions) for p in range(2)]
     snapshots: list[dict[str, Any]] = []
+
+    def save(snapshots: list[dict[str, Any]]) -> None:
+        _save_dqn_snapshots(out, snapshots, size, actions, settings, opponent)
+
     clock, cpu_clock, episodes, steps = 0.0, 0.0, 0, 0
     next_snapshot = every
     def reading() -> float:
@@ -183,8 +187,20 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
                               "steps": steps,
                               "q": [{k: v.clone() for k, v in agent._q_network.state_dict().items()} for agent in learners]})
             next_snapshot = reading() + every
-    torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
-                "opponent": opponent}, out)
+            save(snapshots)  # after every snapshot (off the clock): a run stopped early keeps what it learnt
+    save(snapshots)
+
+
+def _save_dqn_snapshots(out: Path, snapshots: list[dict[str, Any]], size: int, actions: int, settings: dict,
+                        opponent: str) -> None:
+    """Write the DQN's snapshots so far, atomically (a reader never sees half a file)."""
+    import torch
+
+    from fileio import atomic_path
+
+    with atomic_path(out) as temp:
+        torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
+                    "opponent": opponent}, temp)
 
 
 def train_dqn(game: str, out: Path, cap: float, clock: str, every: float, opponent: str, hidden: list[int],
