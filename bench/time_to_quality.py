@@ -22,7 +22,11 @@ It prints the training wall time at which each first reaches task success 0.95 a
 Snapshots are evaluated in time order and evaluation stops at the first snapshot with 0.995 in both seats.
 
     python bench/time_to_quality.py                          # 3x3
-    python bench/time_to_quality.py --ultimate --cap-seconds 1800
+    python bench/time_to_quality.py --game ultimate --clock cpu --cap-seconds 900
+
+Ultimate: OpenSpiel's ``ultimate_tic_tac_toe`` is our ``open_subgrids`` rule (sent to a decided subgrid, play in
+any undecided one), so ours trains ``ultimate.yaml`` with ``env.free_move=open_subgrids`` (the config's
+``env.free_move`` selects the rule; ``--free-move`` overrides it) and both are evaluated under that rule.
 """
 from __future__ import annotations
 
@@ -41,7 +45,7 @@ if str(ROOT) not in sys.path:
 
 THRESHOLDS = (0.95, 0.995)
 DQN_EXAMPLE_SETTINGS = {"hidden_layers_sizes": [32, 32], "replay_buffer_capacity": int(1e4)}  # tic_tac_toe example
-NEVER_EVALUATE = 10**12  # train.eval_every_frames past any run's end
+NEVER_EVALUATE = 10**10  # train.eval_every_frames past any run's end (the config caps it at 1e10)
 
 
 def load_average() -> str:
@@ -93,7 +97,8 @@ def cpu_at(samples: list[tuple[float, float]], epoch: float) -> float:
 
 
 # ------------------------------------------------------------------------------------------------------ ours
-def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: int, seed: int) -> dict[str, Any]:
+def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: int, seed: int,
+               overrides: list[str] | None = None) -> dict[str, Any]:
     """Run ``ncbot train`` (this tree's code) in a subprocess, stopped at ``cap`` seconds of ``clock``; snapshots
     with their train clock (wall) and the CPU seconds the process spent since the train clock started."""
     import shutil
@@ -104,8 +109,8 @@ def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: 
 
     command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
                "--seed", str(seed), f"train.eval_every_frames={NEVER_EVALUATE}",
-               f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=100000", "checkpoint.save_buffer=false",
-               "eval.games=10", "eval.periodic_games=10"]
+               f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=1000", "checkpoint.save_buffer=false",
+               "eval.games=10", "eval.periodic_games=10", *(overrides or [])]
     # start-up (imports, env and tables) is off the train clock: allow it on top of the cap
     run = run_timed(command, timeout=cap + 60) if clock == "wall_time" else run_timed(command, cpu_timeout=cap + 30)
     import torch
@@ -152,6 +157,10 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
                 for p in range(2)]
     randoms = [random_agent.RandomAgent(player_id=p, num_actions=actions) for p in range(2)]
     snapshots: list[dict[str, Any]] = []
+
+    def save(snapshots: list[dict[str, Any]]) -> None:
+        _save_dqn_snapshots(out, snapshots, size, actions, settings, opponent)
+
     clock, cpu_clock, episodes, steps = 0.0, 0.0, 0, 0
     next_snapshot = every
     def reading() -> float:
@@ -178,8 +187,20 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
                               "steps": steps,
                               "q": [{k: v.clone() for k, v in agent._q_network.state_dict().items()} for agent in learners]})
             next_snapshot = reading() + every
-    torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
-                "opponent": opponent}, out)
+            save(snapshots)  # after every snapshot (off the clock): a run stopped early keeps what it learnt
+    save(snapshots)
+
+
+def _save_dqn_snapshots(out: Path, snapshots: list[dict[str, Any]], size: int, actions: int, settings: dict,
+                        opponent: str) -> None:
+    """Write the DQN's snapshots so far, atomically (a reader never sees half a file)."""
+    import torch
+
+    from fileio import atomic_path
+
+    with atomic_path(out) as temp:
+        torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
+                    "opponent": opponent}, temp)
 
 
 def train_dqn(game: str, out: Path, cap: float, clock: str, every: float, opponent: str, hidden: list[int],
@@ -258,7 +279,11 @@ def first_time(points: list[dict[str, Any]], threshold: float, clock: str = "wal
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--ultimate", action="store_true", help="Ultimate (ours: ultimate.yaml; theirs: ultimate_tic_tac_toe, open_subgrids)")
+    parser.add_argument("--game", choices=("standard", "ultimate"), default="standard",
+                        help="ultimate: ours ultimate.yaml on the open_subgrids rule; theirs ultimate_tic_tac_toe")
+    parser.add_argument("--ultimate", action="store_true", help="same as --game ultimate")
+    parser.add_argument("--free-move", choices=("anywhere", "open_subgrids"), default="open_subgrids",
+                        help="Ultimate rule our agent trains on (OpenSpiel's game is open_subgrids; default)")
     parser.add_argument("--cap-seconds", type=float, default=600.0, help="training time limit of each learner (--clock)")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                         help="what the cap and the DQN snapshot period count: wall seconds, or CPU seconds of the "
@@ -274,7 +299,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default="/tmp/time_to_quality")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    game = "ultimate" if args.ultimate else "standard"
+    game = "ultimate" if args.ultimate else args.game
+    args.ultimate = game == "ultimate"
     clock = f"{args.clock}_time"
     hidden = [int(h) for h in args.dqn_hidden.split(",") if h]
     if args.worker:
@@ -290,8 +316,10 @@ def main(argv: list[str] | None = None) -> None:
     report: dict[str, Any] = {"game": game, "games_per_seat": args.games, "cap_seconds": args.cap_seconds, "clock": clock,
                               "cpus": os.cpu_count()}
     if args.only in (None, "ours"):
-        print(f"ours: training {config} (load {load_average()})", flush=True)
-        ours = train_ours(config, out / "ours", args.cap_seconds, clock, snapshot_frames, args.seed)
+        overrides = [f"env.free_move={args.free_move}"] if args.ultimate else []
+        print(f"ours: training {config} {' '.join(overrides)} (load {load_average()})", flush=True)
+        report["ours_overrides"] = overrides
+        ours = train_ours(config, out / "ours", args.cap_seconds, clock, snapshot_frames, args.seed, overrides)
         print(f"ours: {len(ours['snapshots'])} snapshots; evaluating", flush=True)
         ours["points"] = curve(ours["snapshots"], lambda s: evaluate_ours(s, args.games, args.seed + 17))
         report["ours"] = {k: v for k, v in ours.items() if k != "snapshots"}

@@ -31,6 +31,9 @@ class UltimateEngine(_Engine):
         # (10, 81) bool: row k < 9 the squares of subgrid k, row 9 every square (a free move)
         self.region_cells = torch.cat([self.subgrid_of.unsqueeze(0) == torch.arange(9).unsqueeze(1), torch.ones(1, 81, dtype=torch.bool)])
         self.positions = torch.arange(9).unsqueeze(0)  # (1, 9): the 9 squares of one subgrid, in position order
+        self._is_position = torch.eye(9, dtype=torch.bool)  # row k: only subgrid k (a forced game's one row)
+        self._grid_offsets = torch.arange(9) * 3**9  # (9,): subgrid k's block of the ``now`` table
+        self._not_position = 511 - (1 << self.positions)  # (1, 9): every subgrid bit but the position's
 
     def legal(self, state: Boards) -> torch.Tensor:
         # one row of the (10, 81) region table per game: its forced subgrid, or row 9 (free) for the rest
@@ -76,100 +79,100 @@ class UltimateEngine(_Engine):
             free = (state.owners == 0).any(1)
         return target_open | free
 
-    def _open_bits(self, table_bits: torch.Tensor, owners: torch.Tensor) -> torch.Tensor:
-        """(B,) bitmask over subgrids: open subgrids whose ``table_bits`` entry is non-zero."""
-        return (((table_bits != 0) & (owners == 0)).long() * self.bit9).sum(1)
-
     @staticmethod
     @lru_cache(maxsize=1)
-    def _packed_tables() -> tuple[torch.Tensor, torch.Tensor]:
-        """Per player, the facts the look-ahead needs packed into one int per grid content (one gather each).
+    def _packed_tables() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per player, the facts the look-ahead needs packed into ints, so one gather answers several questions.
 
-        Subgrid (3^9 contents): bit 0 has a line of the player, bit 1 full, bit 2 the opponent can complete a
-        line, bit 3 the player can. Owner grid (4^9): bit 0 line of the player, bit 1 dead, bits 2-10 the
-        subgrids whose winning would complete a line for the opponent, bits 11-19 the same for the player.
+        ``after[p]`` (3^9, 9): for each subgrid content and position, what ``p`` taking that square does to the
+        subgrid (a taken square: the facts of the content as it is, as before this table): bits 0-1 its new owner if it was open (0, ``p`` or 3 drawn),
+        bit 2 it stays open and the opponent can still complete a line in it, bit 11 the same for ``p`` (so
+        ``after >> 2 & 0x201`` shifted by the subgrid lines up with ``now``'s two bitmasks). ``now[p]`` (9 * 3^9,): indexed by
+        subgrid * 3^9 + content, ``1 << subgrid`` if the opponent can complete a line there and
+        ``1 << (9 + subgrid)`` if ``p`` can (so a sum over the open subgrids gives both bitmasks). ``meta[p]``
+        (4^9,): owner grid: bit 0 line of ``p``, bit 1 dead, bits 2-10 the subgrids whose winning would complete
+        a line for the opponent, bits 11-19 the same for ``p``.
         """
         marks, owners = grid_tables(3), grid_tables(4)
-        sub = torch.zeros(3, 3**9, dtype=torch.int64)
+        codes = torch.arange(3**9)
+        pow3 = 3 ** torch.arange(9)
+        after = torch.zeros(3, 3**9, 9, dtype=torch.int64)
+        now = torch.zeros(3, 9 * 3**9, dtype=torch.int64)
         meta = torch.zeros(3, 4**9, dtype=torch.int64)
         for p in (1, 2):
             q = 3 - p
-            sub[p] = (
-                marks.has_line[p].long() | marks.full.long() << 1
-                | (marks.win_bits[q] != 0).long() << 2 | (marks.win_bits[p] != 0).long() << 3
-            )
+            empty = (codes.unsqueeze(1) // pow3) % 3 == 0  # (3^9, 9)
+            code_after = codes.unsqueeze(1) + empty * (p * pow3)  # a taken square leaves the content as it is
+            wins, full = marks.has_line[p][code_after], marks.full[code_after]
+            owner = torch.where(wins, p, torch.where(full, DRAWN, 0))
+            # who can still complete a line there matters only while the subgrid stays open
+            still_open = (owner == 0).long()
+            after[p] = owner | (marks.win_bits[q][code_after] != 0).long() * still_open << 2 | (marks.win_bits[p][code_after] != 0).long() * still_open << 11
+            sub = torch.arange(9).unsqueeze(1)
+            now[p] = ((marks.win_bits[q] != 0).long() << sub | (marks.win_bits[p] != 0).long() << (9 + sub)).reshape(-1)
             meta[p] = owners.has_line[p].long() | owners.dead.long() << 1 | owners.win_bits[q] << 2 | owners.win_bits[p] << 11
-        return sub, meta
+        return after, now, meta
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
         """See ``_Engine.move_rewards``. Only squares that can be legal are evaluated, one subgrid (9 squares) per
         row: a game sent to an open subgrid is one row, a free game one row per subgrid it may play in. With
         ``active`` (B,) bool, only those games are evaluated (the others' entries are meaningless): the env
         passes the games where the robot has a legal move."""
-        forced = self._forced(state)
         target = self.position_of.index_select(0, state.last_move.clamp(min=0))
-        free = ~forced
-        if active is not None:
-            forced, free = forced & active, free & active
-        forced_rows = forced.nonzero().squeeze(1)
+        open_grid = state.owners == 0  # (B, 9)
+        forced = (state.last_move >= 0) & open_grid.gather(1, target.unsqueeze(1)).squeeze(1)
         # a free game: one row per subgrid that can hold a legal square (not full; open_subgrids: undecided)
         playable = ~lookup(self.tables.full, state.codes)
         if self.free_move == "open_subgrids":
-            playable = playable & (state.owners == 0)
-        free_rows, free_subs = (free.unsqueeze(1) & playable).nonzero().unbind(1)
-        rows = torch.cat([forced_rows, free_rows])
-        subs = torch.cat([target.index_select(0, forced_rows), free_subs])
+            playable = playable & open_grid
+        candidates = torch.where(forced.unsqueeze(1), self._is_position.index_select(0, target), playable)
+        if active is not None:
+            candidates = candidates & active.unsqueeze(1)
+        rows, subs = candidates.nonzero().unbind(1)  # row order does not matter: each row writes its own squares
         cells = self.subgrid_cells.index_select(0, subs)  # (N, 9)
         rewards = torch.full((state.board.shape[0] * 81,), REWARD_LOSE)
-        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1), self._rewards_at(state, player, rows, subs, cells).reshape(-1))
+        rewards.index_copy_(0, (rows.unsqueeze(1) * 81 + cells).reshape(-1),
+                            self._rewards_at(state, player, rows, subs, open_grid).reshape(-1))
         return rewards.view(-1, 81)
 
-    def _rewards_at(self, state: Boards, player: int, rows: torch.Tensor, subs: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
-        """(N, 9) rewards of ``player`` taking the squares ``cells`` (N, 9) of subgrid ``subs`` (N,) in games
-        ``rows`` (N,), in position order (only legal squares matter). One subgrid per row keeps the subgrid's
-        facts (owner, code, bit) per row, (N, 1), and the positions a constant row: few (N, 9) ops."""
-        sub_table, meta_table = self._packed_tables()
-        opponent = 3 - player
+    def _rewards_at(self, state: Boards, player: int, rows: torch.Tensor, subs: torch.Tensor,
+                    open_grid: torch.Tensor) -> torch.Tensor:
+        """(N, 9) rewards of ``player`` taking the 9 squares of subgrid ``subs`` (N,) in games ``rows`` (N,), in
+        position order (only legal squares matter). Sets of subgrids are 9-bit masks, so "who can still complete
+        a line where" after each candidate move is a few integer ops on (N, 9) instead of (N, 9, 9) work."""
+        after_table, now_table, meta_table = self._packed_tables()
         # per-game facts, computed once per game and then spread over its rows
         meta_code = (state.owners * self.pow4).sum(1)  # (B,)
-        opponent_now = self._open_bits(lookup(self.tables.win_bits[opponent], state.codes), state.owners)
-        player_now = self._open_bits(lookup(self.tables.win_bits[player], state.codes), state.owners)
-        dead_before = (lookup(meta_table[player], meta_code) & 2) != 0
-        meta_code, opponent_now, player_now, dead_before = (
-            t.index_select(0, rows).unsqueeze(1) for t in (meta_code, opponent_now, player_now, dead_before)
-        )
-        owners = state.owners.index_select(0, rows)  # (N, 9)
+        now = (lookup(now_table[player], state.codes + self._grid_offsets) * open_grid).sum(1)  # bits 0-8 opponent, 9-17 player
+
+        open_bits = (open_grid * self.bit9).sum(1)
+        dead_before = lookup(meta_table[player], meta_code) & 2
+        meta_code, now, open_bits, dead_before = (t.index_select(0, rows).unsqueeze(1) for t in (meta_code, now, open_bits, dead_before))
 
         sub, pos = subs.unsqueeze(1), self.positions  # (N, 1), (1, 9)
         bit = 1 << sub
-        owner_s = owners.gather(1, sub)  # (N, 1)
-        empty = lookup(state.board.view(-1), rows.unsqueeze(1) * 81 + cells) == 0
-        code = lookup(state.codes.view(-1), rows * 9 + subs).unsqueeze(1)
-        code_after = code + empty.long() * (player * self.pow3)
-        facts = lookup(sub_table[player], code_after)
-        open_s = owner_s == 0
-        wins_sub = open_s & (facts & 1 != 0)
-        draws_sub = open_s & ~wins_sub & (facts & 2 != 0)
-        delta = wins_sub.long() * player + draws_sub.long() * DRAWN  # change of the subgrid's owner
-        owner_after_s = owner_s + delta
+        code = lookup(state.codes.view(-1), rows * 9 + subs)
+        after = after_table[player].index_select(0, code)  # (N, 9)
+        is_open = (open_bits & bit) != 0  # the subgrid played in is undecided (anywhere: a decided one may be played in)
+        delta = (after & 3) * is_open  # its new owner (0: still open, or already decided)
         meta_facts = lookup(meta_table[player], meta_code + delta * lookup(self.pow4, sub))
         win = meta_facts & 1 != 0
 
         # Where the opponent is sent, and whether it can move at all.
-        target_open = torch.where(pos == sub, owner_after_s, owners) == 0
+        open_after = open_bits - (delta != 0) * bit  # (N, 9) undecided subgrids after each candidate move
+        target_open = (open_after >> pos) & 1  # (N, 9) 0 / 1
         if self.free_move == "anywhere":
             free_has_moves = (state.n_marks.index_select(0, rows) < 80).unsqueeze(1)
         else:
-            open_bits = ((owners == 0).long() * self.bit9).sum(1, keepdim=True)
-            free_has_moves = torch.where(owner_after_s == 0, open_bits, open_bits & ~bit) != 0
-        draw = ~win & ~target_open & ~free_has_moves
+            free_has_moves = open_after != 0
+        draw = ~win & (target_open == 0) & ~free_has_moves
 
-        # Open subgrids where each side could complete a line, after each candidate move.
-        still_open = owner_after_s == 0
-        opponent_threats = (opponent_now & ~bit) | ((still_open & (facts & 4 != 0)).long() * bit)
-        player_threats = (player_now & ~bit) | ((still_open & (facts & 8 != 0)).long() * bit)
-        opponent_threats = opponent_threats & (meta_facts >> 2 & 511)
-        about_to_lose = torch.where(target_open, (opponent_threats >> pos) & 1 != 0, opponent_threats != 0)
-        about_to_draw = (meta_facts & 2 != 0) & ~dead_before
-        about_to_win = (player_threats & (meta_facts >> 11 & 511)) != 0
+        # Open subgrids where each side could complete a line, after each candidate move (bits 0-8 the
+        # opponent, 9-17 the player), kept where winning them would complete a line of the owner grid.
+        threats = (now & ~(bit * 0x201)) | (((after >> 2 & 0x201) * is_open) << sub)
+        threats = threats & (meta_facts >> 2)
+        # sent to an open subgrid: the opponent's threat there; else (a free move): any of its threats
+        about_to_lose = (threats & (511 - target_open * self._not_position)) != 0
+        about_to_draw = (meta_facts & (2 - dead_before)) != 0  # dead_before is 0 or 2
+        about_to_win = threats > 511
         return prioritise(win, draw, about_to_lose, about_to_draw, about_to_win)
