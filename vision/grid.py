@@ -34,6 +34,7 @@ NOISE_FREE = 3.0              # median neighbour step (gray levels) of the grid 
 NOISE_BLUR = 0.35             # Gaussian sigma per gray level of step beyond that ...
 NOISE_BLUR_MAX = 1.2          # ... up to this many pixels
 CELL_FLATTEN = 1.0             # of a cell: the paper shade under the cells is a grey closing this wide (no mark fits)
+PAGE_RIM = 0.02               # of the page warp's side: no grid line lies this close to the page's edge
 UNSURE_MARGIN = 0.5            # SVM score gap below which a cell is looked at again, turned and mirrored
 
 
@@ -120,6 +121,10 @@ def _grid_lines(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarra
     thicken = max(3, side // 50) | 1  # hand-drawn grid lines slant and bow by a few pixels
     horizontal = _line_mask(ink, int(min_length), True, thicken)
     vertical = _line_mask(ink, int(min_length), False, thicken)
+    # a sliver of table along the warp's border (a curled sheet's edge bows out of the page quad) is a long
+    # dark straight line too, but the grid never reaches the very edge of the page
+    rim = max(3, int(PAGE_RIM * side))
+    horizontal[:rim], horizontal[-rim:], vertical[:, :rim], vertical[:, -rim:] = 0, 0, 0, 0
     rows, x0, x1 = _lines(horizontal, min_length)
     cols, y0, y1 = _lines(vertical.T, min_length)
     if not rows or not cols or x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
