@@ -1,5 +1,5 @@
-"""What a real camera does to the rendered picture: exposure, white balance, vignette, motion blur, sensor
-noise and JPEG compression.
+"""What a real camera does to the rendered picture: exposure (fixed, or adapting to the frame's brightness),
+white balance, vignette, motion blur, sensor noise and JPEG compression.
 
 The renderer gives a clean, noise-free image; a webcam in an atrium does not. `CameraPost` applies one game's
 `CameraEffects` to every frame, drawing the per-frame parts (noise, whether and how the frame is blurred) from
@@ -23,6 +23,7 @@ class CameraPost:
         self._vignette: np.ndarray | None = None
         self._noise_lut = (effects.noise * np.sqrt(np.arange(256, dtype=np.float32) / 128.0 + 0.1)).astype(np.float32)
         self._bank: np.ndarray | None = None
+        self._auto_gain: float | None = None   # auto exposure's current gain (None: not metered yet)
 
     def _unit_noise(self, shape: tuple[int, ...]) -> np.ndarray:
         """Unit Gaussian noise of `shape`: a random window of a seeded noise bank twice the frame's size
@@ -46,7 +47,7 @@ class CameraPost:
         if fx.identity:
             return frame
         # exposure and white balance as one per-channel gain, then the vignette, on uint8 (cv2 saturates)
-        gain = np.asarray(fx.white_balance_gain, np.float64) * fx.exposure
+        gain = np.asarray(fx.white_balance_gain, np.float64) * fx.exposure * self._auto_exposure(frame)
         out = cv2.transform(frame, np.diag(gain))
         if fx.vignette > 0:
             out = cv2.multiply(out, self._vignette_map(*frame.shape[:2]), scale=1.0 / 255.0)
@@ -61,6 +62,43 @@ class CameraPost:
             if ok:
                 out = np.ascontiguousarray(cv2.imdecode(data, cv2.IMREAD_COLOR)[:, :, ::-1])
         return out
+
+
+    def _auto_exposure(self, frame: np.ndarray) -> float:
+        """The auto-exposure gain for this frame (1 when off).
+
+        Like a phone or robot camera, it meters the frame (a centre-weighted mean grey of a thumbnail, after
+        white balance) and moves its gain part of the way towards the gain that would put that mean at the
+        target: a white sheet filling the view comes out darker, a dark sleeve or the bystander's arm entering
+        the view brightens the next frames, and a drifting light is partly followed. The first frame is
+        metered and met in full (the camera was running before the game started). `exposure` stays a fixed
+        bias on top (exposure compensation)."""
+        fx = self.effects
+        if fx.auto_exposure_rate <= 0.0:
+            return 1.0
+        thumb = cv2.resize(frame, (32, 24), interpolation=cv2.INTER_AREA).astype(np.float32)
+        grey = thumb @ (np.asarray(fx.white_balance_gain, np.float32) * np.array([0.299, 0.587, 0.114], np.float32))  # RGB
+        mean = float((grey * _CENTRE_WEIGHTS).sum()) * fx.exposure
+        wanted = float(np.clip(fx.exposure_target * 255.0 / max(mean, 1.0), *AUTO_GAIN_LIMITS))
+        if self._auto_gain is None:
+            self._auto_gain = wanted
+        else:
+            self._auto_gain = float(np.exp((1 - fx.auto_exposure_rate) * np.log(self._auto_gain)
+                                           + fx.auto_exposure_rate * np.log(wanted)))
+        return self._auto_gain
+
+
+AUTO_GAIN_LIMITS = (0.35, 3.0)   # how far the auto exposure can turn the gain down or up
+
+
+def _centre_weights() -> np.ndarray:
+    """Metering weights of a 32x24 thumbnail: a broad Gaussian on the centre (sums to 1)."""
+    ys, xs = np.mgrid[0:24, 0:32].astype(np.float32)
+    w = np.exp(-(((xs - 15.5) / 12.0) ** 2 + ((ys - 11.5) / 9.0) ** 2))
+    return (w / w.sum()).astype(np.float32)
+
+
+_CENTRE_WEIGHTS = _centre_weights()
 
 
 def _motion_blur(image: np.ndarray, length: float, angle: float) -> np.ndarray:

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from robot_sim.sheet_shape import SheetShape, sample_sheet_shape
+
 Range = tuple[float, float]
 PRESETS_NAMES = ("lab", "office", "atrium", "random")
 CLUTTER_KINDS = ("cup", "phone", "pen", "scrap", "sheet")
@@ -94,6 +96,16 @@ class ConditionRanges:
     #: kinds (one drawn per game) and the SNR range in dB (drawn per utterance); None = a quiet room, clean.
     speech_noise: tuple[str, ...] = ("babble",)
     speech_snr_db: Range | None = None
+    #: The sheet is not flat (drawn apart from the rest, see `sample_sheet_shape`): a curl lifts one edge
+    #: (height in m at that edge), a fold left a crease across the sheet that tents it (crease height in m).
+    curl_probability: float = 0.0
+    curl_height: Range = (0.0, 0.0)
+    fold_probability: float = 0.0
+    fold_height: Range = (0.0, 0.0)
+    #: Auto exposure (`sample_auto_exposure`): how fast the camera's gain follows the frame's metered
+    #: brightness (fraction of the way per frame in log gain; 0 = a fixed exposure) and the mean grey it aims at.
+    auto_exposure_rate: Range = (0.0, 0.0)
+    auto_exposure_target: Range = (0.45, 0.45)
 
     def validate(self) -> None:
         for item in dataclasses.fields(self):
@@ -101,7 +113,8 @@ class ConditionRanges:
             if isinstance(value, tuple) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
                 if value[0] > value[1]:
                     raise ValueError(f"conditions {self.name!r}: {item.name} range must be (low, high); got {value}")
-        for name in ("second_sheet_probability", "blur_probability", "bystander_probability", "bystander_arm_probability"):
+        for name in ("second_sheet_probability", "blur_probability", "bystander_probability", "bystander_arm_probability",
+                     "curl_probability", "fold_probability"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"conditions {self.name!r}: {name} must be in [0, 1]; got {getattr(self, name)}")
         for name, allowed in (("table_textures", TABLE_TEXTURES), ("floor_textures", FLOOR_TEXTURES),
@@ -120,6 +133,13 @@ class ConditionRanges:
         if self.speech_snr_db is not None and not (len(self.speech_snr_db) == 2 and -10 <= self.speech_snr_db[0] <= self.speech_snr_db[1] <= 60):
             raise ValueError(f"conditions {self.name!r}: speech_snr_db must be (low, high) dB within [-10, 60], or null "
                              f"for clean speech; got {self.speech_snr_db}")
+        if min(self.curl_height[0], self.fold_height[0]) < 0 or max(self.curl_height[1], self.fold_height[1]) > 0.03:
+            raise ValueError(f"conditions {self.name!r}: curl_height and fold_height must lie in [0, 0.03] m (a sheet on a "
+                             f"table, not a roll); got curl {self.curl_height}, fold {self.fold_height}")
+        if not (0.0 <= self.auto_exposure_rate[0] and self.auto_exposure_rate[1] <= 1.0
+                and 0.05 <= self.auto_exposure_target[0] and self.auto_exposure_target[1] <= 0.95):
+            raise ValueError(f"conditions {self.name!r}: auto_exposure_rate must lie in [0, 1] and auto_exposure_target in "
+                             f"[0.05, 0.95]; got {self.auto_exposure_rate}, {self.auto_exposure_target}")
         if self.jpeg_quality is not None and not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
             raise ValueError(f"conditions {self.name!r}: jpeg_quality must be (low, high) in [1, 100]; got {self.jpeg_quality}")
 
@@ -135,7 +155,9 @@ PRESETS: dict[str, ConditionRanges] = {
         sheet_yaw=(-10.0, 10.0), sheet_offset=(0.0, 0.015), paper_tint=(0.0, 0.03),
         pen_inks=PEN_INKS_BGR[:3], skin_tones=SKIN_TONES, vary_sleeve=True,
         exposure=(0.9, 1.1), white_balance=(0.85, 0.98), noise=(0.8, 2.0), blur_probability=0.1, blur_px=(0.0, 1.5),
-        jpeg_quality=(85, 95), vignette=(0.0, 0.15)),
+        jpeg_quality=(85, 95), vignette=(0.0, 0.15),
+        curl_probability=0.3, curl_height=(0.003, 0.008), fold_probability=0.1, fold_height=(0.002, 0.005),
+        auto_exposure_rate=(0.3, 0.6), auto_exposure_target=(0.42, 0.5)),
     # The paper's field trial: sun through a glass roof (hard shadows, slow clouds), warm lamps, stone floor,
     # a busy table, the sheet wherever the last player left it, a cheap webcam, people standing by.
     "atrium": ConditionRanges(
@@ -147,7 +169,9 @@ PRESETS: dict[str, ConditionRanges] = {
         sheet_yaw=(-25.0, 25.0), sheet_offset=(0.0, 0.03), paper_tint=(0.0, 0.08),
         pen_inks=PEN_INKS_BGR, skin_tones=SKIN_TONES, vary_sleeve=True,
         exposure=(0.75, 1.25), white_balance=(0.7, 0.95), noise=(2.0, 4.0), blur_probability=0.3, blur_px=(0.5, 3.0),
-        jpeg_quality=(60, 85), vignette=(0.05, 0.3), bystander_probability=0.7, bystander_arm_probability=0.06),
+        jpeg_quality=(60, 85), vignette=(0.05, 0.3), bystander_probability=0.7, bystander_arm_probability=0.06,
+        curl_probability=0.5, curl_height=(0.004, 0.012), fold_probability=0.3, fold_height=(0.003, 0.008),
+        auto_exposure_rate=(0.2, 0.5), auto_exposure_target=(0.38, 0.52)),
     # Everything at once, each over its widest range: for robustness studies, not a place.
     "random": ConditionRanges(
         name="random", light_intensity=(0.45, 1.7), colour_temperature=(2600.0, 7500.0), lamp_temperature=(2600.0, 6500.0),
@@ -158,7 +182,9 @@ PRESETS: dict[str, ConditionRanges] = {
         sheet_yaw=(-25.0, 25.0), sheet_offset=(0.0, 0.03), paper_tint=(0.0, 0.1),
         pen_inks=PEN_INKS_BGR, skin_tones=SKIN_TONES, vary_sleeve=True,
         exposure=(0.7, 1.3), white_balance=(0.6, 1.0), noise=(0.0, 5.0), blur_probability=0.35, blur_px=(0.0, 3.5),
-        jpeg_quality=(50, 95), vignette=(0.0, 0.35), bystander_probability=0.5, bystander_arm_probability=0.08),
+        jpeg_quality=(50, 95), vignette=(0.0, 0.35), bystander_probability=0.5, bystander_arm_probability=0.08,
+        curl_probability=0.5, curl_height=(0.0, 0.015), fold_probability=0.3, fold_height=(0.0, 0.01),
+        auto_exposure_rate=(0.0, 0.7), auto_exposure_target=(0.35, 0.55)),
 }
 
 # What the robot hears behind the person (kept apart from the scene's fields above): the lab is quiet; an office
@@ -250,11 +276,16 @@ class CameraEffects:
     jpeg_quality: int | None = None
     vignette: float = 0.0
     seed: int = 0
+    #: Auto exposure: per frame the gain moves this fraction of the way (in log) towards the gain that would
+    #: put the metered (centre-weighted) mean grey at `exposure_target` x 255; 0 keeps `exposure` fixed.
+    auto_exposure_rate: float = 0.0
+    exposure_target: float = 0.45
 
     @property
     def identity(self) -> bool:
         return (self.exposure == 1.0 and self.white_balance_gain == (1.0, 1.0, 1.0) and self.noise == 0.0
-                and self.blur_probability == 0.0 and self.jpeg_quality is None and self.vignette == 0.0)
+                and self.blur_probability == 0.0 and self.jpeg_quality is None and self.vignette == 0.0
+                and self.auto_exposure_rate == 0.0)
 
 
 @dataclass(frozen=True)
@@ -289,6 +320,7 @@ class SceneConditions:
     bystander_arm_probability: float = 0.0
     bystander_colours: tuple[tuple[float, float, float], tuple[float, float, float]] = ((0.3, 0.3, 0.3), LAB_SKIN)
     seed: int = 0
+    sheet_shape: SheetShape = field(default_factory=lambda: SheetShape())
 
     def summary(self) -> dict[str, Any]:
         """The few values worth logging per game (JSON-friendly)."""
@@ -300,7 +332,8 @@ class SceneConditions:
                 "sheet_offset_m": [round(v, 4) for v in self.sheet_offset],
                 "paper": [round(c, 3) for c in self.paper_colour], "ink_bgr": list(self.ink_bgr),
                 "exposure": round(self.camera.exposure, 3), "noise": round(self.camera.noise, 2),
-                "jpeg_quality": self.camera.jpeg_quality, "bystander": self.bystander}
+                "jpeg_quality": self.camera.jpeg_quality, "bystander": self.bystander,
+                "auto_exposure_rate": round(self.camera.auto_exposure_rate, 3), **self.sheet_shape.summary()}
 
 
 def _uniform(rng: np.random.Generator, bounds: Range) -> float:
@@ -367,7 +400,7 @@ def sample_conditions(ranges: ConditionRanges, seed: int, sheet_side: float = 0.
     props = _sample_props(rng, ranges, sheet_side, (cx, cy), yaw)
     bystander = bool(rng.random() < ranges.bystander_probability)
     bystander_colours = (tuple(float(v) for v in rng.uniform(0.08, 0.85, 3)), _pick(rng, ranges.skin_tones))
-    return SceneConditions(
+    scene = SceneConditions(
         preset=ranges.name, ambient=ambient, lights=tuple(lights),
         light_drift=_uniform(rng, ranges.light_drift), light_drift_period=_uniform(rng, ranges.light_drift_period),
         light_drift_phase=float(rng.uniform(0, 2 * math.pi)),
@@ -378,6 +411,22 @@ def sample_conditions(ranges: ConditionRanges, seed: int, sheet_side: float = 0.
         sleeve=sleeve, camera=camera, bystander=bystander,
         bystander_arm_probability=ranges.bystander_arm_probability if bystander else 0.0,
         bystander_colours=bystander_colours, seed=seed)
+    return _bend_and_meter(scene, ranges, seed)
+
+
+def _bend_and_meter(scene: SceneConditions, ranges: ConditionRanges, seed: int) -> SceneConditions:
+    """Add the sheet's curl/fold and the camera's auto exposure, drawn from their own generator of the game's
+    seed: every value drawn before them (and so every scene of an earlier run) stays as it was."""
+    rng = np.random.default_rng([seed, zlib.crc32(ranges.name.encode()), 15])
+    camera = dataclasses.replace(scene.camera, **sample_auto_exposure(rng, ranges))
+    shape = sample_sheet_shape(rng, (ranges.curl_probability, ranges.curl_height), (ranges.fold_probability, ranges.fold_height))
+    return dataclasses.replace(scene, sheet_shape=shape, camera=camera)
+
+
+def sample_auto_exposure(rng: np.random.Generator, ranges: ConditionRanges) -> dict[str, float]:
+    """One game's auto-exposure speed and target (fields of `CameraEffects`)."""
+    return {"auto_exposure_rate": _uniform(rng, ranges.auto_exposure_rate),
+            "exposure_target": _uniform(rng, ranges.auto_exposure_target)}
 
 
 #: Footprint radius (m) of each prop kind, to keep them off the game sheet and each other.

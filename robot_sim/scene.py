@@ -15,7 +15,7 @@ import numpy as np
 
 from robot_sim.camera_post import CameraPost
 from robot_sim.conditions import PRESETS, ConditionRanges, SceneConditions, sample_conditions
-from robot_sim.dressing import SceneDressing
+from robot_sim.dressing import SceneDressing, add_bent_sheet_visual
 from robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
                                     write_pepper_urdf)
 from robot_sim.render_system import new_render_system
@@ -144,9 +144,14 @@ class PepperScene:
         material = sapien.render.RenderMaterial(base_color=[*self.conditions.paper_colour, 1.0], roughness=0.95)
         material.base_color_texture = self._texture
         builder = self.scene.create_actor_builder()
-        # A plane faces +x; turn it to face up (+z), scaled to the sheet.
-        builder.add_plane_visual(sapien.Pose(q=[0.7071068, 0.0, -0.7071068, 0.0]), [1.0, side / 2, side / 2], material)
-        self.sheet = builder.build_kinematic(name="sheet")
+        shape = self.conditions.sheet_shape
+        if shape.flat:
+            # A plane faces +x; turn it to face up (+z), scaled to the sheet.
+            builder.add_plane_visual(sapien.Pose(q=[0.7071068, 0.0, -0.7071068, 0.0]), [1.0, side / 2, side / 2], material)
+            self.sheet = builder.build_kinematic(name="sheet")
+        else:  # curled or folded: a bent mesh with the same texture layout
+            self.sheet = builder.build_kinematic(name="sheet")
+            add_bent_sheet_visual(self.sheet, shape, side, material)
         (x, y), (dx, dy), yaw = self.config.lab_sheet_centre(), self.conditions.sheet_offset, self.conditions.sheet_yaw
         self.sheet_home_pose = sapien.Pose([x + dx, y + dy, self.config.table_height + 0.0008],
                                            [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
@@ -258,6 +263,7 @@ class PepperScene:
         """World point of canvas pixel (u = column, v = row) on the sheet's surface, following the sheet pose."""
         px = self.canvas.px
         local = np.array([self.sheet_side * (0.5 - (v + 0.5) / px), self.sheet_side * (0.5 - (u + 0.5) / px), 0.0])
+        local[2] = float(self.conditions.sheet_shape.height(local[0], local[1], self.sheet_side))  # a curl or fold
         pose = self.sheet.pose
         return np.array(pose.to_transformation_matrix()[:3, :3] @ local + pose.p)
 

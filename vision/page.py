@@ -23,6 +23,7 @@ PAGE_HUE_RATIO = 0.1      # against the fitted paper colour, a channel off grey 
 PAGE_BRIGHT_RATIO = 0.8   # ... if also about as bright as the paper (ink blurred into paper is darker)
 SHADOW_LEVEL = 0.22       # paper in a shadow: at least this fraction of the lit paper's brightness ...
 SHADOW_CHROMA = 0.2       # ... and about as grey (channel spread / brightness below this, once white-balanced)
+CHROMA_BLUR = 7           # half-resolution pixels over which a shadowed pixel's hue is judged
 SHARP_EDGE = 0.1          # log-brightness step per half-resolution pixel: the page's own edge, not a soft shadow
 
 
@@ -110,12 +111,20 @@ def _grow_into_shadow(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
     paper = float(np.median(level[seed])) if seed.any() else 0.0
     if paper < 20:
         return body
-    b, g, r = cv2.split(small)
-    spread = cv2.subtract(cv2.max(cv2.max(b, g), r), cv2.min(cv2.min(b, g), r))
-    chroma = spread.astype(np.float32) / np.maximum(level, 1.0)
+    # hue is a broad property of paper or table, while sensor noise amplified by the white balance and
+    # JPEG's colour blocks are per pixel: the channel spread is judged on a smoothed copy, against grey and
+    # against the lit paper's own colour (a cast the white balance left in tints the shadowed paper too,
+    # unless the lit paper clipped to white), whichever is closer
+    smooth = cv2.blur(small, (CHROMA_BLUR, CHROMA_BLUR)).astype(np.float32)
+    tint = np.median(small[seed], axis=0).astype(np.float32)
+    brightness = np.maximum(cv2.blur(level, (CHROMA_BLUR, CHROMA_BLUR)), 1.0)
+    chroma = np.minimum(_spread(smooth), _spread(smooth * (tint.mean() / np.maximum(tint, 1.0)))) / brightness
     log = cv2.GaussianBlur(np.log(level + 0.03 * paper), (0, 0), 1.0)
     step = np.hypot(cv2.Sobel(log, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(log, cv2.CV_32F, 0, 1, ksize=3)) / 8
-    free = ((level > SHADOW_LEVEL * paper) & (chroma < SHADOW_CHROMA) & (step < SHARP_EDGE)) | seed
+    # the sheet's edge, one pixel thicker: with a smooth grey table beside the shadowed paper, a gap of one
+    # pixel in the edge would let the growth leak out (and then give up)
+    edge = cv2.dilate((step >= SHARP_EDGE).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    free = ((level > SHADOW_LEVEL * paper) & (chroma < SHADOW_CHROMA) & ~edge) | seed
     count, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=4)
     keep = np.zeros(count, bool)
     keep[np.unique(labels[seed])] = True
@@ -136,8 +145,14 @@ def _grow_into_shadow(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
     grown = touching[labels]
     if grown.sum() > 3 * seed.sum():  # mostly "shadowed paper" around a small lit piece: a grey table
         return body
-    grown = grown.astype(np.uint8) * 255
+    grown = cv2.dilate(grown.astype(np.uint8) * 255, np.ones((3, 3), np.uint8))  # back out to the edge
     return cv2.bitwise_or(body, cv2.resize(grown, (w, h), interpolation=cv2.INTER_NEAREST))
+
+
+def _spread(bgr: np.ndarray) -> np.ndarray:
+    """Per pixel: largest minus smallest channel."""
+    b, g, r = cv2.split(bgr)
+    return cv2.max(cv2.max(b, g), r) - cv2.min(cv2.min(b, g), r)
 
 
 def _cut_pastel_clutter(frame: np.ndarray, body: np.ndarray) -> np.ndarray:
