@@ -1,6 +1,7 @@
 """Shared tiny-run settings for the learning-pipeline tests (a few hundred frames, small network)."""
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -28,6 +29,17 @@ def write_tiny_config(folder: Path, **sections: dict) -> Path:
     path = folder / "tiny.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
+
+
+def write_paper_configs(folder: Path, total_frames: int) -> Path:
+    """A folder standing in for pipelines/configs/paper/ in reproduce tests: the 3x3 row's config, faithful options
+    on, tiny network and budget."""
+    configs = folder / "configs"
+    configs.mkdir()
+    tiny = write_tiny_config(folder, env={"offer_taken_cells": True, "dialogues": "paper", "first": "robot"},
+                             collector={"total_frames": total_frames}, eval={"games": 20, "periodic_games": 10})
+    shutil.copy(tiny, configs / "standard_proposed_temporal.yaml")
+    return configs
 
 
 def ncbot(*args: str, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:

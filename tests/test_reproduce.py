@@ -3,7 +3,6 @@ skipped, and the table, claims and data-budget files are written and labelled wi
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -11,24 +10,15 @@ import yaml
 
 from pipelines.reproduce import BUDGETS, Budget, reproduce, row_config, write_grid
 from pipelines.reproduce_dialogues import filter_agreement, plan_dialogue_runs
-from tests.learning_helpers import ncbot, write_tiny_config
+from tests.learning_helpers import ncbot, write_paper_configs
 
 TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4}, eval_games=20,
               eval_every_frames={"standard": 64}, game_points=(2, 4), label="TINY BUDGET (test)",
               dialogue_subsets=2, dialogue_games=4, dialogue_points=(2,))
 
 
-def _configs(folder: Path) -> Path:
-    configs = folder / "configs"
-    configs.mkdir()
-    tiny = write_tiny_config(folder, env={"offer_taken_cells": True, "dialogues": "paper", "first": "robot"},
-                             collector={"total_frames": 256}, eval={"games": 20, "periodic_games": 10})
-    shutil.copy(tiny, configs / "standard_proposed_temporal.yaml")
-    return configs
-
-
 def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path) -> None:
-    configs, out, runs = _configs(tmp_path), tmp_path / "results", tmp_path / "runs"
+    configs, out, runs = write_paper_configs(tmp_path, 256), tmp_path / "results", tmp_path / "runs"
     result = reproduce("all", TINY, out=out, runs=runs, workers=2, command="ncbot reproduce all --budget tiny",
                        configs=configs)
     assert (result["runs"]["done"], result["runs"]["failed"]) == (4, 0), result["runs"]

@@ -5,14 +5,13 @@ Ray is an optional extra (`pip install 'ncbot[ray]'`): without it these tests ar
 """
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 
 from pipelines.ablate import PlannedRun, execute_runs
 from pipelines.reproduce import Budget, reproduce
-from tests.learning_helpers import write_tiny_config
+from tests.learning_helpers import write_paper_configs
 
 ray = pytest.importorskip("ray", reason="ray is an optional extra (pip install 'ncbot[ray]'); not installed here")
 
@@ -21,11 +20,7 @@ TOY = Budget(name="toy", seeds=1, rows=("standard",), max_games={"standard": 4},
 
 
 def test_reproduce_table_on_a_local_ray_instance_puts_every_run_under_the_runs_folder(tmp_path: Path) -> None:
-    configs = tmp_path / "configs"
-    configs.mkdir()
-    tiny = write_tiny_config(tmp_path, env={"offer_taken_cells": True, "dialogues": "paper", "first": "robot"},
-                             collector={"total_frames": 128}, eval={"games": 10, "periodic_games": 10})
-    shutil.copy(tiny, configs / "standard_proposed_temporal.yaml")
+    configs = write_paper_configs(tmp_path, 128)
     runs, out = tmp_path / "runs", tmp_path / "results"
     result = reproduce("table", TOY, out=out, runs=runs, workers=2, backend="ray", configs=configs)
     assert (result["runs"]["done"], result["runs"]["failed"]) == (4, 0), result["runs"]

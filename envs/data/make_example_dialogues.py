@@ -151,6 +151,18 @@ def paper_dialogue_lines(game, name: str, index: int, robot_first: bool, opening
         lines.append(turn("Request(playGame)", '"Reply(playGame=yes)"', pick(YES)))
         if robot_first:
             lines.append(turn('"Reply(playGame=yes)"', None, None))
+    lines += paper_move_turns(game, robot_first, result, rng, pick, PAPER_MOVE_WORDS)
+    feedback = {"win": "win", "lose": "loose", "draw": "draw"}[result]
+    lines.append(turn(f'"Provide(feedback={feedback})"', "Provide(feedback)", pick(FEEDBACK_REPLIES)))
+    lines.append(turn("Salutation(closing)", "Salutation(closing)", pick(CLOSINGS)))
+    return lines
+
+
+def paper_move_turns(game, robot_first: bool, result: str, rng: random.Random, pick, move_words: list[str],
+                     slow: bool = False) -> list[str]:
+    """The game part of a paper-shaped dialogue: "your turn" before every user move, the user silent while the robot
+    draws and speaking on the robot's last move; ``slow``: the first "your turn" gets no move and is asked again."""
+    lines = []
     moves = play_game(game, robot_first, result, rng)
     for k, (who, cell) in enumerate(moves):
         last = k == len(moves) - 1
@@ -159,10 +171,10 @@ def paper_dialogue_lines(game, name: str, index: int, robot_first: bool, opening
             user, says = ("Provide(feedback)", pick(ending, k)) if last else (None, None)
             lines.append(turn(f'"GameMove(gridloc={cell})"', user, says))
         else:
-            lines.append(turn("Request(userGameMove)", f'"GameMove(gridloc={cell})"', pick(PAPER_MOVE_WORDS, k)))
-    feedback = {"win": "win", "lose": "loose", "draw": "draw"}[result]
-    lines.append(turn(f'"Provide(feedback={feedback})"', "Provide(feedback)", pick(FEEDBACK_REPLIES)))
-    lines.append(turn("Salutation(closing)", "Salutation(closing)", pick(CLOSINGS)))
+            if slow:
+                lines.append(turn("Request(userGameMove)", None, None))
+                slow = False
+            lines.append(turn("Request(userGameMove)", f'"GameMove(gridloc={cell})"', pick(move_words, k)))
     return lines
 
 
@@ -194,19 +206,8 @@ def extra_dialogue_lines(game, name: str, index: int, robot_first: bool, opening
         lines.append(turn("Request(playGame)", '"Reply(playGame=yes)"', pick(EXTRA_YES)))
         if robot_first:
             lines.append(turn('"Reply(playGame=yes)"', None, None))
-    moves = play_game(game, robot_first, result, rng)
-    slow = first_move == "slow"  # the user has not drawn yet at the first "your turn": asked again
-    for k, (who, cell) in enumerate(moves):
-        last = k == len(moves) - 1
-        if who == "robot":
-            ending = AFTER_ROBOT_WINS if result == "win" else AFTER_DRAW_MOVE
-            user, says = ("Provide(feedback)", pick(ending, k)) if last else (None, None)
-            lines.append(turn(f'"GameMove(gridloc={cell})"', user, says))
-        else:
-            if slow:
-                lines.append(turn("Request(userGameMove)", None, None))
-                slow = False
-            lines.append(turn("Request(userGameMove)", f'"GameMove(gridloc={cell})"', pick(EXTRA_MOVE_WORDS, k)))
+    # slow: the user has not drawn yet at the first "your turn": asked again
+    lines += paper_move_turns(game, robot_first, result, rng, pick, EXTRA_MOVE_WORDS, slow=first_move == "slow")
     feedback = {"win": "win", "lose": "loose", "draw": "draw"}[result]
     if after == "silent":
         lines.append(turn(f'"Provide(feedback={feedback})"', None, None))
