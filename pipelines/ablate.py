@@ -147,12 +147,13 @@ class _Children:
                 child.kill()
 
 
-_CHILDREN = _Children()
 STOPPED = -15  # the code a run reports when the grid was stopped before it started
 
 
-def _run_local(run: PlannedRun, children: _Children = _CHILDREN) -> tuple[str, int]:
-    """One `ncbot train` subprocess; its output goes to the run's train.log."""
+def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str, int]:
+    """One `ncbot train` subprocess; its output goes to the run's train.log. ``children``: the local pool's
+    registry (a Ray task, alone in its worker, gets its own)."""
+    children = children if children is not None else _Children()
     run.run_dir.mkdir(parents=True, exist_ok=True)
     with open(run.run_dir / "train.log", "a") as log:
         child = children.start(run.command(), log)
