@@ -12,6 +12,7 @@ from typing import Optional
 
 import typer
 
+from fileio import atomic_write_text
 from pipelines.outputs import check_writable_dir, check_writable_file
 from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
@@ -261,7 +262,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
             cv2.imwrite(str(out / name), image)
             records.append({"image": name, "hand": has_hand, "known_board": seq.known_board,
                             "move": seq.move, "symbol": seq.symbol})
-    (out / "labels.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    atomic_write_text("".join(json.dumps(r) + "\n" for r in records), out / "labels.jsonl")
     typer.echo(f"wrote {len(records)} images and labels.jsonl to {out}")
 
 

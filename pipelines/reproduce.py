@@ -112,7 +112,7 @@ def write_grid(budget: Budget, runs_dir: Path, configs: Path = PAPER_CONFIGS) ->
 def labelled(path: Path, budget: Budget) -> None:
     """Put the budget's label under the first line (the title) of a markdown file written by another module."""
     lines = path.read_text().splitlines(keepends=True)
-    path.write_text("".join(lines[:1] + ["\n", f"> {budget.label}\n"] + lines[1:]))
+    atomic_write_text("".join(lines[:1] + ["\n", f"> {budget.label}\n"] + lines[1:]), path)
 
 
 def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,

@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from fileio import atomic_write_text
 from pipelines.claims import CELL_LABELS, GAME_LABELS, Claim, evaluate_claims, mean_and_variance, render_claims
 
 # Paper (Cuayahuitl 2019) table: (avg reward per action, task success, dialogue length); paper-notes section 5.
@@ -236,7 +237,7 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
     report = Report(command, rows, claims, render_table(rows, command, claims_out.name), render_claims(claims, command))
     for path, text in ((out, report.table), (claims_out, report.claims_text)):
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        atomic_write_text(text, path)
     by_plot: dict[tuple[str, str], dict[str, list]] = defaultdict(dict)
     for (suite, game, cell), runs in groups.items():
         by_plot[(suite, game)][CELL_LABELS.get(cell, cell)] = [r.get("history", []) for r in runs]
