@@ -109,6 +109,15 @@ DIALOGUE_SCHEMA: dict = {
                   "items": {"type": "object", "properties": {
                       "topic": {"type": "string"}, "t": {"type": "number", "description": "message timestamp, s"},
                       "seconds": {"type": "number"}, "text": {"type": "string"}}}},
+        "cell_answers": {"type": "array", "description": "real speech: the person's spoken answers to the robot's "
+                         "questions about a move its camera missed (robot_sim.where), in order",
+                         "items": {"type": "object", "properties": {
+                             "question": {"type": "string"}, "said": {"type": "string"}, "heard": {"type": "string"},
+                             "heard_words": {"type": "array", "items": {"type": "array"}},
+                             "understood": {"type": "integer", "description": "to 'where': the cell the words name; to "
+                                            "'did you say': 1 yes, 0 no; -1 neither"},
+                             "snr_db": {"type": ["number", "null"]},
+                             "t": {"type": "number", "description": "the answer's /audio/user timestamp, s"}}}},
     },
     "required": ["episode", "step", "speaker", "act"],
 }

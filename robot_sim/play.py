@@ -32,10 +32,11 @@ from robot_sim.game_config import RobotPlayConfig
 from robot_sim.human import SimulatedHuman
 from robot_sim.localise import localise_sheet
 from robot_sim.motion import RobotMotion
-from robot_sim.report import GameRecord, games_report, write_report
+from robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
 from robot_sim.scene import PepperScene, SceneConfig, check_game
 from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from robot_sim.speech import GameSpeech, Speaker, SpeechLog
+from robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
 
 __all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
@@ -149,7 +150,8 @@ class RobotGameRunner:
         true_cell = chooser(self.true_state, human_mark)
         kind = MARK_OF_PLAYER["x" if human_mark == 1 else "o"]
         known = [0 if ok else 1 for ok in legal]  # only legal cells can hold the new move
-        self.recogniser.reset()
+        # the robot's last look from its home posture (at its own mark, or the game's first frame): no hand on the sheet
+        self.recogniser.reset(reference=None if self._home_frame is None else _rgb_to_bgr(self._home_frame))
         found: list = []
         streak: list = []
 
@@ -168,31 +170,53 @@ class RobotGameRunner:
                 found.append(result)
 
         self.human.draw(true_cell, kind, watch)
-        period = self.config.human.frame_period
-        for _ in range(self.config.max_perception_frames):
-            if found:
-                break
-            self.scene.step(period)
-            watch(self.scene.render(), self.scene.time)
+        self._watch_still(watch, found)
         self.true_state = self.rules.play(self.true_state, true_cell)
         self._true_boards.append(self._true_digits())
         record.human_moves += 1
+        if not found:
+            record.unseen_moves += 1
+            self._keep_evidence(f"unseen-{record.human_moves:02d}-true{true_cell}")
+            if self.speech is None:  # text: the robot asks and the person's answer comes through the dialogue
+                self._say(ASK_WHERE)
+                cell = true_cell
+            else:
+                cell = self._ask_where(true_cell, legal, watch, found)
         if found:
             cell = int(found[0].move)
             label = found[0].label
             if cell != true_cell or label != ("x" if human_mark == 1 else "o"):
                 record.misrecognised_moves += 1
                 self._keep_evidence(f"misread-{record.human_moves:02d}-true{true_cell}-saw{cell}{label}")
-        else:
-            # Nothing recognised: the robot asks where the move went and the person answers (ASR).
-            record.unseen_moves += 1
-            self._keep_evidence(f"unseen-{record.human_moves:02d}-true{true_cell}")
-            self._say("I could not see your move, where did you draw?")
-            cell = true_cell
         if not legal[cell]:  # cannot happen (known marks every illegal cell), kept as a guard for the env
             cell = int(np.flatnonzero(legal)[0])
         record.human_turn_seconds.append(time.perf_counter() - started)
         return cell
+
+    def _watch_still(self, watch: Callable[[np.ndarray, float], None], found: list) -> None:
+        """Watch the sheet (the scene going on, nobody drawing) until the move is found or the frames run out."""
+        for _ in range(self.config.max_perception_frames):
+            if found:
+                break
+            self.scene.step(self.config.human.frame_period)
+            watch(self.scene.render(), self.scene.time)
+
+    def _ask_where(self, true_cell: int, legal: np.ndarray, watch: Callable[[np.ndarray, float], None],
+                   found: list) -> int | None:
+        """Real speech, after an unseen move: the cell the person's spoken answers settle (robot_sim.where); if
+        they settle nothing, the robot says so and looks again (None: that look found a move, now in `found`),
+        and failing that takes the cell drawn, as text mode does."""
+        record = self._record
+        cell = ask_where(true_cell, legal, self._answer_ears, self._say,
+                         lambda answer, question: self._speech_log.answer(answer, question, self.scene.time))
+        if cell is not None:
+            record.cells_from_answers += 1
+            record.misheard_cells += int(cell != true_cell)  # the robot's board now holds the mark in the wrong cell
+            return cell
+        record.answer_fallbacks += 1
+        self._say(LOOK_AGAIN)
+        self._watch_still(watch, found)
+        return None if found else true_cell
 
     def _keep_evidence(self, what: str) -> None:
         """With --out, keep the last camera frame of a move the robot got wrong or missed (input for vision)."""
@@ -272,6 +296,7 @@ class RobotGameRunner:
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
         self._mark_rng = np.random.default_rng(seed + 17)
+        self._home_frame: np.ndarray | None = None
         opponent = PerceivedHumanOpponent(self._perceive_human_move)
         first = cfg.first
         if first == "alternate":
@@ -280,6 +305,7 @@ class RobotGameRunner:
         heard = {"asr_confidence": (1.0, 1.0)} if self.user_reply is not None else {}
         if hearing is not None:
             heard["hearing"] = hearing
+        self._answer_ears = self.speech.answer_ears(seed, hearing) if hearing is not None else None
         env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent,
                        **heard)
         td = env.reset()
@@ -295,6 +321,7 @@ class RobotGameRunner:
                                                                  "snr_db": hearing.snr_db}}
         self._speech_log = SpeechLog(self.logger, record)
         self._log_frame(self.scene.render(), self.scene.time)
+        self._home_frame = self.last_frame  # the sheet as the robot sees it from home, nobody's hand over it
         self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
         if self._sheet_estimate is None:
             raise ValueError("the mouth camera cannot see the game sheet at the home posture; check the scene configuration")
@@ -331,7 +358,7 @@ class RobotGameRunner:
         record.ik_failures = self.motion.stats.ik_failures
         if self.out_dir is not None and self.last_frame is not None:
             path = self.out_dir / f"game-{index:03d}.png"
-            _write_png_atomic(path, self._annotated(self.last_frame, record))
+            _write_png_atomic(path, annotated_snapshot(_rgb_to_bgr(self.last_frame), record))
             record.snapshot = str(path)
             # A third-person view for people reading the run (the robot never sees it).
             _write_png_atomic(self.out_dir / f"game-{index:03d}-overview.png", _rgb_to_bgr(self.scene.render_overview()))
@@ -341,7 +368,7 @@ class RobotGameRunner:
         """After drawing, look at the sheet once (the robot's own check that its mark landed in the cell)."""
         from vision.grid import read_page
 
-        frame = self.scene.render()
+        frame = self._home_frame = self.scene.render()
         self._log_frame(frame, self.scene.time)
         try:
             reading = read_page(_rgb_to_bgr(frame), self.grid, self.recogniser.classifier)
@@ -369,15 +396,6 @@ class RobotGameRunner:
                 "robot_move_cpu_seconds": [round(s, 3) for s in record.robot_move_cpu_seconds],
                 **({"utterances": record.utterances, "asr_words": record.asr_words,
                     "asr_word_errors": record.asr_word_errors} if self.speech is not None else {}), **self.episode_tags}
-
-    def _annotated(self, frame: np.ndarray, record: GameRecord) -> np.ndarray:
-        import cv2
-
-        image = _rgb_to_bgr(frame).copy()
-        text = f"game {record.index}: {record.outcome}  misrecognised {record.misrecognised_moves}"
-        cv2.rectangle(image, (0, 0), (image.shape[1], 30), (32, 32, 32), -1)
-        cv2.putText(image, text, (8, 21), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
-        return image
 
     # ------------------------------------------------------------------ many games
     def run(self, progress: Callable[..., Any] | None = None) -> dict[str, Any]:

@@ -56,6 +56,16 @@ class GameRecord:
     asr_seconds: list[float] = field(default_factory=list)
     #: CPU seconds of each decode (steadier than wall time on a shared machine).
     asr_cpu_seconds: list[float] = field(default_factory=list)
+    #: Unseen moves asked about aloud (robot_sim.where): the person's answers heard, their words and word errors,
+    #: moves settled by an answer, those of them in a cell the person did not draw in, and moves the answers did
+    #: not settle (the robot then looked again).
+    cell_answers: int = 0
+    cell_answer_words: int = 0
+    cell_answer_word_errors: int = 0
+    cell_answer_cpu_seconds: list[float] = field(default_factory=list)
+    cells_from_answers: int = 0
+    misheard_cells: int = 0
+    answer_fallbacks: int = 0
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -72,6 +82,7 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
     said = sum(r.asr_words for r in records)
     heard = [c for r in records for c in r.asr_confidences]
     replies = sum(r.utterances.get("user", 0) for r in records)
+    answer_words = sum(r.cell_answer_words for r in records)
 
     return {
         "games": len(records),
@@ -89,6 +100,12 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "asr_utterances": replies if real else None,
         "asr_understood_rate": round(sum(r.asr_understood for r in records) / replies, 4) if real and replies else None,
         "robot_utterances": sum(r.utterances.get("robot", 0) for r in records) if real else None,
+        "cell_answers": sum(r.cell_answers for r in records) if real else None,
+        "cell_answer_word_error_rate": (round(sum(r.cell_answer_word_errors for r in records) / answer_words, 4)
+                                        if real and answer_words else None),
+        "cells_from_answers": sum(r.cells_from_answers for r in records) if real else None,
+        "misheard_cells": sum(r.misheard_cells for r in records) if real else None,
+        "answer_fallbacks": sum(r.answer_fallbacks for r in records) if real else None,
         "render_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_render_seconds]),
         "tts_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_tts_seconds]) if real else None,
         "person_tts_seconds_per_utterance": mean([s for r in records for s in r.person_tts_seconds]) if real else None,
@@ -112,6 +129,17 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "evidence": [path for r in records for path in r.evidence],
         "game_conditions": [r.conditions for r in records],
     }
+
+
+def annotated_snapshot(image_bgr: np.ndarray, record: GameRecord) -> np.ndarray:
+    """The game's last camera frame with its outcome written across the top (the `game-NNN.png` snapshot)."""
+    import cv2
+
+    image = image_bgr.copy()
+    text = f"game {record.index}: {record.outcome}  misrecognised {record.misrecognised_moves}"
+    cv2.rectangle(image, (0, 0), (image.shape[1], 30), (32, 32, 32), -1)
+    cv2.putText(image, text, (8, 21), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+    return image
 
 
 def write_report(report: dict[str, Any], out_dir: str | Path) -> Path:

@@ -2,9 +2,10 @@
 another voice over the room's background noise, and the real recogniser hears the answer.
 
 `Speaker` keeps every utterance's text (what `/dialogue` logs) and, with a voice, synthesises it (speech.tts,
-cached per text and voice). `GameSpeech` holds what all games of a run share (the pocketsphinx recogniser,
-the TTS cache, the babble talkers' audio) and builds each game's ears, a `speech.hearing.RecogniserHearing`
-that the dialogue env takes as its `hearing` (the same hook `env.asr: channel` uses in training).
+cached per text and voice). `GameSpeech` holds what all games of a run share (the pocketsphinx recognisers,
+the TTS cache, the babble talkers' audio) and builds each game's ears: a `speech.hearing.RecogniserHearing`
+that the dialogue env takes as its `hearing` (the same hook `env.asr: channel` uses in training), and the
+`speech.cell_answers.AnswerEars` that hear the answer to "where did you draw?" (robot_sim.where).
 
 Held out from the channel model's fit (speech/fit.py, docs/speech.md): the person is one of the four flite voices
 at their normal rate (the fit heard them at 0.85 and 1.15), babble comes from the report set of espeak-ng
@@ -20,7 +21,9 @@ import numpy as np
 
 from robot_sim.conditions import ConditionRanges
 
-PERSON_SALT, NOISE_SALT = 150, 151  # SeedSequence words that keep the game's speech draws apart from its others
+# SeedSequence words that keep the game's speech draws apart from its others (and the answers' noise apart
+# from the dialogue's, so a game's dialogue is heard the same with or without unseen moves)
+PERSON_SALT, NOISE_SALT, ANSWER_NOISE_SALT = 150, 151, 152
 
 
 class Speaker:
@@ -63,7 +66,9 @@ class GameSpeech:
 
     def __init__(self, game: str, ranges: ConditionRanges) -> None:
         from envs.dialogue import build_dialogue_model
+        from robot_sim.scene import check_game
         from speech.asr import Recogniser
+        from speech.cell_answers import answer_sentences, confirm_sentences
         from speech.fit import REPORT_BABBLE_VOICES, babble_texts
         from speech.roundtrip import babble_pool
         from speech.tts import SpeechCache
@@ -72,6 +77,10 @@ class GameSpeech:
         self.texts, self.words = dialogue.utterance_texts, dialogue.words
         self.ranges = ranges
         self.recogniser = Recogniser()
+        self.grid = check_game(game)
+        # the answers to "where did you draw?" and "did you say ...?" each have their own small LM
+        self.cell_recogniser = Recogniser(answer_sentences(self.grid))
+        self.confirm_recogniser = Recogniser(confirm_sentences())
         self.cache = SpeechCache()
         noisy_babble = ranges.speech_snr_db is not None and "babble" in ranges.speech_noise
         self.babble_pool = babble_pool(babble_texts(), REPORT_BABBLE_VOICES) if noisy_babble else []
@@ -90,6 +99,17 @@ class GameSpeech:
                                  snr_db=None if snr is None else (float(snr[0]), float(snr[1])), kind=kind,
                                  babble_pool=self.babble_pool, seed=[seed, NOISE_SALT], cache=self.cache)
 
+    def answer_ears(self, seed: int, hearing):
+        """The ears for the game's answers to "where did you draw?": the same person, noise kind and SNR range as
+        `hearing` (this game's), the noise from its own seed, the answers' recognisers started afresh."""
+        from speech.cell_answers import AnswerEars
+
+        self.cell_recogniser.reset()
+        self.confirm_recogniser.reset()
+        return AnswerEars(self.grid, self.cell_recogniser, self.confirm_recogniser, voice=hearing.voice, snr_db=hearing.snr_db,
+                          kind=hearing.kind, babble_pool=self.babble_pool, seed=[seed, ANSWER_NOISE_SALT],
+                          cache=self.cache)
+
 
 class SpeechLog:
     """One game's speech into the MCAP log and its `GameRecord`: each utterance on `/audio/robot` or `/audio/user`
@@ -100,16 +120,19 @@ class SpeechLog:
         self.logger, self.record = logger, record
         self.clock = 0.0  # scene seconds when the last utterance ends: utterances never overlap in the log
         self.notes: dict[str, list[dict]] = {}
+        self.answers: list[dict] = []  # this step's answers to "where did you draw?" (their /dialogue note)
 
-    def utterance(self, speaker: str, samples: np.ndarray, text: str, scene_time: float) -> float:
-        """Log one utterance starting at `scene_time` (or when the one before ends); returns its timestamp."""
+    def utterance(self, speaker: str, samples: np.ndarray, text: str, scene_time: float, count: bool = True) -> float:
+        """Log one utterance starting at `scene_time` (or when the one before ends); returns its timestamp.
+        `count`: add it to the record's utterances per speaker (the dialogue's; answers are counted apart)."""
         from speech import SAMPLE_RATE
         from speech.audio import AUDIO_TOPICS, raw_audio
 
         t = max(scene_time, self.clock)
         seconds = samples.size / SAMPLE_RATE
         self.clock = t + seconds
-        self.record.utterances[speaker] = self.record.utterances.get(speaker, 0) + 1
+        if count:
+            self.record.utterances[speaker] = self.record.utterances.get(speaker, 0) + 1
         if self.logger is not None:
             self.logger.log_audio(raw_audio(samples), topic=AUDIO_TOPICS[speaker], t=t)
             self.notes.setdefault(speaker, []).append(
@@ -137,9 +160,28 @@ class SpeechLog:
                                           heard_words=[[w, round(c, 3)] for w, c in
                                                        zip(utterance.heard.words, utterance.heard.confidences)])
 
+    def answer(self, utterance, question: str, scene_time: float) -> None:
+        """One of the person's answers to the robot's `question` about an unseen move (a `HeardUtterance` whose
+        `understood` is the cell heard): audio on `/audio/user`, words and cell on the user's `/dialogue` turn."""
+        from speech.align import word_errors
+
+        t = self.utterance("user", utterance.samples, utterance.said, scene_time, count=False)
+        record = self.record
+        record.cell_answers += 1
+        record.cell_answer_words += len(utterance.said.split())
+        record.cell_answer_word_errors += word_errors(utterance.said.split(), utterance.heard.words)
+        record.cell_answer_cpu_seconds.append(utterance.asr_cpu_s)
+        if self.logger is not None:
+            self.answers.append({"question": question, "said": utterance.said, "heard": utterance.heard.text,
+                                 "heard_words": [[w, round(c, 3)] for w, c in
+                                                 zip(utterance.heard.words, utterance.heard.confidences)],
+                                 "understood": utterance.understood, "snr_db": utterance.snr_db, "t": round(t, 4)})
+
     def flush(self) -> None:
         """Hand the utterances' notes to the logger before the step's /dialogue turns are written."""
         if self.logger is not None:
             for speaker, audio in self.notes.items():
                 self.logger.note_dialogue(speaker, audio=audio)
-        self.notes = {}
+            if self.answers:
+                self.logger.note_dialogue("user", cell_answers=self.answers)
+        self.notes, self.answers = {}, []

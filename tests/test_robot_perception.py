@@ -80,3 +80,39 @@ def test_speaker_keeps_text_without_audio(tmp_path):
     speaker = Speaker(None)
     assert speaker.say("Hello, nice to meet you!") is None
     assert speaker.said == ["Hello, nice to meet you!"] and not speaker.has_audio
+
+
+def test_a_curled_sheet_edge_is_not_a_hand_once_the_robot_has_seen_the_sheet(sapien_render_system):
+    """A curled edge bows out of the page's four-corner quad, so a sliver of table lies along the rim in every
+    frame: judged alone, every still frame looks like a hand over the sheet's edge and the move is never seen
+    (the random preset's unseen moves); judged against the robot's look before the turn, the move is read."""
+    from envs.rules import Standard
+    from robot_sim.conditions import PRESETS
+    from robot_sim.game_config import RobotPlayConfig
+    from robot_sim.human import HumanConfig, SimulatedHuman
+    from robot_sim.scene import PepperScene, SceneConfig
+    from vision.recogniser import MoveRecogniser
+
+    # the scene of `ncbot robot play --conditions random --seed 11`, game 7: curl 15 mm, sheet turned 25 degrees
+    scene = PepperScene(SceneConfig(camera_width=640, camera_height=480, conditions=PRESETS["random"],
+                                    conditions_seed=11007))
+    assert scene.conditions.sheet_shape.curl > 0.01
+    human = SimulatedHuman(scene, Standard(), HumanConfig(drawing_frames=4), seed=3)
+    reference = np.ascontiguousarray(scene.render()[:, :, ::-1])
+    tau = RobotPlayConfig().recogniser_tau
+    alone, told = MoveRecogniser(grid=3, tau=tau), MoveRecogniser(grid=3, tau=tau)
+    told.reset(reference=reference)
+    statuses = {"alone": [], "told": []}
+
+    def watch(frame, t):
+        bgr = np.ascontiguousarray(frame[:, :, ::-1])
+        statuses["alone"].append(alone.update(bgr, [0] * 9))
+        statuses["told"].append(told.update(bgr, [0] * 9))
+
+    human.draw(4, "cross", watch)
+    for _ in range(8):
+        scene.step(0.25)
+        watch(scene.render(), scene.time)
+    moves = [r for r in statuses["told"] if r.status == "move"]
+    assert moves and moves[0].move == 4 and moves[0].label == "x", [r.status for r in statuses["told"]]
+    assert not any(r.status == "move" for r in statuses["alone"]), [r.status for r in statuses["alone"]]

@@ -77,6 +77,32 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     assert (tmp_path / "run.rrd").stat().st_size > 10_000
 
 
+def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_system, tmp_path):
+    """Real speech, a camera that never confirms a move: every human move is asked about ("where did you draw?"),
+    the person's spoken cell is heard by pocketsphinx and confirmed, and the answers are in the log."""
+    from logs import LogReader
+    from robot_sim.game_config import RobotPlayConfig
+    from robot_sim.play import play_robot_games
+    from robot_sim.where import ASK_WHERE
+
+    config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=160, camera_height=120, speech="real",
+                             confirm_frames=10_000, max_perception_frames=1)
+    report = play_robot_games(config, out_dir=tmp_path, progress=False)
+    assert report["unseen_moves"] == report["human_moves"] >= 2 and report["misrecognised_moves"] == 0, report
+    # the lab is quiet: every answer settles its move, in the cell drawn, and the game ends as it should
+    assert report["cells_from_answers"] == report["unseen_moves"] and report["misheard_cells"] == 0, report
+    assert report["answer_fallbacks"] == 0 and report["unfinished"] == 0 and report["cell_answer_word_error_rate"] == 0.0
+    assert report["cell_answers"] == 2 * report["unseen_moves"]  # the cell, then "yes, that is right"
+    reader = LogReader(tmp_path)
+    users = sum(1 for _ in reader.messages(["/audio/user"]))
+    assert users == report["asr_utterances"] + report["cell_answers"]
+    answers = [a for m in reader.messages(["/dialogue"]) for a in m.data.get("cell_answers", [])]
+    assert len(answers) == report["cell_answers"] and answers[0]["question"] == ASK_WHERE
+    assert [a["understood"] for a in answers[1::2]] == [1] * report["unseen_moves"]
+    boards = [m.data for m in reader.messages(["/board"])]
+    assert boards[-1]["cells"] == [e for e in reader.messages(["/episode"])][-1].data["extra"]["true_boards"][-1]
+
+
 def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys):
     import sys
 
@@ -103,6 +129,9 @@ def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
     keys = ("asr_word_error_rate", "asr_mean_confidence", "asr_utterances", "asr_understood_rate", "robot_utterances")
     text = games_report([record], RobotPlayConfig(speech="text"))
     assert all(text[k] is None for k in keys) and text["speech"] == "text"
+    answer_keys = ("cell_answers", "cells_from_answers", "misheard_cells", "answer_fallbacks")
+    assert all(text[k] is None for k in answer_keys)
+    assert [games_report([record], RobotPlayConfig(speech="real"))[k] for k in answer_keys] == [0, 0, 0, 0]
     real = games_report([record], RobotPlayConfig(speech="real"))
     assert [real[k] for k in keys] == [0.2, 0.75, 4, 0.75, 9]
     for key in ("misrecognised_moves", "unseen_moves", "seconds_per_robot_turn", "conditions"):

@@ -46,6 +46,7 @@ class PageCells:
     occluded: np.ndarray           # (n*n,) bool: a hand/arm covers part of the cell
     hand_fraction: float           # fraction of the page under large non-paper blobs (hand, arm, shadow)
     edge_fraction: float           # fraction of the page's rim that is not paper (a hand over the edge)
+    rim_foreign: np.ndarray        # (FOREIGN_SIDE, FOREIGN_SIDE) bool: the rim's non-paper pixels (edge_fraction's)
     page_corners: np.ndarray       # (4, 2) frame pixels, TL TR BR BL
     grid_corners: np.ndarray       # (4, 2) frame pixels of the grid square
     grid_image: np.ndarray         # (n*rho, n*rho) gray grid warp with the grid lines removed
@@ -169,7 +170,23 @@ def _denoise(gray: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(gray, (0, 0), min(NOISE_BLUR_MAX, NOISE_BLUR * (noise - NOISE_FREE)))
 
 
-def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_step: float) -> tuple[np.ndarray, float]:
+def _rim_band(side: int) -> np.ndarray:
+    """The page warp's rim where a hand reaching over the sheet's edge shows (the outermost 2 px excluded)."""
+    rim = np.ones((side, side), bool)
+    rim[8:-8, 8:-8] = False
+    rim[:2], rim[-2:], rim[:, :2], rim[:, -2:] = False, False, False, False
+    return rim
+
+
+def rim_fraction(rim_foreign: np.ndarray, ignore: np.ndarray | None = None) -> float:
+    """Fraction of the rim that is not paper, not counting the `ignore` pixels (the sheet's own outline, e.g.
+    a curled edge's sliver of table, seen before anyone reached over it)."""
+    rim = _rim_band(rim_foreign.shape[0])
+    counted = rim_foreign if ignore is None else rim_foreign & ~ignore
+    return float(counted[rim].mean())
+
+
+def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin.
 
     Non-paper is judged against the local paper colour (vision.illumination): a tinted light, a dark
@@ -180,11 +197,8 @@ def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_
     not_paper = non_paper(page_bgr, paper_mask_page)
     # a hand reaching over the sheet's edge: non-paper along the page's rim, even if too thin for the
     # palm-sized opening below; but wider than a grid line, which may run to the rim of a cropped page
-    rim = np.ones_like(not_paper)
-    rim[8:-8, 8:-8] = False
-    rim[:2], rim[-2:], rim[:, :2], rim[:, -2:] = False, False, False, False
     wide = cv2.morphologyEx(not_paper.astype(np.uint8), cv2.MORPH_OPEN, np.ones((RIM_OPEN, RIM_OPEN), np.uint8))
-    edge_fraction = float(wide[rim].mean())
+    rim_foreign = (wide > 0) & _rim_band(side)
     # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
     # robot sees it from closer, so the hand looks bigger on it)
     k = max(5, side // (16 if grid == 3 else 9)) | 1
@@ -196,7 +210,7 @@ def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_
     if count > 1:
         mark_sized = (stats[1:, cv2.CC_STAT_WIDTH] < MARK_EXTENT * cell_step) & (stats[1:, cv2.CC_STAT_HEIGHT] < MARK_EXTENT * cell_step)
         foreign = np.r_[False, ~mark_sized][labels].astype(np.uint8)
-    return foreign, edge_fraction
+    return foreign, rim_foreign
 
 
 def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
@@ -233,7 +247,7 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     scale = FOREIGN_SIDE / page_side
     to_small = np.diag([scale, scale, 1.0]) @ to_page
     small = (FOREIGN_SIDE, FOREIGN_SIDE)
-    foreign, edge_fraction = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
+    foreign, rim_foreign = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
                                       cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid,
                                       cell_step=scale * min(xs[-1] - xs[0], ys[-1] - ys[0]) / grid)
     # the grid-line crossings as they really lie (bowed by the lens, wandering if hand-drawn), in the frame
@@ -253,7 +267,7 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
             crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
             cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
     return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
-                     edge_fraction, corners, grid_frame, gray)
+                     rim_fraction(rim_foreign), rim_foreign, corners, grid_frame, gray)
 
 
 def cell_probabilities(classifier: CellClassifier, cells: np.ndarray, margin: float = UNSURE_MARGIN) -> np.ndarray:

@@ -14,7 +14,9 @@ vote after it. The motion test warps the last three frames with this frame's pag
 jitters under a dim vignette is not motion), also counts changed pixels, and looks 30% beyond the page
 (a hand drawing at the sheet's edge may have only its pen over it). An arm that cuts a piece off the page is caught by the
 page's area instead: it changing between frames is "moving", it staying below the area of earlier clean
-frames is "occluded".
+frames is "occluded". Given a frame of the sheet with nobody's hand over it (`reset(reference=...)`), the rim
+test counts only non-paper the sheet's own outline did not already show there: a curled or folded sheet bows
+out of its four-corner quad, so a sliver of table lies along the rim in every frame, hand or not.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ import cv2
 import numpy as np
 
 from vision.classifier.inference import CellClassifier, load_classifier
-from vision.grid import read_page
+from vision.grid import extract_cells, read_page, rim_fraction
 from vision.labels import BOARD_SYMBOL, LABELS, NOTHING
 from vision.page import check_frame, find_page, warp
 from vision.sheet import check_grid
@@ -40,6 +42,7 @@ MOTION_MARGIN = 0.3    # the wider motion warp reaches this fraction of the page
 LOCAL_CHANGE = 20.0    # gray levels: a blurred pixel of the motion warp changing more has something new on it
 LOCAL_AREA = 0.004     # ... and more than this fraction of such pixels is a hand, however small (tau is an average)
 MOTION_SIDE = 48  # the warped page is compared at this size, blurred: pen strokes barely count, a hand does
+RIM_SLACK = 3     # pixels (of the rim's 160 px warp) the sheet's own rim outline may shift from frame to frame
 
 
 @dataclass
@@ -90,12 +93,23 @@ class MoveRecogniser:
         self.classifier = classifier or load_classifier()
         self.reset()
 
-    def reset(self) -> None:
-        """Forget past frames (call when the recogniser becomes active for a new turn)."""
+    def reset(self, reference: np.ndarray | None = None) -> None:
+        """Forget past frames (call when the recogniser becomes active for a new turn). `reference`: a BGR frame
+        of the sheet with no hand over it (the robot's last look before the turn); the rim test then ignores
+        what of the rim was not paper there already (within RIM_SLACK pixels), e.g. a curled edge."""
         self._grays: deque[np.ndarray] = deque(maxlen=3)  # the last frames, gray, for the motion test
         self._areas: deque[float] = deque(maxlen=3)       # their page areas (frame pixels)
         self._clean_area: float | None = None             # largest page area of a frame that passed every test
         self._probs: deque[np.ndarray] = deque(maxlen=self.window)
+        self._rim_reference: np.ndarray | None = None    # the sheet's own non-paper rim pixels, widened
+        if reference is not None:
+            try:
+                rim = extract_cells(check_frame(reference), self.grid, self.rho).rim_foreign
+            except ValueError:
+                return  # no sheet in the reference: judge the rim as it is
+            if rim.any():
+                kernel = np.ones((2 * RIM_SLACK + 1, 2 * RIM_SLACK + 1), np.uint8)
+                self._rim_reference = cv2.dilate(rim.astype(np.uint8), kernel) > 0
 
     def _forget(self) -> None:
         self._probs.clear()
@@ -154,7 +168,8 @@ class MoveRecogniser:
         except ValueError as error:
             self._forget()
             return Recognition("no_page", motion=motion, detail=str(error))
-        if reading.occluded.any() or reading.hand_fraction > HAND_FRACTION or reading.edge_fraction > EDGE_FRACTION:
+        edge = reading.edge_fraction if self._rim_reference is None else rim_fraction(reading.rim_foreign, self._rim_reference)
+        if reading.occluded.any() or reading.hand_fraction > HAND_FRACTION or edge > EDGE_FRACTION:
             self._forget()
             return Recognition("occluded", cells=reading.cells, motion=motion,
                                detail=f"hand over cells {np.flatnonzero(reading.occluded).tolist()}")

@@ -1,0 +1,98 @@
+"""The person's spoken answer to "where did you draw?" with the real engines (flite, pocketsphinx): the phrases,
+what the answers' recognisers hear, the robot's questions (robot_sim.where) and each game's answer ears."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+
+@pytest.fixture(scope="module")
+def ears_parts():
+    from speech.asr import Recogniser
+    from speech.cell_answers import answer_sentences, confirm_sentences
+    from speech.tts import SpeechCache
+
+    return {3: Recogniser(answer_sentences(3)), 9: Recogniser(answer_sentences(9)),
+            "confirm": Recogniser(confirm_sentences()), "cache": SpeechCache()}
+
+
+def _ears(parts, grid=3, **kwargs):
+    from speech.cell_answers import AnswerEars
+
+    return AnswerEars(grid, parts[grid], parts["confirm"], cache=parts["cache"], **kwargs)
+
+
+def test_every_cell_has_one_phrase_and_only_exact_phrases_are_cells():
+    from speech.cell_answers import cell_of, cell_phrase, cell_phrases, words_of, yes_or_no
+
+    for grid in (3, 9):
+        phrases = cell_phrases(grid)
+        assert len(phrases) == grid * grid and sorted(phrases.values()) == list(range(grid * grid))
+        assert all(cell_of(words_of(cell_phrase(c, grid)), grid) == c for c in range(grid * grid))
+    assert cell_phrase(0, 3) == "top left" and cell_phrase(4, 3) == "centre" and cell_phrase(8, 3) == "bottom right"
+    assert cell_phrase(80, 9) == "bottom right square, bottom right cell" and cell_phrase(27, 9) == "middle left square, top left cell"
+    for heard in ((), ("middle",), ("top", "left", "left"), ("left", "top")):
+        assert cell_of(heard, 3) is None
+    assert yes_or_no(("yes", "that", "is", "right")) is True and yes_or_no(("no", "that", "is", "wrong")) is False
+    assert yes_or_no(("no", "that", "is", "right")) is None and yes_or_no(()) is None
+    with pytest.raises(ValueError, match="cell must be"):
+        cell_phrase(81, 9)
+
+
+def test_each_cell_phrase_said_clean_is_heard_as_its_cell(ears_parts):
+    from speech.cell_answers import CONFIRM_NO, CONFIRM_YES, cell_phrase
+    from speech.tts import Voice
+
+    ears = _ears(ears_parts, voice=Voice("flite", "rms"))
+    assert [ears.hear_cell(cell_phrase(c, 3)).understood for c in range(9)] == list(range(9))
+    assert [ears.hear_confirm(text).understood for text in (CONFIRM_YES, CONFIRM_NO)] == [1, 0]
+    ultimate = _ears(ears_parts, grid=9, voice=Voice("flite", "awb"))
+    assert [ultimate.hear_cell(cell_phrase(c, 9)).understood for c in (0, 40, 62)] == [0, 40, 62]
+    assert all(h.snr_db is None and h.samples.dtype == np.int16 for h in ears.log)
+
+
+def test_the_robot_asks_confirms_and_asks_again_at_most_three_times(ears_parts):
+    from robot_sim.where import ASK_AGAIN, ASK_WHERE, MAX_ASKS, ask_where
+
+    said, heard = [], []
+    legal = np.ones(9, bool)
+    cell = ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: heard.append((u, q)))
+    assert cell == 2 and said == [ASK_WHERE, "Did you say top right?"] and [u.understood for u, _ in heard] == [2, 1]
+    said.clear()
+    legal[2] = False  # the robot believes the cell taken: the answer cannot settle the move
+    assert ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: None) is None
+    assert said == [ASK_WHERE] + [ASK_AGAIN] * (MAX_ASKS - 1)
+
+
+def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
+    from robot_sim.where import ask_where
+    from speech.noise import NOISE_KINDS
+
+    assert "white" in NOISE_KINDS
+    outcomes = []
+    for seed in range(3):
+        ears = _ears(ears_parts, snr_db=(-5.0, 0.0), kind="white", seed=seed)
+        legal = np.ones(9, bool)
+        outcomes.append(ask_where(6, legal, ears, lambda text: None, lambda u, q: None))
+        assert all(-5.0 <= h.snr_db <= 0.0 and h.understood >= -1 for h in ears.log)
+        assert len(ears.log) >= 2 and not np.array_equal(ears.log[0].samples, ears_parts["cache"].speak("bottom left", ears.voice)[0])
+    assert all(o is None or 0 <= o < 9 for o in outcomes)
+
+
+def test_each_game_hears_its_answers_apart_from_its_dialogue():
+    from robot_sim.conditions import load_conditions
+    from robot_sim.speech import GameSpeech
+
+    speech = GameSpeech("standard", load_conditions("office"))
+    said = torch.tensor([0, 3])
+    plain = speech.hearing(5)
+    plain.hear(said)
+    hearing = speech.hearing(5)
+    ears = speech.answer_ears(5, hearing)
+    assert (ears.voice, ears.kind, ears.snr_db) == (hearing.voice, hearing.kind, hearing.snr_db)
+    first = ears.hear_cell("top left")
+    hearing.hear(said)  # the answers drew their noise from their own seed: the dialogue is heard as without them
+    assert all(np.array_equal(a.samples, b.samples) and a.heard == b.heard for a, b in zip(plain.log, hearing.log))
+    again = speech.answer_ears(5, speech.hearing(5)).hear_cell("top left")
+    assert np.array_equal(first.samples, again.samples) and first.heard == again.heard and 20 <= first.snr_db <= 30
