@@ -97,7 +97,9 @@ class CompetitiveDQNLoss(LossModule):
         state_dict and the optimised parameters are unchanged. Without a delayed target it is `value_network`."""
         if self.delay_value:
             target = copy.deepcopy(self.value_network)
-            self.target_value_network_params.to_module(target)  # not as a context: the target tensors stay bound
+            # read from _modules: the attribute warns while no target updater is associated yet (the Learner makes
+            # it after the loss); to_module not as a context: the target tensors stay bound
+            self._modules["target_value_network_params"].to_module(target)
             target.requires_grad_(False)  # (to_module wraps them as Parameters sharing their storage)
         else:
             target = self.value_network
