@@ -167,12 +167,14 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
         remaining = -(-remaining // batch_frames) * batch_frames
     collector = None
     if remaining != 0:
-        # Each batch is used up before the next is collected (the buffer copies it, the MCAP log packs it into rows
-        # of its own), so the Collector may hand out its own storage instead of a clone, except to n-step's
-        # MultiStepTransform, which keeps views of the last steps. Nothing reads ("collector", "traj_ids"). At the
-        # paper's 8 frames per batch the two save ~25 us of CPU per frame (docs/learner-speed.md).
+        # Per-step overhead, which is most of a frame at the paper's 8-frame batches (docs/learner-speed.md): with
+        # device "cpu" named, the Collector keeps its TensorDicts on it instead of casting the whole step to the
+        # env's device at every step; each batch is used up before the next is collected (the buffer copies it, the
+        # MCAP log packs it into rows of its own), so the Collector may hand out its own storage instead of a clone,
+        # except to n-step's MultiStepTransform, which keeps views of the last steps; nothing reads
+        # ("collector", "traj_ids").
         collector = Collector(
-            env, agent.explore, frames_per_batch=batch_frames, total_frames=remaining,
+            env, agent.explore, frames_per_batch=batch_frames, total_frames=remaining, device="cpu",
             auto_register_policy_transforms=False, return_same_td=multistep is None, track_traj_ids=False,
         )
 
