@@ -128,7 +128,8 @@ class CompetitiveDQNLoss(LossModule):
     def _forward_value_estimator_keys(self, **kwargs) -> None:
         keys = self.tensor_keys
         target = self.__dict__.get("target_value_network")
-        for network in [self.value_network] + ([target] if target is not None and target is not self.value_network else []):
+        networks = [self.value_network] + ([target] if target is not None and target is not self.value_network else [])
+        for network in networks:
             masked_max = network[1]  # the target's max follows the bootstrap-mask key
             masked_max.mask_key = keys.bootstrap_mask
             masked_max.in_keys = [masked_max.value_key, keys.bootstrap_mask]

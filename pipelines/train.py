@@ -59,6 +59,14 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
     return None
 
 
+def anneal_epsilon(egreedy: Any, frames: int) -> None:
+    """TorchRL's `EGreedyModule.step(frames)`, skipped once annealing down has reached eps_end: from there a step
+    leaves eps as it is (max(eps_end, eps_end - delta) = eps_end), and it runs a loop of tensor ops per frame."""
+    if egreedy.eps_init >= egreedy.eps_end and bool(egreedy.eps <= egreedy.eps_end):
+        return
+    egreedy.step(frames)
+
+
 def checkpoint_bytes(config: RunConfig) -> int:
     """About how large one periodic checkpoint of this run is (networks, Adam moments, replay buffer): the free
     space a run needs before it starts, so a full disk is one line at start-up rather than an error hours in."""
@@ -219,7 +227,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
-            agent.egreedy.step(frames)
+            anneal_epsilon(agent.egreedy, frames)
             if selfplay_pool is not None:
                 selfplay_pool.maybe_add(qnet, counters["frames"])
 
