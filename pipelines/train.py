@@ -77,6 +77,21 @@ def checkpoint_bytes(config: RunConfig) -> int:
     return 4 * 4 * params + buffer + 2**20
 
 
+def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False):
+    """TorchRL's Collector as the training loop uses it (and bench/learner_throughput.py measures it).
+
+    Per-step overhead is most of a frame at the paper's 8-frame batches (docs/learner-speed.md): with device "cpu"
+    named, the Collector keeps its TensorDicts there instead of casting every step to the env's device; each batch
+    is used up before the next is collected (the buffer copies it, the MCAP log packs it into rows of its own), so
+    it may hand out its own storage instead of a clone, unless the consumer `keeps_views` (n-step's
+    MultiStepTransform keeps views of the last steps); nothing reads ("collector", "traj_ids").
+    """
+    from torchrl.collectors import Collector
+
+    return Collector(env, policy, frames_per_batch=frames_per_batch, total_frames=total_frames, device="cpu",
+                     auto_register_policy_transforms=False, return_same_td=not keeps_views, track_traj_ids=False)
+
+
 def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
     """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json).
 
@@ -104,8 +119,6 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
 
 def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
-    from torchrl.collectors import Collector
-
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.symmetry import make_symmetries
@@ -175,16 +188,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
         remaining = -(-remaining // batch_frames) * batch_frames
     collector = None
     if remaining != 0:
-        # Per-step overhead, which is most of a frame at the paper's 8-frame batches (docs/learner-speed.md): with
-        # device "cpu" named, the Collector keeps its TensorDicts on it instead of casting the whole step to the
-        # env's device at every step; each batch is used up before the next is collected (the buffer copies it, the
-        # MCAP log packs it into rows of its own), so the Collector may hand out its own storage instead of a clone,
-        # except to n-step's MultiStepTransform, which keeps views of the last steps; nothing reads
-        # ("collector", "traj_ids").
-        collector = Collector(
-            env, agent.explore, frames_per_batch=batch_frames, total_frames=remaining, device="cpu",
-            auto_register_policy_transforms=False, return_same_td=multistep is None, track_traj_ids=False,
-        )
+        collector = make_collector(env, agent.explore, batch_frames, remaining, keeps_views=multistep is not None)
 
     def periodic_eval(recent_loss: float) -> dict[str, Any]:
         result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, seat="alternate",
