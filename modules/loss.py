@@ -110,7 +110,8 @@ class CompetitiveDQNLoss(LossModule):
     def _apply(self, fn, *args, **kwargs):
         """`.to(...)`, `.double()`, ... give the target parameters new tensors: bind the target network to them."""
         module = super()._apply(fn, *args, **kwargs)
-        self._bind_target_network()
+        if "target_value_network" in self.__dict__:  # (not while the loss is being built)
+            self._bind_target_network()
         return module
 
     @property
