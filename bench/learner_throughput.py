@@ -60,8 +60,6 @@ class Ours:
     """The default pipeline's env, Collector, replay buffer and learners (one per precision, same start weights)."""
 
     def __init__(self, config_path: str) -> None:
-        from torchrl.collectors import Collector
-
         from modules.policy import make_policies
         from modules.qnet import make_qnet, seeded_init
         from modules.symmetry import make_symmetries
@@ -69,7 +67,7 @@ class Ours:
         from pipelines.config import load_config
         from pipelines.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train import frames_per_batch
+        from pipelines.train import frames_per_batch, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -85,10 +83,9 @@ class Ours:
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
-        self.collector = Collector(self.env, agent.explore, frames_per_batch=self.batch_frames, total_frames=-1,
-                                   auto_register_policy_transforms=False)
-        batches = iter(self.collector)
         multistep = make_multistep(config.loss.n_step, config.loss.gamma)
+        self.collector = make_collector(self.env, agent.explore, self.batch_frames, -1, keeps_views=multistep is not None)
+        batches = iter(self.collector)
 
         def collect() -> None:  # what the training loop does with a collected batch before the updates
             self.buffer.extend(prepare_transitions(next(batches), config, multistep))

@@ -7,50 +7,33 @@ available action (the paper); training wires it with `set_keys` to ("next", "boo
 `modules/transitions.py` fills with the available or the greedy set (`loss.bootstrap`). The reward is read from
 ("next", tensor_keys.reward), wired in training to ("next", "learning_reward"). The error is taken on Q(s, a) (the
 paper's Q(s', a') in the error term is a typo). Optional double DQN: the online network picks a' inside the mask,
-the target network scores it. The target network is TorchRL's target-parameter copy of `value_network`, run by
-the TD(0) value estimator, refreshed by `HardUpdate` (every C updates, the paper) or `SoftUpdate`.
+the target network scores it. The target network is `value_network` on TorchRL's target parameters (bound once
+to a copy of it, `target_value_network`), run by the TD(0) value estimator, refreshed in place by `HardUpdate` (every
+C updates, the paper) or `SoftUpdate`.
 
 `precision="bf16"` runs the Q-network's products in bfloat16 under CPU autocast while weights, gradients and the
 loss stay float32 (docs/learner-speed.md).
 """
 from __future__ import annotations
 
+import copy
 from contextlib import nullcontext
 from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictModule, TensorDictModuleBase, TensorDictSequential
+from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimators
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
 
 from modules.argmax import MaskedArgmax
 from modules.masks import AVAILABLE_KEY
-from modules.qnet import ACTION_VALUE_KEY
+from modules.qnet import ACTION_VALUE_KEY, QValues
 
 BOOTSTRAP_VALUE_KEY = "bootstrap_value"  # max of Q over the bootstrap mask, written by `value_network`
 LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
 PRECISIONS = ("fp32", "bf16")
-
-
-class QValues(TensorDictModuleBase):
-    """The Q-network as the loss runs it: reads and writes the same keys as its `TensorDictModule`, on the same
-    `nn.Module` (same parameters, same ops), but sets its output directly.
-
-    Why: tensordict 0.14's `TensorDictModule` passes every output through `TensorDict.from_any`, which runs
-    `importlib.util.find_spec("pandas")` on each call: a search of sys.path when pandas is not installed
-    (~60-130 us here), more than the whole MLP at the paper's batch of 2, paid twice per update.
-    """
-
-    def __init__(self, qnet: TensorDictModule) -> None:
-        super().__init__()
-        self.module = qnet.module  # `module`, as in TensorDictModule: the parameter paths stay the same
-        self.in_keys, self.out_keys = list(qnet.in_keys), list(qnet.out_keys)
-
-    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        tensordict.set(self.out_keys[0], self.module(*(tensordict.get(key) for key in self.in_keys)))
-        return tensordict
 
 
 class CompetitiveDQNLoss(LossModule):
@@ -102,6 +85,34 @@ class CompetitiveDQNLoss(LossModule):
             MaskedArgmax(ACTION_VALUE_KEY, self.tensor_keys.bootstrap_mask, "action", BOOTSTRAP_VALUE_KEY),
         )
         self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
+        self._bind_target_network()
+
+    def _bind_target_network(self) -> None:
+        """`target_value_network`: a copy of `value_network` whose parameters ARE the target parameters (the same
+        tensors, which the target updater and `load_state_dict` write in place); the value estimator runs it.
+
+        Why: given `target_params`, TorchRL's estimator swaps them into `value_network` (`to_module`) and back at
+        every update, ~60 us: more than the target pass itself at the paper's batch of 2. Same modules, same
+        tensors, same ops, so the same bits. Kept out of the module tree (as TorchRL keeps `value_network`): the
+        state_dict and the optimised parameters are unchanged. Without a delayed target it is `value_network`."""
+        if self.delay_value:
+            target = copy.deepcopy(self.value_network)
+            # read from _modules: the attribute warns while no target updater is associated yet (the Learner makes
+            # it after the loss); to_module not as a context: the target tensors stay bound
+            self._modules["target_value_network_params"].to_module(target)
+            target.requires_grad_(False)  # (to_module wraps them as Parameters sharing their storage)
+        else:
+            target = self.value_network
+        self.__dict__["target_value_network"] = target
+        if self._value_estimator is not None:
+            self._value_estimator.__dict__["value_network"] = target  # as TorchRL stores it: not a submodule
+
+    def _apply(self, fn, *args, **kwargs):
+        """`.to(...)`, `.double()`, ... give the target parameters new tensors: bind the target network to them."""
+        module = super()._apply(fn, *args, **kwargs)
+        if "target_value_network" in self.__dict__:  # (not while the loss is being built)
+            self._bind_target_network()
+        return module
 
     @property
     def _qnet(self) -> QValues:
@@ -112,15 +123,18 @@ class CompetitiveDQNLoss(LossModule):
         value_type = value_type or self.default_value_estimator
         if value_type is not ValueEstimators.TD0:
             raise ValueError(f"CompetitiveDQNLoss supports only the TD0 value estimator, got {value_type}")
-        self._value_estimator = TD0Estimator(**hyperparams, value_network=self.value_network)
+        self._value_estimator = TD0Estimator(**hyperparams, value_network=self.target_value_network)
         self._forward_value_estimator_keys()
 
     def _forward_value_estimator_keys(self, **kwargs) -> None:
         keys = self.tensor_keys
-        masked_max = self.value_network[1]  # the target's max follows the bootstrap-mask key
-        masked_max.mask_key = keys.bootstrap_mask
-        masked_max.in_keys = [masked_max.value_key, keys.bootstrap_mask]
-        self.value_network.in_keys = [*self._qnet.in_keys, keys.bootstrap_mask]
+        target = self.__dict__.get("target_value_network")
+        networks = [self.value_network] + ([target] if target is not None and target is not self.value_network else [])
+        for network in networks:
+            masked_max = network[1]  # the target's max follows the bootstrap-mask key
+            masked_max.mask_key = keys.bootstrap_mask
+            masked_max.in_keys = [masked_max.value_key, keys.bootstrap_mask]
+            network.in_keys = [*network[0].in_keys, keys.bootstrap_mask]
         if self._value_estimator is not None:
             self._value_estimator.set_keys(value=keys.value, reward=keys.reward, done=keys.done,
                                            terminated=keys.terminated, steps_to_next_obs=keys.steps_to_next_obs)
@@ -134,13 +148,12 @@ class CompetitiveDQNLoss(LossModule):
 
     def _double_dqn_next_value(self, tensordict: TensorDictBase) -> torch.Tensor | None:
         """Double DQN's bootstrap value Q_target(s', argmax_{a' in mask} Q_online(s', a')); None otherwise, and the
-        value estimator runs `value_network` on the target parameters (max over the mask)."""
+        value estimator runs `target_value_network` (max over the mask)."""
         if not self.double_dqn:
             return None
         next_state = tensordict.get("next").select(*self.value_network.in_keys)
         online = self.value_network(next_state.copy())  # the online parameters are the Q-network's own
-        with self.target_value_network_params.to_module(self.value_network, preserve_module_state=False):
-            target = self._qnet(next_state.copy())
+        target = self.target_value_network[0](next_state.copy())
         return torch.gather(target.get(ACTION_VALUE_KEY).float(), -1, online.get("action").unsqueeze(-1))
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
@@ -150,8 +163,7 @@ class CompetitiveDQNLoss(LossModule):
             q_values = self._qnet(tensordict.select(*self._qnet.in_keys)).get(keys.action_value).float()
             with torch.no_grad():
                 next_value = self._double_dqn_next_value(tensordict)
-                target = self.value_estimator.value_estimate(
-                    tensordict, target_params=self.target_value_network_params, next_value=next_value).squeeze(-1)
+                target = self.value_estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
         predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
         loss = distance_loss(predicted, target.float(), self.loss_function).mean()
         with torch.no_grad():

@@ -1,7 +1,8 @@
 """The agent's policies as TensorDict modules: one greedy (test time) and one epsilon-greedy (for the Collector).
 
 Both run the same chain, so the masks used while learning are the masks used at test time (paper, Algorithm 2):
-Q-network -> look-ahead masks -> masked argmax [-> TorchRL `EGreedyModule`].
+Q-network (`modules.qnet.QValues`, on the Q-network's own module) -> look-ahead masks -> masked argmax [-> TorchRL
+`EGreedyModule`].
 The raw Q-values stay under `action_value` for the logger; the greedy argmax reads `greedy_mask`, exploration
 samples uniformly inside `explore_mask`.
 """
@@ -15,7 +16,7 @@ from torchrl.modules import EGreedyModule
 
 from modules.argmax import MaskedArgmax
 from modules.masks import EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LookaheadMasks
-from modules.qnet import ACTION_VALUE_KEY
+from modules.qnet import ACTION_VALUE_KEY, QValues
 
 CHOSEN_ACTION_VALUE_KEY = "chosen_action_value"
 
@@ -30,7 +31,7 @@ class AgentPolicies:
 
 
 def make_policies(
-    qnet: TensorDictModule,
+    qnet: TensorDictModule | QValues,
     action_spec: TensorSpec,
     lookahead: str = "one_step",
     *,
@@ -43,7 +44,7 @@ def make_policies(
     `action_spec` is the env's unbatched categorical action spec (`env.action_spec_unbatched`).
     """
     greedy = TensorDictSequential(
-        qnet,
+        QValues(qnet),  # the same network and parameters, without TensorDictModule's per-call overhead
         LookaheadMasks(lookahead),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
     )

@@ -85,12 +85,13 @@ class Learner:
         if self.symmetries is not None:
             batch = self.augmented(batch)
         loss_td = self.loss_module(batch)
+        loss = loss_td["loss"]
         self.optimizer.zero_grad(set_to_none=True)
-        loss_td["loss"].backward()
+        loss.backward()
         torch.nn.utils.clip_grad_norm_(self._parameters, self.max_grad_norm, foreach=True)
         self.optimizer.step()
         self.target_updater.step()
-        return loss_td["loss"].detach()
+        return loss.detach()
 
     def update_many(self, buffer: TensorDictReplayBuffer, count: int) -> list[torch.Tensor]:
         """`count` gradient steps on `count` batches drawn from `buffer` in one sampling call; returns their losses.

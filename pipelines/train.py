@@ -59,6 +59,14 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
     return None
 
 
+def anneal_epsilon(egreedy: Any, frames: int) -> None:
+    """TorchRL's `EGreedyModule.step(frames)`, skipped once annealing down has reached eps_end: from there a step
+    leaves eps as it is (max(eps_end, eps_end - delta) = eps_end), and it runs a loop of tensor ops per frame."""
+    if egreedy.eps_init >= egreedy.eps_end and bool(egreedy.eps <= egreedy.eps_end):
+        return
+    egreedy.step(frames)
+
+
 def checkpoint_bytes(config: RunConfig) -> int:
     """About how large one periodic checkpoint of this run is (networks, Adam moments, replay buffer): the free
     space a run needs before it starts, so a full disk is one line at start-up rather than an error hours in."""
@@ -67,6 +75,21 @@ def checkpoint_bytes(config: RunConfig) -> int:
     params = sum(a * b + b for a, b in zip(widths, widths[1:]))
     buffer = config.buffer.size * (2 * features * 4 + 2 * actions + 64) if config.checkpoint.save_buffer else 0
     return 4 * 4 * params + buffer + 2**20
+
+
+def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False):
+    """TorchRL's Collector as the training loop uses it (and bench/learner_throughput.py measures it).
+
+    Per-step overhead is most of a frame at the paper's 8-frame batches (docs/learner-speed.md): with device "cpu"
+    named, the Collector keeps its TensorDicts there instead of casting every step to the env's device; each batch
+    is used up before the next is collected (the buffer copies it, the MCAP log packs it into rows of its own), so
+    it may hand out its own storage instead of a clone, unless the consumer `keeps_views` (n-step's
+    MultiStepTransform keeps views of the last steps); nothing reads ("collector", "traj_ids").
+    """
+    from torchrl.collectors import Collector
+
+    return Collector(env, policy, frames_per_batch=frames_per_batch, total_frames=total_frames, device="cpu",
+                     auto_register_policy_transforms=False, return_same_td=not keeps_views, track_traj_ids=False)
 
 
 def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
@@ -96,8 +119,6 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
 
 def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
-    from torchrl.collectors import Collector
-
     from modules.policy import make_policies
     from modules.qnet import make_qnet, seeded_init
     from modules.symmetry import make_symmetries
@@ -167,10 +188,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
         remaining = -(-remaining // batch_frames) * batch_frames
     collector = None
     if remaining != 0:
-        collector = Collector(
-            env, agent.explore, frames_per_batch=batch_frames, total_frames=remaining,
-            auto_register_policy_transforms=False,
-        )
+        collector = make_collector(env, agent.explore, batch_frames, remaining, keeps_views=multistep is not None)
 
     def periodic_eval(recent_loss: float) -> dict[str, Any]:
         result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, seat="alternate",
@@ -213,7 +231,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
-            agent.egreedy.step(frames)
+            anneal_epsilon(agent.egreedy, frames)
             if selfplay_pool is not None:
                 selfplay_pool.maybe_add(qnet, counters["frames"])
 

@@ -308,3 +308,33 @@ def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch
     for a, b in zip(once.loss_module.parameters(), each.loss_module.parameters()):
         assert torch.equal(a, b)
     assert once.update_many(once_buffer, 0) == []
+
+
+def test_bound_target_network_is_the_swapped_in_target_bit_for_bit() -> None:
+    """`target_value_network` (bound once to the target parameters) gives exactly what TorchRL's swap of those
+    parameters into `value_network` gives, through hard updates and after `load_state_dict`; it adds no parameter
+    and no state_dict key."""
+    from torchrl.envs.utils import step_mdp
+
+    def swapped_and_bound(loss: CompetitiveDQNLoss, batch: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
+        next_state = step_mdp(batch, keep_other=False)
+        with torch.no_grad():
+            with loss.target_value_network_params.to_module(loss.value_network, preserve_module_state=False):
+                swapped = loss.value_network(next_state.clone())["bootstrap_value"]
+            bound = loss.target_value_network(next_state.clone())["bootstrap_value"]
+        return swapped, bound
+
+    learner, buffer = _learner(target_period=3), _filled_buffer(batch=8)
+    online = sum(1 for _ in learner.loss_module.parameters())
+    for _ in range(7):  # 7 updates of period 3: the target is 1 update behind the online network
+        learner.update(buffer.sample())
+        swapped, bound = swapped_and_bound(learner.loss_module, buffer.sample())
+        assert torch.equal(swapped, bound)
+    online_value = learner.loss_module.value_network(step_mdp(buffer.sample(), keep_other=False))["bootstrap_value"]
+    assert not torch.equal(swapped_and_bound(learner.loss_module, buffer.sample())[1], online_value)
+    fresh = _learner(target_period=3)
+    fresh.load_state_dict(learner.state_dict())
+    batch = buffer.sample()
+    assert torch.equal(swapped_and_bound(fresh.loss_module, batch)[1], swapped_and_bound(learner.loss_module, batch)[0])
+    assert sum(1 for _ in learner.loss_module.parameters()) == online == 6
+    assert not any("target_value_network." in key for key in learner.loss_module.state_dict())

@@ -88,3 +88,20 @@ def test_bf16_precision_reaches_the_learner_and_is_reproducible(tmp_path: Path) 
     exact = train(load_config(path), tmp_path / "fp32")
     assert [h["train_loss"] for h in fast["history"]] != [h["train_loss"] for h in exact["history"]]
     assert load_config(tmp_path / "bf16" / "config.yaml").optim.precision == "bf16"
+
+
+@pytest.mark.parametrize("eps_init, eps_end, steps", [(1.0, 0.005, 1000), (1.0, 0.005, 37), (0.3, 0.3, 10)])
+def test_anneal_epsilon_is_torchrl_step_bit_for_bit(eps_init: float, eps_end: float, steps: int) -> None:
+    """The loop's epsilon schedule skips TorchRL's step only where it cannot move eps: same eps, batch after batch."""
+    from torchrl.data import Categorical
+    from torchrl.modules import EGreedyModule
+
+    from pipelines.train import anneal_epsilon
+
+    torchrl_steps, ours = (EGreedyModule(Categorical(4), eps_init=eps_init, eps_end=eps_end, annealing_num_steps=steps)
+                           for _ in range(2))
+    for _ in range(200):  # 1600 frames: past the end of the annealing in every case
+        torchrl_steps.step(8)
+        anneal_epsilon(ours, 8)
+        assert torch.equal(torchrl_steps.eps, ours.eps)
+    assert float(ours.eps) == pytest.approx(eps_end)
