@@ -11,7 +11,7 @@ import sys, collections, json
 import cv2, numpy as np
 from vision.data import HARSH_TUNING_SEED
 from vision.data.frames import random_scene, random_board, render
-from vision.grid import (_grid_lines, _remove_lines, _denoise, PAGE_SIDE, DEFAULT_RHO, CELL_FLATTEN, CELL_INSET)
+from vision.grid import (_grid_lines, _remove_lines, denoise, PAGE_SIDE, DEFAULT_RHO, CELL_FLATTEN, CELL_INSET)
 from vision.illumination import balance_frame, flatten
 from vision.page import locate_balanced_page
 from vision.lattice import lattice, remap_cells
@@ -28,7 +28,7 @@ rho = DEFAULT_RHO[grid]
 
 def cut(frame, crossings):
     gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
-    gray = _remove_lines(_denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
+    gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
     cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
     for r in range(grid):
         for c in range(grid):

@@ -5,6 +5,7 @@ both alike) and what each reads.
     python bench/vision_speed_compare.py --old /tmp/vision_old --frames 15 --rounds 3           # speed
     python bench/vision_speed_compare.py --old /tmp/vision_old --split heldout --frames 100 \
         --repeats 0 --rounds 1                                                                  # accuracy
+    python bench/vision_speed_compare.py --old /tmp/vision_old --own-weights                    # new weights too
 
 The photos are made by the new tree's generator and saved as PNG (lossless), so the old reader, which has
 no "harsh" conditions, reads exactly the same pixels. Split "tuning": clean photos (TEST_SEED + 70,000) and
@@ -30,9 +31,9 @@ import cv2, torch
 torch.set_num_threads(1); cv2.setNumThreads(1)
 from vision.classifier import load_classifier
 from vision.grid import read_board
-folder, repeats = sys.argv[1], int(sys.argv[2])
+folder, repeats, weights = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 sets = json.load(open(folder + "/sets.json"))
-classifier = load_classifier(folder + "/weights.pt")
+classifier = load_classifier(weights)
 out = {}
 for name, (grid, files, boards) in sets.items():
     per, right, whole, failed = [], 0, 0, 0
@@ -62,6 +63,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--split", choices=("tuning", "heldout"), default="tuning")
+    parser.add_argument("--own-weights", action="store_true",
+                        help="each tree reads with its own vision/weights/cell_cnn.pt (default: both the new tree's)")
     args = parser.parse_args()
     args.old, args.new = args.old.resolve(), args.new.resolve()  # each reader runs from its own tree
     sys.path.insert(0, str(args.new.resolve()))
@@ -96,7 +99,8 @@ def main() -> None:
         for _ in range(args.rounds):
             for which, tree in (("old", args.old), ("new", args.new)):
                 env = dict(os.environ, PYTHONPATH=str(tree.resolve()))
-                done = subprocess.run([sys.executable, "-c", _TIMER, tmp, str(args.repeats)], env=env, cwd=tree,
+                weights = tree / "vision/weights/cell_cnn.pt" if args.own_weights else Path(tmp, "weights.pt")
+                done = subprocess.run([sys.executable, "-c", _TIMER, tmp, str(args.repeats), str(weights)], env=env, cwd=tree,
                                       capture_output=True, text=True, check=True)
                 for name, (ms, *read) in json.loads(done.stdout.strip().splitlines()[-1]).items():
                     times[which].setdefault(name, []).append(ms)

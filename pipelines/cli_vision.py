@@ -108,6 +108,8 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
           cells: int = typer.Option(24_000, min=30, help="Generated cells (60% noisy)."),
           frames3: int = typer.Option(700, min=0, help="Generated 3x3 photos whose cells the reader cuts."),
           frames9: int = typer.Option(120, min=0, help="Generated 9x9 photos whose cells the reader cuts."),
+          harsh_cells: int = typer.Option(8_000, min=0, help="Generated cells as a harsh photo leaves them (motion "
+                                          "streak, dim light, JPEG; vision/data/harsh_cells.py)."),
           epochs: int = typer.Option(14, min=1, help="Passes over the training cells."),
           seed: int = typer.Option(0, help="Initial weights, batch order and augmentations."),
           data_seed: Optional[int] = typer.Option(None, help="Data seed (default vision.data.TRAIN_SEED)."),
@@ -115,7 +117,7 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
                                                "only N labelled training-style cells (paper: 310); needs --out; "
                                                "--seed picks the draw too (vision/budget.py)."),
           updates: Optional[int] = typer.Option(None, min=1, help="--budget only: optimiser steps (default: as many "
-                                                "as the shipped run, 8,764)."),
+                                                "as the shipped run on its clean and noisy cells, 8,764)."),
           ) -> None:
     """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data, or with
     --budget N the same recipe on N labelled cells (109 : 201 clean : noisy, as the paper)."""
@@ -141,7 +143,7 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
     if updates is not None:
         raise ValueError("--updates applies only with --budget (the shipped recipe counts --epochs)")
     _setup_threads()
-    config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9,
+    config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9, n_harsh_cells=harsh_cells,
                              seed=TRAIN_SEED if data_seed is None else data_seed,
                              train=TrainConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
     model, meta = train_default(config, progress=progress_bar)

@@ -35,7 +35,7 @@ class VisionBudget:
     photos: int               # held-out 3x3 photos (sketch + hershey marks)
     loo_folds: int | None     # leave-one-out folds of the paper's first experiment (None: all 109)
     label: str                # the line every vision output of this budget carries
-    updates: int | None = None  # optimiser steps per training (None: the shipped run's, vision.budget.SHIPPED_UPDATES)
+    updates: int | None = None  # optimiser steps per training (None: vision.budget.BUDGET_UPDATES)
 
 
 VISION_BUDGETS = {
@@ -77,9 +77,9 @@ def _heldout(root: Path, vb: VisionBudget, progress: Any = None):
 
 
 def _spec(vb: VisionBudget, n: int, seed: int) -> dict[str, Any]:
-    from vision.budget import SHIPPED_UPDATES
+    from vision.budget import BUDGET_UPDATES
 
-    return {"images": n, "seed": seed, "updates_target": vb.updates or SHIPPED_UPDATES, "heldout_cells": vb.cells,
+    return {"images": n, "seed": seed, "updates_target": vb.updates or BUDGET_UPDATES, "heldout_cells": vb.cells,
             "heldout_photos": vb.photos}
 
 

@@ -83,11 +83,11 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
     """The data-budget table (markdown), shared by data_budget.md and vision_experiments.md."""
     if not recs:
         return (note or "No vision points at this budget.") + "\n"
-    from vision.budget import SHIPPED_UPDATES
+    from vision.budget import BUDGET_UPDATES
 
     first = recs[0]
-    updates_note = ("as many as the shipped run" if abs(first["updates"] - SHIPPED_UPDATES) < 64
-                    else f"a smoke budget: the shipped run made {SHIPPED_UPDATES:,}")
+    updates_note = ("as many as the shipped run on its clean and noisy cells" if abs(first["updates"] - BUDGET_UPDATES) < 64
+                    else f"a smoke budget: the shipped run made {BUDGET_UPDATES:,} on its clean and noisy cells")
     lines = [f"> {label}", "",
              "The shipped classifier's recipe (`vision/training.py`: the paper's CNN + linear SVM, hinge loss, Adam "
              "3e-3 cosine, batch 64, flips/turns/shifts) trained on N labelled cells of the training handwriting "
@@ -108,7 +108,7 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
                      f"{', '.join(f'{100 * v:.1f}' for v in r['board_accuracy_per_seed'])} | "
                      f"{'yes' if r['meets_target'] else 'no'} |")
     if shipped:
-        lines.append(f"| shipped weights: {shipped['images']:,} | 24,000 generated (60 % noisy) + 16,002 photo cells | 1 "
+        lines.append(f"| shipped weights: {shipped['images']:,} | 24,000 generated (60 % noisy) + 16,002 photo + 8,000 harsh cells | 1 "
                      f"| {_pct(shipped['cell_accuracy'])} | | | {_pct(shipped['board_accuracy'])} | | | "
                      f"{'yes' if shipped['cell_accuracy'] >= TARGET else 'no'} |")
     lines += ["", target_text(recs), "", "Figure: `data_budget_vision.png` (the paper's 310 dashed, the 98 % target dotted)."]

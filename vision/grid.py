@@ -159,7 +159,7 @@ def _remove_lines(gray: np.ndarray, rho: int) -> np.ndarray:
     return out
 
 
-def _denoise(gray: np.ndarray) -> np.ndarray:
+def denoise(gray: np.ndarray) -> np.ndarray:
     """A grainy grid warp (dim light amplified, JPEG) smoothed just enough that empty cells look empty.
 
     The noise is measured on the warp itself (the median absolute step between neighbouring pixels, which
@@ -255,7 +255,7 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     crossings = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), from_page).reshape(grid + 1, grid + 1, 2)
     grid_frame = crossings[[0, 0, -1, -1], [0, -1, -1, 0]].astype(np.float32)
     gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
-    gray = _remove_lines(_denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
+    gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
     # each cell is rho x rho in this warp: the lattice already holds the uneven boundaries
     gx = gy = np.arange(grid + 1, dtype=np.float64) * rho
     cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)

@@ -1,9 +1,11 @@
 """The shipped weights: what they are trained on and the one function that reproduces them.
 
-Two sources, both from the "pen" stroke model only (the "sketch" and "hershey" styles stay unseen, as the
-held-out handwriting): generated cells (clean and noisy mixed), and cells cut from generated camera frames
+Three sources, all from the "pen" stroke model only (the "sketch" and "hershey" styles stay unseen, as the
+held-out handwriting): generated cells (clean and noisy mixed); cells cut from generated camera frames
 by the real reading pipeline (`vision.grid.extract_cells`) with their true labels, so the classifier sees
-exactly the crops, warps and grid-line remnants it will get when reading boards.
+exactly the crops, warps and grid-line remnants it will get when reading boards; and generated cells taken
+through what a harsh photo does to a cell (`vision.data.harsh_cells`: motion streaks, dim light and its
+amplified noise, JPEG, faint ink), which the first two never show.
 
 Reproduce: `ncbot vision train --out vision/weights/cell_cnn.pt` (defaults below).
 """
@@ -21,6 +23,7 @@ from vision.classifier.train import TrainConfig, fit
 from vision.data import TRAIN_SEED
 from vision.data.cells import make_cells
 from vision.data.frames import make_frame
+from vision.data.harsh_cells import make_harsh_cells
 from vision.grid import extract_cells
 from vision.labels import symbol_to_index
 
@@ -32,6 +35,7 @@ class DefaultTraining:
     n_cells: int = 24_000          # generated cells (60% noisy)
     n_frames_3: int = 700          # 3x3 photos whose cells are cut by the reader (9 cells each)
     n_frames_9: int = 120          # 9x9 photos (81 cells each)
+    n_harsh_cells: int = 8_000     # generated cells as a harsh photo leaves them (seed + 300,000)
     seed: int = TRAIN_SEED         # data seed; test data uses vision.data.TEST_SEED and up
     train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
 
@@ -58,7 +62,8 @@ def training_set(config: DefaultTraining, progress: Callable[..., Any] | None = 
     cells, labels = make_cells(config.n_cells, config.seed, noisy_fraction=0.6)
     f3, l3 = frame_cells(3, config.n_frames_3, config.seed + 100_000, progress)
     f9, l9 = frame_cells(9, config.n_frames_9, config.seed + 200_000, progress)
-    return np.concatenate([cells, f3, f9]), np.concatenate([labels, l3, l9])
+    harsh, harsh_labels = make_harsh_cells(config.n_harsh_cells, config.seed + 300_000)
+    return np.concatenate([cells, f3, f9, harsh]), np.concatenate([labels, l3, l9, harsh_labels])
 
 
 def train_default(config: DefaultTraining = DefaultTraining(), progress: Callable[..., Any] | None = None) -> tuple[CellCNN, dict]:

@@ -71,6 +71,16 @@ def _neighbour_piece(img: np.ndarray, rng: np.random.Generator) -> None:
 
 def render_cell(label: int, rng: np.random.Generator, noisy: bool = False, style: str = "pen") -> np.ndarray:
     """One 40x40 uint8 grayscale cell with the given label index (see vision.labels.LABELS)."""
+    out = draw_cell(label, rng, noisy, style)
+    out = cv2.resize(out, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+    if noisy:
+        out = out * rng.uniform(0.6, 1.0) + rng.uniform(0, 40)  # exposure / contrast
+        out += rng.normal(0, rng.uniform(1, 12), out.shape)
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)
+
+
+def draw_cell(label: int, rng: np.random.Generator, noisy: bool = False, style: str = "pen") -> np.ndarray:
+    """The cell drawn at SCALE x its size, float32 gray, before the camera shrinks it (render_cell finishes it)."""
     side = CELL_SIZE * SCALE
     paper = rng.uniform(200, 255)
     canvas = np.full((side, side), paper, np.float32)
@@ -98,11 +108,7 @@ def render_cell(label: int, rng: np.random.Generator, noisy: bool = False, style
             _smudges(out, rng)
         if rng.random() < 0.6:
             out = cv2.GaussianBlur(out, (0, 0), rng.uniform(0.5, 2.5))
-    out = cv2.resize(out, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
-    if noisy:
-        out = out * rng.uniform(0.6, 1.0) + rng.uniform(0, 40)  # exposure / contrast
-        out += rng.normal(0, rng.uniform(1, 12), out.shape)
-    return np.clip(np.round(out), 0, 255).astype(np.uint8)
+    return out
 
 
 def make_cells(n: int, seed: int, noisy: bool = False, styles: tuple[str, ...] = ("pen",),

@@ -77,17 +77,21 @@ def draw_harsh(rng: np.random.Generator, width: int, height: int, page_corners: 
     gains = np.array([rng.uniform(*g) for g in CAST_GAINS[cast]], np.float32)
     exposure = float(rng.uniform(*ranges.exposure))
     length = float(rng.uniform(*ranges.motion_px))
+    kernel = motion_kernel(length, float(rng.uniform(0, np.pi)))
+    return Harsh(light[:, :, None] * (gains * exposure)[None, None, :], float(rng.uniform(*ranges.lens_k)), kernel,
+                 float(rng.uniform(*ranges.noise_sigma)) / np.sqrt(exposure),
+                 int(rng.integers(ranges.jpeg_quality[0], ranges.jpeg_quality[1] + 1)), cast)
+
+
+def motion_kernel(length: float, direction: float) -> np.ndarray:
+    """Normalised kernel of a straight motion-blur streak `length` px long at angle `direction` (radians)."""
     size = int(np.ceil(length)) | 1
     kernel = np.zeros((size, size), np.float32)
-    direction = rng.uniform(0, np.pi)
     half = (length - 1) / 2
     c = size // 2
     cv2.line(kernel, (int(round(c - half * np.cos(direction))), int(round(c - half * np.sin(direction)))),
              (int(round(c + half * np.cos(direction))), int(round(c + half * np.sin(direction)))), 1.0, 1, cv2.LINE_AA)
-    kernel /= kernel.sum()
-    return Harsh(light[:, :, None] * (gains * exposure)[None, None, :], float(rng.uniform(*ranges.lens_k)), kernel,
-                 float(rng.uniform(*ranges.noise_sigma)) / np.sqrt(exposure),
-                 int(rng.integers(ranges.jpeg_quality[0], ranges.jpeg_quality[1] + 1)), cast)
+    return kernel / kernel.sum()
 
 
 def _focal(width: int) -> float:
