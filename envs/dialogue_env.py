@@ -199,7 +199,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
 
     def _observation(self) -> torch.Tensor:
         boards = self.boards
-        parts = [self.engine.mark_features(boards), self.d.words[:, :-1]]
+        parts = [*self.engine.mark_parts(boards), self.d.words[:, :-1]]  # one cat makes every part float32
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)
