@@ -93,10 +93,10 @@ class UltimateEngine(_Engine):
         """Per player, the facts the look-ahead needs packed into ints, so one gather answers several questions.
 
         ``after[p]`` (2 * 3^9, 9): at open * 3^9 + content, for each position, what ``p`` taking that square does to
-        an open subgrid (open = 1; a decided one, open = 0, only bit 21) (a taken square: the facts of the content as it is, as before this table): bits 0-1 its new owner if it was open (0, ``p`` or 3 drawn),
+        an open subgrid (open = 1; a decided one, open = 0, only bit 5) (a taken square: the facts of the content as it is, as before this table): bits 0-1 its new owner if it was open (0, ``p`` or 3 drawn),
         bit 2 it stays open and the opponent can still complete a line in it, bit 11 the same for ``p`` (so
-        ``after >> 2 & 0x201`` shifted by the subgrid lines up with ``now``'s two bitmasks), bit 21 the square is
-        taken. ``now[p]`` (9 * 3^9,): indexed by
+        ``after >> 2 & 0x201`` shifted by the subgrid lines up with ``now``'s two bitmasks), bit 5 the square is
+        taken (the events' bit 5, see ``_event_tables``). ``now[p]`` (9 * 3^9,): indexed by
         subgrid * 3^9 + content, ``1 << subgrid`` if the opponent can complete a line there and
         ``1 << (9 + subgrid)`` if ``p`` can (so a sum over the open subgrids gives both bitmasks). ``meta[p]``
         (4^9,): owner grid: bit 0 line of ``p``, bit 1 dead, bits 2-10 the subgrids whose winning would complete
@@ -117,7 +117,7 @@ class UltimateEngine(_Engine):
             # who can still complete a line there matters only while the subgrid stays open
             still_open = (owner == 0).long()
             facts = owner | (marks.win_bits[q][code_after] != 0).long() * still_open << 2 | (marks.win_bits[p][code_after] != 0).long() * still_open << 11
-            taken = (~empty).long() << 21
+            taken = (~empty).long() << 5
             after[p, : 3**9] = taken  # the subgrid is decided: no new owner, no threat
             after[p, 3**9:] = facts | taken
             sub = torch.arange(9).unsqueeze(1)
@@ -205,8 +205,9 @@ class UltimateEngine(_Engine):
         target_open = (open_after >> pos) & 1  # (N, 9) 0 / 1
         four, eight, sixteen = self._event_bits  # 0-d int32 tensors: bool * them stays int32
         if self.free_move == "anywhere":
-            no_free = (state.n_marks.index_select(0, rows) >= 80).unsqueeze(1) * four  # (N, 1)
-            events = events | (1 - target_open) * no_free
+            no_free = state.n_marks.index_select(0, rows) >= 80  # (N,): the move fills the board
+            if bool(no_free.any()):  # rare (the last squares): skip three (N, 9) ops otherwise
+                events = events | (1 - target_open) * (no_free.unsqueeze(1) * four)
         else:
             events = events | (open_after == 0) * four
 
@@ -217,4 +218,4 @@ class UltimateEngine(_Engine):
         # sent to an open subgrid: the opponent's threat there; else (a free move): any of its threats
         events = events | ((threats & (511 - target_open * self._not_position32)) != 0) * eight  # about to lose
         events = events | (threats > 511) * sixteen  # about to win
-        return events | (after >> 16) & 32  # the square is taken (bit 21 of ``after``)
+        return events | (after & 32)  # the square is taken (bit 5 of ``after``)
