@@ -59,7 +59,8 @@ class UltimateEngine(_Engine):
     def play(self, state: Boards, cells: torch.Tensor, player: torch.Tensor | int, active: torch.Tensor | None = None) -> None:
         if active is None:
             active = torch.ones_like(cells, dtype=torch.bool)
-        player = self._as_player(player, cells)
+        one_player = isinstance(player, int)  # the env's case: one table row per player instead of per-row gathers
+        player = player if one_player else self._as_player(player, cells)
         mark = active * player
         cells = self._place(state, cells, mark, active)
         sub = self.subgrid_of.index_select(0, cells).unsqueeze(1)
@@ -67,15 +68,29 @@ class UltimateEngine(_Engine):
         state.codes.scatter_(1, sub, code.unsqueeze(1))
         owner = state.owners.gather(1, sub).squeeze(1)
         deciding = active & (owner == 0)
-        won = deciding & lookup_rows(self.tables.has_line, player, code)
-        drawn = deciding & ~won & lookup(self.tables.full, code)
-        owner = torch.where(won, player, torch.where(drawn, DRAWN, owner))
-        state.owners.scatter_(1, sub, owner.unsqueeze(1))
-        meta = (state.owners * self.pow4).sum(1)
-        game_won = active & lookup_rows(self.meta.has_line, player, meta)
+        if one_player:  # the subgrid's owner after the move in one read (player, drawn or still open)
+            owner = torch.where(deciding, lookup(self._owner_after()[player], code), owner)
+            game_won = active & lookup(self.meta.has_line[player], (state.owners.scatter_(1, sub, owner.unsqueeze(1)) * self.pow4).sum(1))
+        else:
+            won = deciding & lookup_rows(self.tables.has_line, player, code)
+            drawn = deciding & ~won & lookup(self.tables.full, code)
+            owner = torch.where(won, player, torch.where(drawn, DRAWN, owner))
+            state.owners.scatter_(1, sub, owner.unsqueeze(1))
+            game_won = active & lookup_rows(self.meta.has_line, player, (state.owners * self.pow4).sum(1))
         no_move_left = active & ~self._next_player_can_move(state)
         outcome = torch.where(game_won, player, torch.where(no_move_left, DRAWN, state.outcome))
         state.outcome = torch.where(active & (state.outcome == 0), outcome, state.outcome)
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _owner_after() -> torch.Tensor:
+        """(3, 3^9) int64: the owner of a subgrid with this content once ``p`` moved there: ``p`` with a line of
+        ``p``, else 3 (drawn) when full, else 0 (open)."""
+        tables = grid_tables(3)
+        rows = torch.zeros(3, 3**9, dtype=torch.int64)
+        for p in (1, 2):
+            rows[p] = torch.where(tables.has_line[p], p, torch.where(tables.full, DRAWN, 0))
+        return rows
 
     def _next_player_can_move(self, state: Boards) -> torch.Tensor:
         """(B,) whether the player to move has any legal square (ignoring whether the game was won)."""
