@@ -39,6 +39,7 @@ from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests a
     AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
 )
 from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
+from envs.engine.tables import uniform_choice_by_rows
 from envs.env_options import check_batch, check_confidence, check_hearing, check_subset, first_of, resolve_opponent
 from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 
@@ -129,7 +130,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone(),
-                            self.d.legal[0].clone())
+                            self.d.legal[0].clone(), None if self._act_lookahead is None else self.d.winning_moves[0].clone())
         fresh = self._output()  # also fills d.observation / d.winning_actions, which partial resets reuse
         self._fresh_features = (fresh["observation"][0].clone(), fresh["winning_actions"][0].clone())
 
@@ -176,16 +177,16 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             code = self.boards.codes[:, 0]
             mask = dialogue_mask & self._code_legal.index_select(0, code)
             lookahead = torch.where(mask, self._code_rewards.index_select(0, code), REWARD_ILLEGAL)
-        else:
-            legal = self.engine.legal(self.boards) & dialogue_mask[:, :cells]  # the filter allows moves only on the robot's turn
+        else:  # Ultimate: the look-ahead is written straight into the row of every act's reward
+            moves = dialogue_mask[:, 0]  # the filter allows GameMove on every square or on none
+            legal = self.engine.legal(self.boards, moves)
             mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
-            can_move = legal.any(1)
+            lookahead = self._act_lookahead.index_select(0, context)  # allowed acts 0, the rest and every square -5
+            winning = torch.zeros_like(mask)
+            can_move = moves & (self.boards.outcome == 0)  # == legal.any(1): an unfinished game has a legal square
             if bool(can_move.any()):
-                # moves' rewards padded with 0 for the other acts: allowed entries keep them, the rest get -5
-                rewards = torch.nn.functional.pad(self.engine.move_rewards(self.boards, ROBOT, can_move), (0, self.n_actions - cells))
-                lookahead = torch.where(mask, rewards, REWARD_ILLEGAL)
-            else:
-                lookahead = torch.where(mask, 0.0, REWARD_ILLEGAL)
+                self.engine.write_move_rewards(lookahead, self.boards, ROBOT, can_move, winning)
+            self.d.winning_moves = winning  # == lookahead == +5 (only a legal move can win)
         self.d.legal, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
         self.d.mask = self._offered(mask, dialogue_mask) if self.offer_taken_cells else mask
 
@@ -198,7 +199,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
 
     def _observation(self) -> torch.Tensor:
         boards = self.boards
-        parts = [self.engine.mark_features(boards), self.d.words[:, :-1]]
+        parts = [*self.engine.mark_parts(boards), self.d.words[:, :-1]]  # one cat makes every part float32
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         return torch.cat(parts, dim=1)
@@ -215,8 +216,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             legal = self.d.legal  # a taken square offered (offer_taken_cells) never wins
             if self._code_wins is not None:  # 3x3: the moves worth +5 are one row per board code
                 winning = legal & self._code_wins.index_select(0, self.boards.codes[:, 0])
-            else:
-                winning = legal & (self.d.lookahead == REWARD_WIN)
+            else:  # Ultimate: written with the look-ahead (_refresh)
+                winning = self.d.winning_moves
             observation = self._observation()
             terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
             truncated = (self.d.turn >= self.max_actions) & ~terminated
@@ -301,11 +302,13 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
                 first = (torch.rand(self.batch_size, generator=self._rng) < 0.5).index_select(0, index)
             self.d.robot_first = self.d.robot_first.index_copy(0, index, first.unsqueeze(1))
             self.d.flags.index_copy_(0, index, first.long() * ROBOT_FIRST)
-        mask, dialogue_mask, lookahead, legal = self._fresh_rows
+        mask, dialogue_mask, lookahead, legal, winning = self._fresh_rows
         self.d.mask = paste_rows(self.d.mask, index, mask)
         self.d.dialogue_mask = paste_rows(self.d.dialogue_mask, index, dialogue_mask)
         self.d.lookahead = paste_rows(self.d.lookahead, index, lookahead)
         self.d.legal = paste_rows(self.d.legal, index, legal) if self.offer_taken_cells else self.d.mask
+        if winning is not None:  # Ultimate: the winning moves are written with the look-ahead
+            self.d.winning_moves = paste_rows(self.d.winning_moves, index, winning)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
@@ -420,7 +423,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         mask = tensordict.get("action_mask", None)
         if mask is None:
             mask = self.d.mask
-        tensordict.set("action", uniform_choice(mask, self._action_rng))
+        choose = uniform_choice_by_rows if mask.shape[-1] % 9 == 0 and mask.dim() == 2 else uniform_choice  # same numbers
+        tensordict.set("action", choose(mask, self._action_rng))
         return tensordict
 
     def _set_seed(self, seed: int | None) -> None:

@@ -13,7 +13,7 @@ import torch
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 
 import envs.dialogue as dlg
-from envs.core import REWARD_WIN, ROBOT
+from envs.core import REWARD_ILLEGAL, REWARD_WIN, ROBOT
 
 # Dialogue flags, kept multiplied by 8 so that ``engine.status`` (outcome * 2 + marks % 2, 0..7) + flags is the
 # game's "stage" (0..63): all the phase depends on, one integer per game, and the index of the phase table.
@@ -73,7 +73,7 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
     t["_talk_flags"] = talk_flags
     # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
     t["_user_turn"] = (asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1)
-    t["_code_legal"] = t["_code_rewards"] = t["_code_wins"] = None
+    t["_code_legal"] = t["_code_rewards"] = t["_code_wins"] = t["_act_lookahead"] = None
     if engine.game == "standard":  # 3x3: legal squares and look-ahead rewards are one row per board code
         legal, rewards = engine.rows_by_code(ROBOT)
         talk_acts = n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
@@ -81,6 +81,10 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
         code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
         t["_code_rewards"] = code_rewards
         t["_code_wins"] = (code_rewards == REWARD_WIN).contiguous()  # winning_actions = mask & this row
+    else:  # Ultimate: the look-ahead row before the moves' rewards are written in: allowed acts 0, else -5
+        acts = torch.where(t["_filter_table"], 0.0, REWARD_ILLEGAL)
+        acts[:, :cells] = REWARD_ILLEGAL
+        t["_act_lookahead"] = acts.contiguous()
     return t
 
 

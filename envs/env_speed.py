@@ -82,6 +82,7 @@ class DialogueState:
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
     observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)
     winning_actions: torch.Tensor  # (B, A) the winning actions of the last output
+    winning_moves: torch.Tensor  # (B, A) Ultimate: the moves worth +5 of the current state (written with the look-ahead)
     done_flags: tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # (B, 1) terminated, truncated, done of the last output
 
 

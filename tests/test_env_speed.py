@@ -9,6 +9,7 @@ from torchrl.envs.utils import step_mdp
 from envs import make_env
 from envs.dialogue_env import uniform_choice
 from envs.engine import make_engine
+from envs.engine.tables import uniform_choice_by_rows
 
 
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
@@ -139,6 +140,40 @@ def test_standard_random_legal_by_table_equals_uniform_choice() -> None:
         plain = uniform_choice(legal, torch.Generator().manual_seed(seed))
         assert torch.equal(by_table[has_move], plain[has_move])
     assert int(has_move.sum()) > 5000
+
+
+@pytest.mark.parametrize("width", [9, 18, 81, 90])
+def test_uniform_choice_by_rows_equals_uniform_choice(width: int) -> None:
+    """The 9-column-block pick (Ultimate's user and ``rand_action``) == uniform_choice, same generator, every row
+    (all-False rows included), from sparse to full masks."""
+    generator = torch.Generator().manual_seed(11)
+    for density in (0.0, 0.03, 0.5, 1.0):
+        mask = torch.rand(3000, width, generator=generator) < density
+        for seed in range(3):
+            plain = uniform_choice(mask, torch.Generator().manual_seed(seed))
+            by_rows = uniform_choice_by_rows(mask, torch.Generator().manual_seed(seed))
+            assert torch.equal(plain, by_rows)
+
+
+@pytest.mark.parametrize("free_move", ["anywhere", "open_subgrids"])
+def test_ultimate_random_legal_and_legal_rows(free_move: str) -> None:
+    """Ultimate's user pick == uniform_choice over the legal squares, and ``legal(active=...)`` == legal AND active,
+    over random games played to the end (forced, free and finished games in one batch)."""
+    engine = make_engine("ultimate", free_move)
+    generator = torch.Generator().manual_seed(4)
+    state = engine.new(256)
+    for ply in range(81):
+        legal = engine.legal(state)
+        active = torch.rand(256, generator=generator) < 0.6
+        assert torch.equal(engine.legal(state, active), legal & active.unsqueeze(1))
+        seed = ply * 7 + 1
+        pick = engine.random_legal(state, torch.Generator().manual_seed(seed))
+        assert torch.equal(pick, uniform_choice(legal, torch.Generator().manual_seed(seed)))
+        can_move = legal.any(1)
+        if not bool(can_move.any()):
+            break
+        engine.play(state, pick, 1 + ply % 2, can_move)
+    assert ply > 40
 
 
 def test_stage_table_equals_phase_rules() -> None:

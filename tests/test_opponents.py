@@ -43,7 +43,7 @@ def _batch(rules, states):
 
 
 def _names(game: str) -> list[str]:
-    return ["random", "rule", "mcts:8"] + (["minimax"] if game == "standard" else [])
+    return ["random", "rule", "mcts:8", "winner:0.5"] + (["minimax"] if game == "standard" else [])
 
 
 @pytest.mark.parametrize("game,free_move", SETTINGS)
@@ -93,6 +93,28 @@ def _rule_choice(game: str, board: list[int], last_move: int, player: int, seed:
     del rules
     opponent = make_opponent("rule", game=game, seed=seed)
     return int(opponent.select(boards, torch.tensor([last_move]), legal, player, torch.Generator().manual_seed(seed)))
+
+
+@pytest.mark.parametrize("game,free_move", SETTINGS)
+def test_winner_takes_a_winning_square_when_told_and_plays_at_random_otherwise(game: str, free_move: str) -> None:
+    """``winner:1`` wins at once whenever the rules say it can; ``winner:0`` never looks (different picks)."""
+    rules, states = _random_positions(game, free_move, 400, seed=9)
+    # mark 1 / 2 as the rules have them; the player to move is rules.to_move(s)
+    boards, last_move, legal = _batch(rules, states)
+    always, never = (make_opponent(f"winner:{p}", game=game, free_move=free_move) for p in (1, 0))
+    checked = 0
+    for player in (1, 2):
+        rows = [i for i, s in enumerate(states) if rules.to_move(s) == "xo"[player - 1]]
+        winning = [[c for c in rules.legal(states[i]) if rules.outcome(rules.play(states[i], c)) == "xo"[player - 1]] for i in rows]
+        pick = always.select(boards[rows], last_move[rows], legal[rows], player, torch.Generator().manual_seed(2))
+        for k, cells in enumerate(winning):
+            if cells:
+                assert int(pick[k]) in cells
+                checked += 1
+    assert checked >= 10
+    with pytest.raises(ValueError, match="winner:0.5"):
+        make_opponent("winner:1.5", game=game, free_move=free_move)
+    assert never.share == 0.0
 
 
 def test_rule_takes_the_win_before_blocking_and_blocks_otherwise() -> None:

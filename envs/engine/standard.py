@@ -46,6 +46,9 @@ class StandardEngine(_Engine):
     def mark_features(self, state: Boards) -> torch.Tensor:
         return self._code_tables()[1].index_select(0, state.codes[:, 0])
 
+    def mark_parts(self, state: Boards) -> list[torch.Tensor]:
+        return [self.mark_features(state)]
+
     def status(self, state: Boards) -> torch.Tensor:
         return self._status_table().index_select(0, state.codes[:, 0])
 

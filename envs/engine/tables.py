@@ -84,6 +84,40 @@ def uniform_choice(mask: torch.Tensor, generator: torch.Generator) -> torch.Tens
     return torch.searchsorted(counts, k, right=True).squeeze(1)
 
 
+def uniform_choice_by_rows(mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """``uniform_choice(mask, generator)`` for a (B, n) mask with n a multiple of 9: the same numbers from the same
+    generator (one uniform u per row, the k-th True column with k = u * count truncated), found over blocks of 9
+    columns instead of n: each block's True columns as a 9-bit mask, their counts a table read, the block holding
+    the k-th a binary search over n / 9 running counts, the column inside it a table read. Why: a (B, 81) or
+    (B, 90) cumulative sum costs ~60-90 µs at batch 1024 here, the (B, n / 9) work a fraction of it."""
+    count, nth = _bit_tables()
+    blocks = mask.shape[1] // 9
+    # a float matmul packs the bits 2x faster than an int multiply + sum, and exactly (sums of distinct powers of 2 < 2^9)
+    bits = (mask.reshape(-1, 9).float() @ _BIT9_FLOAT).view(-1, blocks).long()  # (B, n / 9)
+    counts = count.index_select(0, bits.view(-1)).view(bits.shape)  # int32
+    running = counts.cumsum(1, dtype=torch.int32)
+    total = running[:, -1:]
+    k = (torch.rand(total.shape, generator=generator) * total).to(torch.int32)
+    k = torch.minimum(k, total - 1)  # u * count may round up to count in float32
+    block = torch.searchsorted(running, k, right=True)  # (B, 1): the block holding the k-th True column
+    within = (k - running.gather(1, block) + counts.gather(1, block)).clamp(min=0)  # an all-False row: 0, column 0
+    return (block * 9 + nth.index_select(0, (bits.gather(1, block) * 9 + within).view(-1)).view(-1, 1)).squeeze(1)
+
+
+_BIT9_FLOAT = (1 << torch.arange(9)).float()
+
+
+@lru_cache(maxsize=1)
+def _bit_tables() -> tuple[torch.Tensor, torch.Tensor]:
+    """(512,) int32 the number of set bits of a 9-bit mask; (512 * 9,) int64 the position of its j-th set bit at
+    mask * 9 + j (j past the count: 0)."""
+    bits = torch.arange(512).unsqueeze(1) >> torch.arange(9) & 1
+    running = bits.cumsum(1)
+    count = running[:, -1].to(torch.int32).contiguous()
+    nth = torch.searchsorted(running, torch.arange(9).expand(512, 9).contiguous(), right=True)
+    return count, torch.where(nth < 9, nth, 0).reshape(-1).contiguous()
+
+
 def prioritise(win, draw, about_to_lose, about_to_draw, about_to_win) -> torch.Tensor:
     """Combine the per-move events into the paper's reward, highest-priority event first."""
     reward = torch.where(about_to_win, REWARD_ABOUT_TO_WIN, 0.0)

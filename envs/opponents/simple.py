@@ -1,5 +1,8 @@
-"""The two cheap batched opponents: ``random`` (the paper's simulated user) and ``rule`` (win, else block, else random)."""
+"""The cheap batched opponents: ``random`` (the paper's simulated user), ``rule`` (win, else block, else random) and
+``winner:P`` (the random user that takes a game-winning square with probability P)."""
 from __future__ import annotations
+
+import torch
 
 from envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
 from envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
@@ -41,6 +44,24 @@ class RuleOpponent(Opponent):
         return masked_uniform_choice(legal, generator, scores)
 
 
+class WinnerOpponent(Opponent):
+    """The paper's random user, except that with probability ``share`` it takes a square that wins the game at once
+    when it has one. Why: a training user (``env.opponent``) that punishes the positions where the robot is left
+    without a safe move more often than the random user does, while playing like it everywhere else, so the
+    learner sees more of the rare losses the random user inflicts (evaluation keeps ``eval.opponent: random``)."""
+
+    name = "winner"
+
+    def __init__(self, share: float, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
+        super().__init__(game, free_move, seed)
+        self.share = float(share)
+
+    def _select(self, boards, last_move, legal, player, generator, owners):
+        wins = winning_cells(boards, player, owners if self.game == "ultimate" else None) & legal
+        take = (torch.rand(legal.shape[0], generator=generator) < self.share) & wins.any(1)
+        return torch.where(take, masked_uniform_choice(wins, generator), masked_uniform_choice(legal, generator))
+
+
 def _random_factory(arg, *, game, free_move, seed):
     no_argument("random", arg)
     return RandomOpponent(game, free_move, seed)
@@ -53,3 +74,17 @@ def _rule_factory(arg, *, game, free_move, seed):
 
 register_opponent("random", _random_factory)
 register_opponent("rule", _rule_factory)
+
+
+def _winner_factory(arg, *, game, free_move, seed):
+    try:
+        share = float(arg) if arg is not None else None
+    except ValueError:
+        share = None
+    if share is None or not 0.0 <= share <= 1.0:
+        raise ValueError(f"opponent 'winner' needs the share of winning squares it takes, 0..1, e.g. 'winner:0.5'; "
+                         f"got 'winner:{arg or ''}'")
+    return WinnerOpponent(share, game, free_move, seed)
+
+
+register_opponent("winner", _winner_factory, "winner:P")
