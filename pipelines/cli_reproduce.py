@@ -17,6 +17,8 @@ def reproduce_command(
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
                                           "(default: a local instance); every node must see --runs at the same path."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (budget: {vision, dialogues, games})."),
+    report_only: bool = typer.Option(False, "--report-only", help="table only: start no run, write the table and "
+                                     "claims from the runs finished so far (marked PARTIAL until all are done)."),
 ) -> None:
     """Reproduce the paper's findings with the faithful options: runs (finished ones skipped), table, claims, budgets."""
     import shlex
@@ -26,7 +28,7 @@ def reproduce_command(
 
     command = "ncbot " + shlex.join(sys.argv[1:])
     result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,
-                       address=address)
+                       address=address, report_only=report_only)
     if as_json:
         report = result.get("budget_report")
         if part == "budget":
@@ -38,7 +40,11 @@ def reproduce_command(
         return
     if "vision_report" in result:
         typer.echo(f"{result['vision_report']['label']}\nwrote {', '.join(result['vision_report']['files'])}")
-    if "runs" not in result:  # the vision part trains no RL agents
+    if "runs" not in result:  # the vision part trains no RL agents; --report-only starts none
+        if "table" in result:
+            table = result["table"]
+            typer.echo(f"{table['finished_runs']} of {table['planned_runs']} runs finished; wrote {table['table']} "
+                       f"and {table['claims_file']}")
         return
     summary = result["runs"]
     typer.echo(result["label"])
@@ -49,7 +55,7 @@ def reproduce_command(
         typer.echo(f"dialogue budget: {dialogue_runs['done']} runs finished, {dialogue_runs['skipped']} skipped, "
                    f"{dialogue_runs['failed']} failed; runs in {dialogue_runs['runs_dir']}")
     if "table" in result:
-        typer.echo(f"wrote {result['table']['table']} and {result['table']['claims']}")
+        typer.echo(f"wrote {result['table']['table']} and {result['table']['claims_file']}")
     if "budget_report" in result:
         typer.echo(f"wrote {out}/data_budget.md and {', '.join(result['budget_report']['figures'])}")
     if summary["failed"] or (dialogue_runs or {}).get("failed"):

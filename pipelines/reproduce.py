@@ -109,10 +109,23 @@ def write_grid(budget: Budget, runs_dir: Path, configs: Path = PAPER_CONFIGS) ->
     return path
 
 
-def labelled(path: Path, budget: Budget) -> None:
-    """Put the budget's label under the first line (the title) of a markdown file written by another module."""
+def labelled(path: Path, budget: Budget, progress: str | None = None) -> None:
+    """Put the budget's label (and, for a partial report, how far the runs are) under the first line (the title)
+    of a markdown file written by another module."""
     lines = path.read_text().splitlines(keepends=True)
-    atomic_write_text("".join(lines[:1] + ["\n", f"> {budget.label}\n"] + lines[1:]), path)
+    label = [f"> {budget.label}\n"] + ([">\n", f"> {progress}\n"] if progress else [])
+    atomic_write_text("".join(lines[:1] + ["\n", *label] + lines[1:]), path)
+
+
+#: Agent cells per game row: the two baselines without temporal features, the proposed agent with and without.
+CELLS_PER_ROW = len(AGENTS) + 1
+
+
+def runs_progress(budget: Budget, runs_dir: Path) -> tuple[int, int]:
+    """(finished, planned) table runs of this budget in its runs folder (finished = eval.json written)."""
+    finished = sum(1 for row in budget.rows for path in (runs_dir / "paper" / row).glob("*/seed*/eval.json")
+                   if int(path.parent.name.removeprefix("seed")) < budget.seeds)
+    return finished, budget.seeds * len(budget.rows) * CELLS_PER_ROW
 
 
 def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
@@ -125,27 +138,45 @@ def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
 
 
 def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
-    """out/paper_table.md and out/paper_claims.md (pipelines.table.write_report), each labelled with the budget."""
+    """out/paper_table.md and out/paper_claims.md (pipelines.table.write_report), each labelled with the budget,
+    and marked PARTIAL (with how many runs are finished) while the budget's runs are not all done."""
     from pipelines.table import write_report
 
     out.mkdir(parents=True, exist_ok=True)
     table, claims = out / "paper_table.md", out / "paper_claims.md"
     report = write_report(runs_dir, table, claims, command=command)
+    finished, planned = runs_progress(budget, runs_dir)
+    progress = None if finished >= planned else (
+        f"PARTIAL: {finished} of the budget's {planned} runs finished; rows with fewer seeds than the budget's "
+        f"{budget.seeds} are shown but decide no claim. Rerun the budget's command to finish (finished runs are skipped).")
     for path in (table, claims):
-        labelled(path, budget)
-    return {"table": str(table), "claims": str(claims), **report.to_dict()}
+        labelled(path, budget, progress)
+    return {"table": str(table), "claims_file": str(claims), "finished_runs": finished, "planned_runs": planned,
+            **report.to_dict()}
 
 
 def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "results", runs: str | Path = "runs/reproduce",
               workers: int = 2, backend: str = "local", command: str = "ncbot reproduce",
-              configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
+              configs: Path = PAPER_CONFIGS, address: str | None = None, report_only: bool = False) -> dict[str, Any]:
     """`ncbot reproduce PART --budget NAME`: the runs, then the table and claims (table), the data budgets
     (budget; its games curve reads the same runs, its dialogue curve trains agents on k example dialogues in
     RUNS/dialogues-NAME), the vision experiments and budget (vision: no RL runs), or all of them (all).
-    ``backend="ray"``: every RL run a Ray task (``address``: a cluster's head)."""
+    ``backend="ray"``: every RL run a Ray task (``address``: a cluster's head). ``report_only`` (table only):
+    no run starts; the table and claims are written from the runs finished so far (a long `full` can be looked
+    at while it runs), marked PARTIAL until every run is done."""
     if part not in PARTS:
         raise ValueError(f"part must be one of {', '.join(PARTS)}; got {part!r}")
     budget = budget_name if isinstance(budget_name, Budget) else budget_of(budget_name)
+    if report_only:
+        if part != "table":
+            raise ValueError(f"--report-only writes the table and claims from finished runs: use it with the part "
+                             f"'table', not {part!r}")
+        runs_dir = Path(runs) / budget.name
+        if not runs_dir.is_dir():
+            raise ValueError(f"--report-only: no runs folder {str(runs_dir)!r} (expected the --runs folder of an "
+                             f"earlier `ncbot reproduce table --budget {budget.name}`)")
+        return {"budget": budget.name, "label": budget.label, "command": command,
+                "table": write_table_report(budget, runs_dir=runs_dir, out=Path(out), command=command)}
     if workers <= 0:
         raise ValueError(f"--workers must be positive, got {workers}")
     from pipelines.ablate import check_backend

@@ -48,6 +48,18 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
     again = reproduce("budget", TINY, out=out, runs=runs, workers=1, configs=configs)
     assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 4)  # resumable: finished runs skipped
     assert (again["dialogue_runs"]["done"], again["dialogue_runs"]["skipped"]) == (0, 2)
+    # --report-only: no run starts; all 4 of the budget's runs are done, so the table is not PARTIAL
+    report = reproduce("table", TINY, out=tmp_path / "report", runs=runs, report_only=True)
+    assert "runs" not in report and (report["table"]["finished_runs"], report["table"]["planned_runs"]) == (4, 4)
+    assert "PARTIAL" not in (tmp_path / "report" / "paper_table.md").read_text()
+    # one run's result gone (as if still training): PARTIAL, counted, and still no run starts
+    (runs / "tiny" / "paper" / "standard" / "proposed-temporal" / "seed0" / "eval.json").unlink()
+    partial = reproduce("table", TINY, out=tmp_path / "partial", runs=runs, report_only=True)
+    assert (partial["table"]["finished_runs"], partial["table"]["planned_runs"]) == (3, 4)
+    for name in ("paper_table.md", "paper_claims.md"):
+        text = (tmp_path / "partial" / name).read_text()
+        assert "TINY BUDGET (test)" in text and "PARTIAL: 3 of the budget's 4 runs finished" in text, name
+    assert not (runs / "tiny" / "paper" / "standard" / "proposed-temporal" / "seed0" / "eval.json").exists()
 
 
 def test_grid_applies_the_budget_to_the_paper_configs(tmp_path: Path) -> None:
@@ -75,6 +87,16 @@ def test_filter_agreement_is_one_with_every_dialogue_and_less_with_one() -> None
     assert filter_agreement("standard", 12, 0) < 1.0  # the authored dozen shows turns the first dozen never does
     with pytest.raises(ValueError, match="between 1 and 24"):
         filter_agreement("standard", 25, 0)
+
+
+def test_report_only_needs_the_table_part_and_an_existing_runs_folder(tmp_path: Path) -> None:
+    for args, expected in ((["all", "--budget", "quick", "--report-only"], "use it with the part 'table'"),
+                           (["table", "--budget", "quick", "--report-only", "--runs", str(tmp_path / "none")],
+                            "no runs folder")):
+        result = ncbot("reproduce", *args, "--out", str(tmp_path / "out"))
+        assert result.returncode == 2 and expected in result.stderr and "Traceback" not in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
 
 
 def test_cli_rejects_an_unknown_budget_in_one_line(tmp_path: Path) -> None:
