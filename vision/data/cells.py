@@ -111,6 +111,13 @@ def draw_cell(label: int, rng: np.random.Generator, noisy: bool = False, style: 
     return out
 
 
+def balanced_labels(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n labels, each class as often as n allows, shuffled by `rng` (the first draw of a cell set's generator)."""
+    labels = np.resize(np.arange(len(LABELS)), n)
+    rng.shuffle(labels)
+    return labels
+
+
 def make_cells(n: int, seed: int, noisy: bool = False, styles: tuple[str, ...] = ("pen",),
                noisy_fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """n cells with balanced labels in shuffled order: (images uint8 (n, 40, 40), labels int64 (n,)).
@@ -120,8 +127,7 @@ def make_cells(n: int, seed: int, noisy: bool = False, styles: tuple[str, ...] =
     if n < 1:
         raise ValueError(f"number of cells must be at least 1; got {n}")
     rng = np.random.default_rng(seed)
-    labels = np.resize(np.arange(len(LABELS)), n)
-    rng.shuffle(labels)
+    labels = balanced_labels(n, rng)
     images = np.empty((n, CELL_SIZE, CELL_SIZE), np.uint8)
     for i, label in enumerate(labels):
         is_noisy = noisy if noisy_fraction is None else bool(rng.random() < noisy_fraction)

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vision.data.cells import draw_cell
+from vision.data.cells import balanced_labels, draw_cell
 from vision.data.conditions import CAST_GAINS, HARSH, HarshRanges, motion_kernel
 from vision.grid import CELL_INSET, DEFAULT_RHO, denoise
-from vision.labels import CELL_SIZE, LABELS
+from vision.labels import CELL_SIZE
 
 BALANCED_PAPER = 225.0  # the reader's white balance brings paper to about this level (vision.illumination)
 MAX_GAIN = 4.0          # ... gaining a channel up by at most this much, never down
@@ -75,8 +75,7 @@ def make_harsh_cells(n: int, seed: int, styles: tuple[str, ...] = ("pen",), rang
     if n < 0:
         raise ValueError(f"number of harsh cells must be >= 0; got {n}")
     rng = np.random.default_rng(seed)
-    labels = np.resize(np.arange(len(LABELS)), n)
-    rng.shuffle(labels)
+    labels = balanced_labels(n, rng)
     images = np.empty((n, CELL_SIZE, CELL_SIZE), np.uint8)
     for i, label in enumerate(labels):
         images[i] = harsh_cell(int(label), rng, styles[int(rng.integers(len(styles)))], ranges, cell)
