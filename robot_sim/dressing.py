@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from robot_sim.conditions import Prop, SceneConditions
+from robot_sim.scene_conditions import Prop, SceneConditions
 from robot_sim.sheet_shape import SheetShape
 from robot_sim.textures import surface_texture
 
