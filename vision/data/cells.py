@@ -7,6 +7,8 @@ sensor noise, smudges, off-centre marks and bits of a neighbour's mark.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -111,11 +113,17 @@ def draw_cell(label: int, rng: np.random.Generator, noisy: bool = False, style: 
     return out
 
 
-def balanced_labels(n: int, rng: np.random.Generator) -> np.ndarray:
-    """n labels, each class as often as n allows, shuffled by `rng` (the first draw of a cell set's generator)."""
+def generated_cells(n: int, seed: int, render: Callable[[int, np.random.Generator], np.ndarray]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """n cells with balanced labels in shuffled order, each drawn by `render(label, rng)` from one generator seeded
+    with `seed` (the shuffle is its first draw): (images uint8 (n, 40, 40), labels int64 (n,))."""
+    rng = np.random.default_rng(seed)
     labels = np.resize(np.arange(len(LABELS)), n)
     rng.shuffle(labels)
-    return labels
+    images = np.empty((n, CELL_SIZE, CELL_SIZE), np.uint8)
+    for i, label in enumerate(labels):
+        images[i] = render(int(label), rng)
+    return images, labels.astype(np.int64)
 
 
 def make_cells(n: int, seed: int, noisy: bool = False, styles: tuple[str, ...] = ("pen",),
@@ -126,11 +134,9 @@ def make_cells(n: int, seed: int, noisy: bool = False, styles: tuple[str, ...] =
     """
     if n < 1:
         raise ValueError(f"number of cells must be at least 1; got {n}")
-    rng = np.random.default_rng(seed)
-    labels = balanced_labels(n, rng)
-    images = np.empty((n, CELL_SIZE, CELL_SIZE), np.uint8)
-    for i, label in enumerate(labels):
+    def render(label: int, rng: np.random.Generator) -> np.ndarray:
         is_noisy = noisy if noisy_fraction is None else bool(rng.random() < noisy_fraction)
         style = styles[int(rng.integers(len(styles)))]
-        images[i] = render_cell(int(label), rng, noisy=is_noisy, style=style)
-    return images, labels.astype(np.int64)
+        return render_cell(label, rng, noisy=is_noisy, style=style)
+
+    return generated_cells(n, seed, render)

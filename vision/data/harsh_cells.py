@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vision.data.cells import balanced_labels, draw_cell
+from vision.data.cells import draw_cell, generated_cells
 from vision.data.conditions import CAST_GAINS, HARSH, HarshRanges, motion_kernel
 from vision.grid import CELL_INSET, DEFAULT_RHO, denoise
 from vision.labels import CELL_SIZE
@@ -74,9 +74,5 @@ def make_harsh_cells(n: int, seed: int, styles: tuple[str, ...] = ("pen",), rang
     """n harsh cells with balanced labels in shuffled order: (uint8 (n, 40, 40), int64 (n,)); same seed, same cells."""
     if n < 0:
         raise ValueError(f"number of harsh cells must be >= 0; got {n}")
-    rng = np.random.default_rng(seed)
-    labels = balanced_labels(n, rng)
-    images = np.empty((n, CELL_SIZE, CELL_SIZE), np.uint8)
-    for i, label in enumerate(labels):
-        images[i] = harsh_cell(int(label), rng, styles[int(rng.integers(len(styles)))], ranges, cell)
-    return images, labels.astype(np.int64)
+    return generated_cells(n, seed, lambda label, rng: harsh_cell(label, rng, styles[int(rng.integers(len(styles)))],
+                                                                  ranges, cell))
