@@ -19,14 +19,12 @@ anything else heard (nothing, half a phrase, extra words) is no cell, and the ro
 """
 from __future__ import annotations
 
-import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from speech.asr import Heard, Recogniser
-from speech.hearing import HeardUtterance
-from speech.noise import add_noise
+from speech.asr import Recogniser
+from speech.hearing import HeardUtterance, say_in_noise_and_hear
 from speech.tts import PERSON_VOICE, SpeechCache, Voice
 
 ROWS, COLUMNS = ("top", "middle", "bottom"), ("left", "middle", "right")
@@ -112,16 +110,9 @@ class AnswerEars:
         """The person says `text` for "did you say ...?"; ``understood``: 1 yes, 0 no, -1 neither."""
         return self._hear(text, self.confirm, lambda words: {True: 1, False: 0, None: -1}[yes_or_no(words)])
 
-    def _hear(self, text: str, recogniser: Recogniser, meaning) -> HeardUtterance:
-        wall = time.perf_counter()
-        samples, tts_cpu = self.cache.speak(text, self.voice)
-        snr_db = float(self.rng.uniform(*self.snr_db)) if isinstance(self.snr_db, tuple) else self.snr_db
-        samples = add_noise(samples, self.kind, snr_db, self.rng, self.babble_pool)
-        tts_wall = time.perf_counter() - wall
-        wall, started = time.perf_counter(), time.process_time()
-        heard: Heard = recogniser.recognise(samples)
-        asr_cpu, asr_wall = time.process_time() - started, time.perf_counter() - wall
-        utterance = HeardUtterance(" ".join(words_of(text)), samples, heard, meaning(heard.words), snr_db,
-                                   tts_cpu, asr_cpu, tts_wall, asr_wall)
+    def _hear(self, text: str, recogniser: Recogniser, meaning: Callable[[Sequence[str]], int]) -> HeardUtterance:
+        utterance = say_in_noise_and_hear(text, recogniser, self.voice, self.cache, self.kind, self.snr_db, self.rng,
+                                          self.babble_pool, lambda heard: meaning(heard.words),
+                                          said=" ".join(words_of(text)))
         self.log.append(utterance)
         return utterance

@@ -10,7 +10,7 @@ utterance with the person's voice, adds noise and runs the real recogniser (the 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,6 +109,25 @@ class HeardUtterance:
 SnrSpec = float | tuple[float, float] | None
 
 
+def say_in_noise_and_hear(text: str, recogniser: Recogniser, voice: Voice, cache: SpeechCache, kind: str,
+                          snr_db: SnrSpec, rng: np.random.Generator, babble_pool: Sequence[np.ndarray],
+                          meaning: Callable[[Heard], int], said: str | None = None) -> HeardUtterance:
+    """`voice` says `text` (from `cache`), `kind` noise at `snr_db` (a (low, high) range: a level drawn from `rng`
+    first, then the noise) is added, `recogniser` decodes it; ``understood`` = `meaning(heard)`, ``said`` = the
+    words logged as said (default `text`; its punctuation is spoken as pauses). One path for every reply the
+    robot hears, so dialogue replies and cell answers are spoken, noised, timed and logged alike."""
+    wall = time.perf_counter()
+    samples, tts_cpu = cache.speak(text, voice)
+    level = float(rng.uniform(*snr_db)) if isinstance(snr_db, tuple) else snr_db
+    samples = add_noise(samples, kind, level, rng, babble_pool)
+    tts_wall = time.perf_counter() - wall
+    wall, started = time.perf_counter(), time.process_time()
+    heard = recogniser.recognise(samples)
+    asr_cpu, asr_wall = time.process_time() - started, time.perf_counter() - wall
+    return HeardUtterance(text if said is None else said, samples, heard, meaning(heard), level, tts_cpu, asr_cpu,
+                          tts_wall, asr_wall)
+
+
 class RecogniserHearing:
     """Real ears for the robot's game loop: speaks each utterance with ``voice``, adds ``kind`` noise at
     ``snr_db`` (a level, a (low, high) range drawn uniformly per utterance, or None = clean) and decodes it;
@@ -144,28 +163,18 @@ class RecogniserHearing:
         confidence = torch.stack([torch.nn.functional.pad(r[1][0], (0, width - r[1].shape[1])) for r in rows])
         return columns, confidence, torch.cat([r[2] for r in rows])
 
-    def _level(self) -> float | None:
-        if isinstance(self.snr_db, tuple):
-            low, high = self.snr_db
-            return float(self.rng.uniform(low, high))
-        return self.snr_db
-
     def _hear_one(self, utterance: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         if not 0 <= utterance < len(self.texts):  # silence: nothing to hear
             return heard_tensors(Heard((), ()), self.texts, self.env_words)
-        said = self.texts[utterance]
-        wall = time.perf_counter()
-        samples, tts_cpu = self.cache.speak(said, self.voice)
-        snr_db = self._level()
-        samples = add_noise(samples, self.kind, snr_db, self.rng, self.babble_pool)
-        tts_wall = time.perf_counter() - wall
-        wall, started = time.perf_counter(), time.process_time()
-        heard = self.recogniser.recognise(samples)
-        asr_cpu, asr_wall = time.process_time() - started, time.perf_counter() - wall
-        result = heard_tensors(heard, self.texts, self.env_words)
-        self.log.append(HeardUtterance(said, samples, heard, int(result[2][0]), snr_db, tts_cpu, asr_cpu,
-                                       tts_wall, asr_wall))
-        return result
+        results = []
+
+        def meaning(heard: Heard) -> int:
+            results.append(heard_tensors(heard, self.texts, self.env_words))
+            return int(results[0][2][0])
+
+        self.log.append(say_in_noise_and_hear(self.texts[utterance], self.recogniser, self.voice, self.cache,
+                                              self.kind, self.snr_db, self.rng, self.babble_pool, meaning))
+        return results[0]
 
     def word_error_rate(self) -> float | None:
         """Word error rate over every utterance heard so far (None before the first)."""
