@@ -55,10 +55,17 @@ def page_mask(frame: np.ndarray) -> np.ndarray:
 
 
 def order_corners(points: np.ndarray) -> np.ndarray:
-    """Four points -> float32 (4, 2) ordered top-left, top-right, bottom-right, bottom-left."""
+    """Four corners of a convex quad -> float32 (4, 2) ordered top-left, top-right, bottom-right, bottom-left.
+
+    Top-left is the corner nearest the frame's origin (least x + y); the others follow clockwise as the
+    camera sees them (by angle around the centre). Picking each corner by its own extreme (least y - x for
+    top-right, ...) named one point twice when two corners tied, e.g. a sheet's top and right corners at
+    the same y - x, and the page was lost."""
     pts = np.asarray(points, np.float32).reshape(4, 2)
-    s, d = pts.sum(axis=1), pts[:, 1] - pts[:, 0]
-    return np.array([pts[s.argmin()], pts[d.argmin()], pts[s.argmax()], pts[d.argmax()]], np.float32)
+    centre = pts.mean(axis=0)
+    clockwise = pts[np.argsort(np.arctan2(pts[:, 1] - centre[1], pts[:, 0] - centre[0]), kind="stable")]
+    first = int(clockwise.sum(axis=1).argmin())
+    return np.roll(clockwise, -first, axis=0)
 
 
 def find_page(frame: np.ndarray) -> np.ndarray | None:
