@@ -266,9 +266,8 @@ class RobotGameRunner:
     # ------------------------------------------------------------------ speech
     def _say(self, text: str) -> None:
         samples = self.speaker.say(text)
-        tts = getattr(self.speaker, "tts_seconds", None)  # `robot serve` swaps in a speaker of its own
-        if samples is not None:
-            self._record.robot_tts_seconds += tts[-1] if tts else 0.0
+        if samples is not None:  # synthesised just now: its time is the speaker's last entry
+            self._record.robot_tts_seconds += self.speaker.tts_seconds[-1]
             self._speech_log.utterance("robot", samples, text, self.scene.time)
 
     def _timed_render(self, render: Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:

@@ -55,6 +55,7 @@ class BroadcastSpeaker:
         self.on_say = on_say
         self.has_audio = has_audio
         self.said: list[str] = []
+        self.tts_seconds: list[float] = []  # as Speaker's; the browser speaks, so nothing is synthesised here
 
     def say(self, text: str) -> None:
         self.said.append(text)
