@@ -1,4 +1,5 @@
 """Algorithm 1 on frame sequences of a person drawing a move with a hand over the sheet."""
+import cv2
 import numpy as np
 import pytest
 import torch
@@ -6,6 +7,7 @@ import torch
 from vision.data import TEST_SEED
 from vision.data.frames import make_frame
 from vision.data.sequences import make_move_sequence
+from vision.page import find_page
 from vision.recogniser import MoveRecogniser
 
 torch.set_num_threads(1)
@@ -115,3 +117,43 @@ def test_recognise_loop_stops_at_the_move() -> None:
     seq = make_move_sequence(3, TEST_SEED + 530, before=2, drawing=3, after=5)
     result = MoveRecogniser(3, gamma_ms=0).recognise(iter(seq.frames), seq.known_board)
     assert result.status == "move" and result.move == seq.move
+
+
+def _away(frame: np.ndarray, scale: float) -> np.ndarray:
+    """The same view with the sheet further from the camera: scaled about the frame's centre, table around it."""
+    h, w = frame.shape[:2]
+    m = cv2.getRotationMatrix2D((w / 2, h / 2), 0.0, scale)
+    return cv2.warpAffine(frame, m, (w, h), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_REPLICATE)
+
+
+def _first_move(rec: MoveRecogniser, frames, known):
+    statuses = [rec.update(f, known) for f in frames]
+    return next((r for r in statuses if r.status == "move"), None), [r.status for r in statuses]
+
+
+def test_a_sheet_nudged_away_mid_turn_is_still_read() -> None:
+    # random preset, seed 11, game 13: the person nudged the sheet while drawing, its page came out 5 % smaller
+    # and every later frame was judged "part of the sheet is hidden" until the turn ran out
+    seq = make_move_sequence(3, TEST_SEED + 530, before=3, drawing=3, after=6)
+    frames = seq.frames[:3] + [_away(f, 0.94) for f in seq.frames[3:]]
+    rec = MoveRecogniser(3)
+    rec.reset()
+    result, statuses = _first_move(rec, frames, seq.known_board)
+    assert result is not None and (result.move, result.label) == (seq.move, seq.symbol), statuses
+
+
+def test_an_arm_resting_over_a_corner_of_the_sheet_is_not_a_clean_frame() -> None:
+    # the arm hides a corner of the page and lies outside the page found without it: the page shrank against
+    # its grid (which the arm leaves whole), so no move is read while it rests there
+    seq = make_move_sequence(3, TEST_SEED + 530, before=3, drawing=3, after=6)
+    rec = MoveRecogniser(3)
+    rec.reset()
+    corners = find_page(seq.frames[0])
+    tl = corners[0]
+    arm = np.array([tl + (-80, -80), tl + (140, -80), tl + (-80, 140)], np.int32)  # over the top-left corner
+    frames = [f.copy() for f in seq.frames]
+    for f in frames[3:]:
+        cv2.fillConvexPoly(f, arm, (120, 150, 200))
+    result, statuses = _first_move(rec, frames, seq.known_board)
+    assert result is None, statuses
+    assert statuses[-1] == "occluded", statuses
