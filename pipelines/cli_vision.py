@@ -110,6 +110,8 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
           frames9: int = typer.Option(120, min=0, help="Generated 9x9 photos whose cells the reader cuts."),
           harsh_cells: int = typer.Option(8_000, min=0, help="Generated cells as a harsh photo leaves them (motion "
                                           "streak, dim light, JPEG; vision/data/harsh_cells.py)."),
+          harsh_styles: str = typer.Option("pen,hasty", help="Handwriting of the harsh cells, comma list of the "
+                                           "training styles pen, hasty (the tuning and held-out styles are refused)."),
           epochs: int = typer.Option(14, min=1, help="Passes over the training cells."),
           seed: int = typer.Option(0, help="Initial weights, batch order and augmentations."),
           data_seed: Optional[int] = typer.Option(None, help="Data seed (default vision.data.TRAIN_SEED)."),
@@ -142,8 +144,15 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
         return
     if updates is not None:
         raise ValueError("--updates applies only with --budget (the shipped recipe counts --epochs)")
+    from vision.strokes import TRAINING_STYLES
+
+    styles = tuple(s.strip() for s in harsh_styles.split(",") if s.strip())
+    if not styles or set(styles) - set(TRAINING_STYLES):
+        raise ValueError(f"--harsh-styles takes a comma list of the training styles {', '.join(TRAINING_STYLES)}; "
+                         f"got {harsh_styles!r}")
     _setup_threads()
     config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9, n_harsh_cells=harsh_cells,
+                             harsh_styles=styles,
                              seed=TRAIN_SEED if data_seed is None else data_seed,
                              train=TrainConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
     model, meta = train_default(config, progress=progress_bar)
@@ -158,7 +167,9 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
              frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading' and 'harsh'."),
              sequences: int = typer.Option(120, min=1, help="'recogniser': 3x3 drawing sequences per mark style set."),
              sequences9: int = typer.Option(40, min=1, help="'recogniser': 9x9 drawing sequences per mark style set."),
-             seed_set: str = typer.Option("heldout", help="'recogniser', 'harsh': heldout (never tuned on) or tuning data."),
+             seed_set: str = typer.Option("heldout", help="'recogniser', 'harsh': heldout (never tuned on) or tuning "
+                                          "data; 'harsh' also tuning-style (tuning seeds, the tuning handwriting "
+                                          "\"marker\", on which training choices are judged)."),
              weights: Optional[Path] = typer.Option(None, help="Weights for 'cells'/'reading' (default: shipped)."),
              loo_folds: Optional[int] = typer.Option(None, min=1, help="Run only the first LOO folds (default all 109).")) -> None:
     """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading
@@ -170,8 +181,10 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
     unknown = set(parts) - {"paper", "cells", "reading", "recogniser", "harsh"}
     if unknown or not parts:
         raise ValueError(f"--what takes a comma list of paper, cells, reading, recogniser, harsh; got {what!r}")
-    if seed_set not in ("heldout", "tuning"):
-        raise ValueError(f"--seed-set must be heldout or tuning; got {seed_set!r}")
+    if seed_set not in ex.HARSH_SPLITS:
+        raise ValueError(f"--seed-set must be one of {', '.join(ex.HARSH_SPLITS)}; got {seed_set!r}")
+    if seed_set == "tuning-style" and set(parts) - {"harsh"}:
+        raise ValueError("--seed-set tuning-style applies to --what harsh only (harsh photos with the tuning handwriting)")
     check_writable_dir(out, "--out")
     _setup_threads()
     written = []
@@ -191,7 +204,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
         typer.echo(ex.markdown(results))
     if "harsh" in parts:
         results = ex.harsh_reading(frames, seed_set, classifier, progress=progress_bar)
-        stem = "reading_harsh" if seed_set == "heldout" else "reading_harsh_tuning"
+        stem = {"heldout": "reading_harsh", "tuning": "reading_harsh_tuning", "tuning-style": "reading_harsh_tuning_style"}[seed_set]
         written += ex.write_report(results, out, stem)
         if seed_set == "heldout":
             ex.harsh_frames_png(out / "reading_harsh_frames.png", classifier=classifier)

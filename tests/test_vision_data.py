@@ -1,4 +1,5 @@
 """The seeded generators: same seed -> same pixels, marks drawn where asked, progress animates a drawing."""
+import cv2
 import numpy as np
 import pytest
 
@@ -38,7 +39,7 @@ def test_marks_put_ink_where_asked_and_progress_draws_part() -> None:
     assert inks[0] == 0 < inks[1] < inks[2]
 
 
-@pytest.mark.parametrize("style", ["pen", "sketch", "hershey"])
+@pytest.mark.parametrize("style", ["pen", "sketch", "hershey", "hasty", "marker"])
 def test_every_style_draws_on_gray_images(style: str) -> None:
     img = np.full((60, 60), 250, np.uint8)
     draw_mark(img, "cross", (30, 30), 40, np.random.default_rng(0), style=style)
@@ -79,3 +80,52 @@ def test_move_sequence_draws_the_move_under_a_hand() -> None:
     assert seq.hand == [False, True, True, False]
     assert seq.known_board[seq.move] == "" and seq.symbol in ("x", "o")
     assert not np.array_equal(seq.frames[0], seq.frames[-1])
+
+
+def test_training_tuning_and_heldout_handwriting_stay_apart() -> None:
+    from vision.strokes import HELDOUT_STYLES, STYLES, TRAINING_STYLES, TUNING_STYLES
+    from vision.training import DefaultTraining
+
+    groups = [set(TRAINING_STYLES), set(TUNING_STYLES), set(HELDOUT_STYLES)]
+    assert set.union(*groups) == set(STYLES) and sum(map(len, groups)) == len(STYLES)
+    recipe = DefaultTraining()
+    assert set(recipe.cell_styles) | set(recipe.harsh_styles) <= set(TRAINING_STYLES)
+
+
+def _bleed(style: str) -> float:
+    """Share of a mark's inked pixels that are only partly inked (an edge), over 12 marks of width 8 px."""
+    partial = inked = 0
+    for seed in range(12):
+        img = np.full((160, 160), 250, np.uint8)
+        draw_mark(img, "nought", (80, 80), 110, np.random.default_rng(seed), width=8.0, style=style, opacity=1.0,
+                  ink=(0, 0, 0))
+        darkness = (250 - img.astype(float)) / 250
+        inked += int((darkness > 0.05).sum())
+        partial += int(((darkness > 0.05) & (darkness < 0.8)).sum())
+    return partial / inked
+
+
+def test_marker_ink_bleeds_at_its_edges_and_pen_ink_does_not() -> None:
+    # the tuning handwriting is a felt tip: its coverage is blurred, so far more of its ink is edge than a pen's
+    assert _bleed("marker") > 1.5 * _bleed("pen")
+    assert _bleed("hasty") < 1.2 * _bleed("pen")  # the training variant keeps the pen's ink
+
+
+def test_marker_noughts_are_not_the_pen_loops() -> None:
+    # a rounded polygon or teardrop: the ink strays from the best-fitting ellipse far more than a pen loop's
+    def stray(style: str) -> float:
+        out = []
+        for seed in range(20):
+            img = np.full((200, 200), 255, np.uint8)
+            draw_mark(img, "nought", (100, 100), 140, np.random.default_rng(seed), width=3.0, style=style,
+                      opacity=1.0, ink=(0, 0, 0))
+            ys, xs = np.nonzero(img < 128)
+            pts = np.stack([xs, ys], 1).astype(np.float32)
+            (cx, cy), (w, h), angle = cv2.fitEllipse(pts)
+            drawn = np.zeros_like(img)
+            cv2.ellipse(drawn, ((cx, cy), (w, h), angle), 255, 1)
+            distance = cv2.distanceTransform(255 - drawn, cv2.DIST_L2, 3)
+            out.append(float(np.median(distance[ys, xs])) / max(w, h))
+        return float(np.median(out))
+
+    assert stray("marker") > 1.5 * stray("pen")

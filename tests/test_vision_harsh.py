@@ -108,6 +108,22 @@ def test_cli_eval_harsh_writes_its_report(tmp_path) -> None:
     assert "harsh" in report[0]["name"]
 
 
+def test_cli_eval_harsh_tuning_style_reads_marker_photos_beside_the_tuning_ones(tmp_path) -> None:
+    # the tuning-style split: tuning seeds (+50,000 beside the pen tuning photos), the "marker" handwriting
+    base = [sys.executable, "-m", "pipelines.cli", "vision", "eval", "--frames", "1", "--out", str(tmp_path)]
+    done = subprocess.run(base + ["--what", "harsh", "--seed-set", "tuning-style"], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "reading_harsh_tuning_style.json").read_text())
+    assert [r["photos"] for r in report] == [1, 1] and all("marker marks" in r["name"] for r in report)
+    assert [r["seed"] for r in report] == [HARSH_TUNING_SEED + 100_000 * g + 50_000 for g in (3, 9)]
+    for what in ("cells", "recogniser"):  # no tuning-style set there: one line, exit 2
+        bad = subprocess.run(base + ["--what", what, "--seed-set", "tuning-style"], capture_output=True, text=True,
+                             timeout=300)
+        assert bad.returncode == 2 and "tuning-style applies to --what harsh only" in bad.stderr
+        assert "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
 def test_cli_generates_harsh_frames_and_rejects_unknown_conditions(tmp_path) -> None:
     base = [sys.executable, "-m", "pipelines.cli", "vision", "generate", "frames", "--n", "1", "--out", str(tmp_path)]
     done = subprocess.run(base + ["--conditions", "harsh"], capture_output=True, text=True, timeout=300)

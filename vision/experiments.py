@@ -18,13 +18,16 @@ import numpy as np
 from fileio import atomic_path, atomic_write_bytes, atomic_write_text
 from vision.classifier.inference import CellClassifier, load_classifier
 from vision.classifier.train import TrainConfig, fit
-from vision.data import CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, N_CLEAN, N_NOISY, NOISY_SEED, TEST_SEED
+from vision.data import (CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, N_CLEAN, N_NOISY,
+                         NOISY_SEED, TEST_SEED)
 from vision.data.cells import make_cells
 from vision.data.frames import make_frame
 from vision.grid import read_page
 from vision.labels import LABELS
+from vision.strokes import TUNING_STYLES
 
 PAPER_TRAIN = TrainConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)
+HARSH_SPLITS = ("heldout", "tuning", "tuning-style")  # `harsh_reading`'s photo sets
 
 
 @dataclass
@@ -135,14 +138,17 @@ def harsh_reading(n_frames: int, split: str = "heldout", classifier: CellClassif
                   progress: Callable[..., Any] | None = None) -> list[Result]:
     """Reading under the "harsh" photo conditions (vision.data.conditions), 3x3 and 9x9.
 
-    split "tuning": the photos the reader was tuned on ("pen" marks only). split "heldout": other seeds
-    (other shadows, casts, lenses) and the held-out "sketch" + "hershey" handwriting (the figures), with
-    "pen" marks on held-out seeds beside them.
+    split "tuning": the photos the reader was tuned on ("pen" marks only). split "tuning-style": tuning seeds
+    beside those with the tuning handwriting ("marker"), on which training choices are judged. split
+    "heldout": other seeds (other shadows, casts, lenses) and the held-out "sketch" + "hershey" handwriting
+    (the figures), with "pen" marks on held-out seeds beside them.
     """
-    if split not in ("heldout", "tuning"):
-        raise ValueError(f"split must be heldout or tuning; got {split!r}")
+    if split not in HARSH_SPLITS:
+        raise ValueError(f"split must be one of {', '.join(HARSH_SPLITS)}; got {split!r}")
     if split == "tuning":
         sets = [(grid, ("pen",), HARSH_TUNING_SEED + 100_000 * grid) for grid in (3, 9)]
+    elif split == "tuning-style":
+        sets = [(grid, TUNING_STYLES, HARSH_TUNING_SEED + 100_000 * grid + HARSH_TUNING_STYLE_OFFSET) for grid in (3, 9)]
     else:
         sets = [(grid, styles, HARSH_HELDOUT_SEED + 100_000 * grid + offset)
                 for grid in (3, 9) for offset, styles in ((0, ("sketch", "hershey")), (50_000, ("pen",)))]

@@ -6,9 +6,13 @@ curved strokes with tilt, uneven lengths and an off-centre crossing. Pen width, 
 and colour vary. A mark is a list of polylines in the order a person draws them, so `progress` can show
 a mark half drawn (the robot simulator animates a human hand with it).
 
-`style="pen"` is the training style. `style="hershey"` (OpenCV's vector fonts) and `style="sketch"`
-(spline loops and re-traced strokes) are different stroke models kept out of training: the tests use them
-as handwriting the classifier has never seen.
+`style="pen"` is the training style and `style="hasty"` the same stroke model with wider ranges (a
+hurried pen: flatter, lumpier, slanted, re-traced, more open or overlapping loops; bowed, re-traced
+crosses), also for training. `style="marker"` (a felt-tip's rounded-polygon or teardrop loops with soft
+edges, cursive ")(" or dabbed straight crosses) is the TUNING handwriting: a stroke model of its own, never
+trained on, on which training choices are judged. `style="hershey"` (OpenCV's vector fonts) and
+`style="sketch"` (spline loops and re-traced strokes) are the HELD-OUT handwriting: never trained or tuned
+on, only evaluated.
 """
 from __future__ import annotations
 
@@ -18,7 +22,10 @@ import cv2
 import numpy as np
 
 MARK_KINDS = ("nought", "cross")
-STYLES = ("pen", "sketch", "hershey")
+TRAINING_STYLES = ("pen", "hasty")   # drawn for training (and "pen" for tuning photos of the reader)
+TUNING_STYLES = ("marker",)          # judges training choices; never trained on
+HELDOUT_STYLES = ("sketch", "hershey")  # figures only: never trained or tuned on
+STYLES = ("pen", "sketch", "hershey", "hasty", "marker")
 _SUBPIXEL_BITS = 4
 _SUBPIXEL = 1 << _SUBPIXEL_BITS
 
@@ -136,6 +143,111 @@ def _sketch_cross(size: float, width: float, rng: np.random.Generator) -> list[S
     return strokes
 
 
+def _hasty_nought(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
+    """The pen loop drawn in a hurry: wider aspect range, lumpier and egg-shaped, slanted, bigger gaps and
+    overlaps, sometimes a second lap over the first."""
+    radius = 0.5 * size * rng.uniform(0.6, 1.0)
+    aspect = rng.uniform(0.35, 1.2)
+    start = rng.uniform(0, 2 * np.pi)
+    sweep = 2 * np.pi * rng.choice([rng.uniform(0.70, 0.95), rng.uniform(0.95, 1.1), rng.uniform(1.1, 1.6)])
+    if rng.random() < 0.3:  # re-traced: a second lap
+        sweep += 2 * np.pi * rng.uniform(0.6, 1.0)
+    direction = rng.choice([-1.0, 1.0])
+    n = int(64 * sweep / (2 * np.pi)) + 8
+    t = np.linspace(0.0, 1.0, n)
+    angle = start + direction * sweep * t
+    wobble = 1.0 + rng.uniform(-0.2, 0.2) * np.cos(angle - rng.uniform(0, 2 * np.pi))  # egg
+    for k in (1, 2, 3, 4):
+        wobble += rng.normal(0, 0.09 / k) * np.sin(k * angle + rng.uniform(0, 2 * np.pi))
+    drift = 1.0 + rng.uniform(-0.25, 0.25) * t
+    x = radius * wobble * drift * np.cos(angle)
+    y = radius * aspect * wobble * drift * np.sin(angle)
+    x = x + rng.uniform(-0.4, 0.4) * y  # slant
+    tilt = rng.uniform(0, np.pi)
+    rot = np.array([[np.cos(tilt), -np.sin(tilt)], [np.sin(tilt), np.cos(tilt)]])
+    points = np.stack([x, y], axis=1) @ rot.T
+    return [Stroke(points, _pressure_widths(len(points), width, rng))]
+
+
+def _hasty_cross(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
+    """The pen cross drawn in a hurry: more tilt, bowed and uneven arms, an arm sometimes gone over twice."""
+    tilt = np.deg2rad(rng.uniform(-30, 30))
+    strokes = []
+    for base in (45.0, 135.0):
+        angle = np.deg2rad(base + rng.normal(0, 14)) + tilt
+        length = size * rng.uniform(0.6, 1.2)
+        along = np.array([np.cos(angle), np.sin(angle)])
+        normal = np.array([-along[1], along[0]])
+        shift = rng.uniform(-0.25, 0.25) * length
+        p0, p2 = -along * (length / 2 + shift), along * (length / 2 - shift)
+        for _ in range(2 if rng.random() < 0.25 else 1):
+            p1 = (p0 + p2) / 2 + normal * rng.uniform(-0.25, 0.25) * length
+            points = _bezier(p0, p1, p2, 24)
+            if rng.random() < 0.5:
+                points = points[::-1]
+            if rng.random() < 0.25:
+                hook_dir = normal * rng.choice([-1, 1]) - along * 0.5
+                points = np.concatenate([points, points[-1] + hook_dir * np.linspace(0.03, 0.14, 3)[:, None] * length])
+            strokes.append(Stroke(points, _pressure_widths(len(points), width, rng)))
+            p0, p2 = p0 + rng.normal(0, 0.04 * size, 2), p2 + rng.normal(0, 0.04 * size, 2)
+    if rng.random() < 0.5:
+        strokes.reverse()
+    return strokes
+
+
+def _marker_widths(n: int, width: float) -> np.ndarray:
+    """A felt tip lays an even line, a little wider where it lands (a dab)."""
+    widths = np.full(n, width)
+    widths[: min(3, n)] *= 1.35
+    return widths
+
+
+def _marker_nought(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
+    """A felt-tip's quick loop: a rounded polygon (superellipse, from diamond to box) or a teardrop."""
+    half = 0.5 * size * rng.uniform(0.75, 1.0)
+    across = half * rng.uniform(0.65, 1.0)
+    lap = rng.uniform(0.92, 1.12)
+    t = np.linspace(0.0, 2 * np.pi * lap, 80)
+    if rng.random() < 0.6:
+        power = 2.0 / rng.uniform(1.3, 3.5)
+        phase = rng.uniform(0, 2 * np.pi)
+        c, s = np.cos(t + phase), np.sin(t + phase)
+        x, y = half * np.sign(c) * np.abs(c) ** power, across * np.sign(s) * np.abs(s) ** power
+    else:  # teardrop, its point where the pen lands
+        x = across * np.sin(t) * np.abs(np.sin(t / 2)) ** rng.uniform(0.8, 1.6)
+        y = -half * np.cos(t)
+    if rng.random() < 0.5:
+        x = -x
+    turn = rng.uniform(0, 2 * np.pi)
+    rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    points = np.stack([x, y], axis=1) @ rot.T
+    return [Stroke(points, _marker_widths(len(points), width))]
+
+
+def _marker_cross(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
+    """A cursive x (two arcs back to back, ")(") or two straight dabbed strokes."""
+    tilt = np.deg2rad(rng.uniform(-12, 12))
+    rot = np.array([[np.cos(tilt), -np.sin(tilt)], [np.sin(tilt), np.cos(tilt)]])
+    strokes = []
+    if rng.random() < 0.5:
+        radius = 0.5 * size * rng.uniform(0.95, 1.2)
+        reach = np.deg2rad(rng.uniform(50, 62))
+        gap = rng.uniform(-0.04, 0.05) * size
+        for sign in (-1.0, 1.0):  # ")" on the left, "(" on the right, apexes touching near the centre
+            a = np.linspace(-reach, reach, 20)
+            centre = -sign * (radius - gap / 2)
+            points = np.stack([centre + sign * radius * np.cos(a), radius * np.sin(a)], axis=1)
+            strokes.append(Stroke(points @ rot.T, _marker_widths(len(points), width)))
+    else:
+        for base in (45.0, 135.0):
+            angle = np.deg2rad(base + rng.normal(0, 6))
+            along = np.array([np.cos(angle), np.sin(angle)])
+            length = size * rng.uniform(0.8, 1.1)
+            points = np.linspace(-along * length / 2, along * length / 2, 16)
+            strokes.append(Stroke(points @ rot.T, _marker_widths(len(points), width)))
+    return strokes
+
+
 _HERSHEY_FONTS = (cv2.FONT_HERSHEY_SIMPLEX, cv2.FONT_HERSHEY_DUPLEX, cv2.FONT_HERSHEY_COMPLEX,
                   cv2.FONT_HERSHEY_TRIPLEX, cv2.FONT_HERSHEY_SCRIPT_SIMPLEX, cv2.FONT_HERSHEY_SCRIPT_COMPLEX,
                   cv2.FONT_HERSHEY_PLAIN)
@@ -166,20 +278,29 @@ def mark_strokes(kind: str, size: float, rng: np.random.Generator, width: float 
     """Strokes of one mark centred on (0, 0), in drawing order (not for style "hershey")."""
     if kind not in MARK_KINDS:
         raise ValueError(f"mark kind {kind!r} is unknown; expected one of {MARK_KINDS}")
-    if width is None:  # mostly ballpoint; sometimes a felt-tip, which makes a small mark nearly a blob
+    if width is None and style == "marker":  # a felt tip: always broad
+        width = max(1.0, size * rng.uniform(0.09, 0.18))
+    elif width is None and style == "hasty":  # from a fine liner to a felt tip
+        width = max(1.0, size * rng.uniform(0.025, 0.16))
+    elif width is None:  # mostly ballpoint; sometimes a felt-tip, which makes a small mark nearly a blob
         width = max(1.0, size * (rng.uniform(0.035, 0.10) if rng.random() < 0.85 else rng.uniform(0.10, 0.16)))
     if style == "pen":
         return _pen_nought(size, width, rng) if kind == "nought" else _pen_cross(size, width, rng)
     if style == "sketch":
         return _sketch_nought(size, width, rng) if kind == "nought" else _sketch_cross(size, width, rng)
-    raise ValueError(f"stroke style {style!r} has no polylines; expected 'pen' or 'sketch'")
+    if style == "hasty":
+        return _hasty_nought(size, width, rng) if kind == "nought" else _hasty_cross(size, width, rng)
+    if style == "marker":
+        return _marker_nought(size, width, rng) if kind == "nought" else _marker_cross(size, width, rng)
+    raise ValueError(f"stroke style {style!r} has no polylines; expected one of {tuple(s for s in STYLES if s != 'hershey')}")
 
 
 def _render(img: np.ndarray, strokes: list[Stroke], offset: np.ndarray, progress: float,
-            ink: tuple[int, int, int], opacity: float) -> None:
-    """Draw the first `progress` of the strokes' total length, blending ink by coverage x opacity."""
+            ink: tuple[int, int, int], opacity: float, soften: float = 0.0) -> None:
+    """Draw the first `progress` of the strokes' total length, blending ink by coverage x opacity
+    (coverage blurred by `soften` px: a felt tip's ink bleeds into the paper)."""
     all_points = np.concatenate([s.points for s in strokes]) + offset
-    pad = float(max(s.widths.max() for s in strokes)) + 2
+    pad = float(max(s.widths.max() for s in strokes)) + 2 + 3 * soften
     x0 = int(max(np.floor(all_points[:, 0].min() - pad), 0))
     y0 = int(max(np.floor(all_points[:, 1].min() - pad), 0))
     x1 = int(min(np.ceil(all_points[:, 0].max() + pad), img.shape[1]))
@@ -204,6 +325,8 @@ def _render(img: np.ndarray, strokes: list[Stroke], offset: np.ndarray, progress
             pb = tuple(int(v) for v in np.round(b * _SUBPIXEL))
             cv2.line(coverage, pa, pb, 255, thickness, cv2.LINE_AA, _SUBPIXEL_BITS)
     alpha = coverage.astype(np.float32) * (opacity / 255.0)
+    if soften > 0:
+        alpha = cv2.GaussianBlur(alpha, (0, 0), soften)
     region = img[y0:y1, x0:x1].astype(np.float32)
     if img.ndim == 3:
         alpha = alpha[:, :, None]
@@ -239,5 +362,6 @@ def draw_mark(img: np.ndarray, kind: str, center: tuple[float, float], size: flo
     strokes = mark_strokes(kind, size, rng, width=width, style=style)
     if opacity is None:
         opacity = rng.uniform(0.75, 1.0)
+    soften = 0.25 * float(strokes[0].widths.mean()) if style == "marker" else 0.0
     if progress > 0:
-        _render(img, strokes, np.asarray(center, float), progress, ink, opacity)
+        _render(img, strokes, np.asarray(center, float), progress, ink, opacity, soften)

@@ -36,6 +36,8 @@ class DefaultTraining:
     n_frames_3: int = 700          # 3x3 photos whose cells are cut by the reader (9 cells each)
     n_frames_9: int = 120          # 9x9 photos (81 cells each)
     n_harsh_cells: int = 8_000     # generated cells as a harsh photo leaves them (seed + 300,000)
+    cell_styles: tuple[str, ...] = ("pen",)   # handwriting of the generated cells (vision.strokes.TRAINING_STYLES)
+    harsh_styles: tuple[str, ...] = ("pen", "hasty")  # ... and of the harsh cells (issue 15's fourth round)
     seed: int = TRAIN_SEED         # data seed; test data uses vision.data.TEST_SEED and up
     train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
 
@@ -59,10 +61,10 @@ def frame_cells(grid: int, n_frames: int, seed: int, progress: Callable[..., Any
 
 def training_set(config: DefaultTraining, progress: Callable[..., Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """All training cells of the shipped weights (deterministic in config.seed)."""
-    cells, labels = make_cells(config.n_cells, config.seed, noisy_fraction=0.6)
+    cells, labels = make_cells(config.n_cells, config.seed, noisy_fraction=0.6, styles=config.cell_styles)
     f3, l3 = frame_cells(3, config.n_frames_3, config.seed + 100_000, progress)
     f9, l9 = frame_cells(9, config.n_frames_9, config.seed + 200_000, progress)
-    harsh, harsh_labels = make_harsh_cells(config.n_harsh_cells, config.seed + 300_000)
+    harsh, harsh_labels = make_harsh_cells(config.n_harsh_cells, config.seed + 300_000, styles=config.harsh_styles)
     return np.concatenate([cells, f3, f9, harsh]), np.concatenate([labels, l3, l9, harsh_labels])
 
 
@@ -70,7 +72,7 @@ def train_default(config: DefaultTraining = DefaultTraining(), progress: Callabl
     """Train the shipped classifier; returns it and the metadata stored with the weights."""
     images, labels = training_set(config, progress)
     model = fit(images, labels, config.train, progress=progress, description="train default CNN")
-    meta = {k: v for k, v in asdict(config).items() if k != "train"}
+    meta = {k: ",".join(v) if isinstance(v, tuple) else v for k, v in asdict(config).items() if k != "train"}
     meta.update({f"train_{k}": v for k, v in asdict(config.train).items()})
     meta["n_training_cells"] = int(len(images))
     return model, meta
