@@ -24,6 +24,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
+from torch.nn import functional as F
 
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, StandardBits, UltimateBits, make_bits
@@ -69,12 +70,12 @@ class TurnFeatures:
     def __call__(self, own: list[int], other: list[int], last_move: int) -> torch.Tensor:
         """(F,) features for one position: ``own``/``other`` are the cells of the side to move / the other side."""
         features = self.base.clone()
-        features[[self.robot_plane + c for c in own]] = 1.0
-        features[[self.human_plane + c for c in other]] = 1.0
+        ones = [self.robot_plane + c for c in own] + [self.human_plane + c for c in other]
         if self.time_plane is not None:
             features[[self.time_plane + c for c in own + other]] = 0.5
             if last_move >= 0:
-                features[self.time_plane + last_move] = 1.0
+                ones.append(self.time_plane + last_move)
+        features[ones] = 1.0  # one index write: this runs once per search expansion
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -108,6 +109,28 @@ class QGuidedEvaluator:
         return weight * (1.0 - v_q) + (1.0 - weight) * self.rollout.evaluate(node, rand)
 
 
+SQUARES_OF_MASK = tuple(tuple(p for p in range(9) if mask >> p & 1) for mask in range(512))  # 9-bit set -> squares
+
+
+def mlp_layers(qnet: nn.Module) -> list[list] | None:
+    """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``modules.qnet``), None otherwise.
+
+    The search reads the network once per expansion on one position: at that size ``nn.Module.__call__`` costs as
+    much as the matrix products, so ``GuidedMCTS`` runs the same ``F.linear``/``torch.relu`` ops on these tensors
+    (the same parameters, not copies: the same numbers as calling the network)."""
+    if not isinstance(qnet, nn.Sequential):
+        return None
+    layers: list[list] = []
+    for module in qnet:
+        if isinstance(module, nn.Linear):
+            layers.append([module.weight, module.bias, False])
+        elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
+            layers[-1][2] = True
+        else:
+            return None
+    return layers or None
+
+
 class GuidedMCTS:
     """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
 
@@ -123,6 +146,7 @@ class GuidedMCTS:
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
         self.qnet, self.features = qnet, features
+        self._layers = mlp_layers(qnet)
         self.engine: StandardBits | UltimateBits = make_bits(game, free_move)
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
@@ -137,15 +161,21 @@ class GuidedMCTS:
             sides = (pos[0], pos[1])
             lists = ([c for c in range(9) if sides[0] >> c & 1], [c for c in range(9) if sides[1] >> c & 1])
         else:
-            lists = tuple([CELL_OF[k][p] for k in range(9) for p in range(9) if subs[k] >> p & 1] for subs in (pos[0], pos[1]))
+            lists = tuple([CELL_OF[k][p] for k in range(9) for p in SQUARES_OF_MASK[subs[k]]] for subs in (pos[0], pos[1]))
         turn = self.engine.turn(pos)
         return (lists[0], lists[1]) if turn == 0 else (lists[1], lists[0])
 
     @torch.no_grad()
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
-        q = self.qnet(self.features(own, other, last_move).unsqueeze(0))[0]
-        return q[moves].tolist()
+        x = self.features(own, other, last_move).unsqueeze(0)
+        if self._layers is None:
+            return self.qnet(x)[0][moves].tolist()
+        for weight, bias, relu in self._layers:  # the Sequential's own ops, without nn.Module's call overhead
+            x = F.linear(x, weight, bias)
+            if relu:
+                x = torch.relu(x)
+        return x[0][moves].tolist()
 
     def expand(self, node: Node, moves: list[int], q: list[float] | None = None) -> float:
         """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move.

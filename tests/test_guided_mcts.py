@@ -149,3 +149,21 @@ def test_ncbot_eval_search_option(ultimate_checkpoint):
     assert "search_decisions" not in json.loads(plain.stdout.strip().splitlines()[-1])
     bad = ncbot("eval", ultimate_checkpoint, "--search", "0", "--games", "2")
     assert bad.returncode == 2 and "--search must be a positive" in bad.stderr
+
+
+def test_search_reads_the_same_q_values_as_the_network(ultimate_checkpoint):
+    """The search's direct layer calls (``mlp_layers``) give exactly the network's numbers, on a played position."""
+    import random
+
+    config, greedy = load_agent(ultimate_checkpoint)
+    search = guided_search(config, greedy, 4)
+    assert search._layers is not None
+    engine, rand = search.engine, random.Random(0)
+    pos, last = engine.from_board([0] * 81, 1), -1
+    for _ in range(12):
+        last = rand.choice(engine.moves(pos))
+        pos = engine.play(pos, last)
+    moves = engine.moves(pos)
+    fast = search._q(pos, last, moves)
+    search._layers = None
+    assert search._q(pos, last, moves) == fast
