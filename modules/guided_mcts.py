@@ -18,16 +18,22 @@ from __future__ import annotations
 
 import math
 import random
+import time
 
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
+from torch.nn import functional as F
 
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
+from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from modules.qnet import ACTION_VALUE_KEY
+
+ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
 
 DEFAULT_C_PUCT = 1.5
 DEFAULT_TEMPERATURE = 2.0  # Q-values span about +-5 (the paper's rewards): a softer softmax keeps the search broad
@@ -64,12 +70,12 @@ class TurnFeatures:
     def __call__(self, own: list[int], other: list[int], last_move: int) -> torch.Tensor:
         """(F,) features for one position: ``own``/``other`` are the cells of the side to move / the other side."""
         features = self.base.clone()
-        features[[self.robot_plane + c for c in own]] = 1.0
-        features[[self.human_plane + c for c in other]] = 1.0
+        ones = [self.robot_plane + c for c in own] + [self.human_plane + c for c in other]
         if self.time_plane is not None:
             features[[self.time_plane + c for c in own + other]] = 0.5
             if last_move >= 0:
-                features[self.time_plane + last_move] = 1.0
+                ones.append(self.time_plane + last_move)
+        features[ones] = 1.0  # one index write: this runs once per search expansion
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -103,6 +109,28 @@ class QGuidedEvaluator:
         return weight * (1.0 - v_q) + (1.0 - weight) * self.rollout.evaluate(node, rand)
 
 
+SQUARES_OF_MASK = tuple(tuple(p for p in range(9) if mask >> p & 1) for mask in range(512))  # 9-bit set -> squares
+
+
+def mlp_layers(qnet: nn.Module) -> list[list] | None:
+    """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``modules.qnet``), None otherwise.
+
+    The search reads the network once per expansion on one position: at that size ``nn.Module.__call__`` costs as
+    much as the matrix products, so ``GuidedMCTS`` runs the same ``F.linear``/``torch.relu`` ops on these tensors
+    (the same parameters, not copies: the same numbers as calling the network)."""
+    if not isinstance(qnet, nn.Sequential):
+        return None
+    layers: list[list] = []
+    for module in qnet:
+        if isinstance(module, nn.Linear):
+            layers.append([module.weight, module.bias, False])
+        elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
+            layers[-1][2] = True
+        else:
+            return None
+    return layers or None
+
+
 class GuidedMCTS:
     """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
 
@@ -118,6 +146,7 @@ class GuidedMCTS:
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
         self.qnet, self.features = qnet, features
+        self._layers = mlp_layers(qnet)
         self.engine: StandardBits | UltimateBits = make_bits(game, free_move)
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
@@ -132,19 +161,29 @@ class GuidedMCTS:
             sides = (pos[0], pos[1])
             lists = ([c for c in range(9) if sides[0] >> c & 1], [c for c in range(9) if sides[1] >> c & 1])
         else:
-            lists = tuple([CELL_OF[k][p] for k in range(9) for p in range(9) if subs[k] >> p & 1] for subs in (pos[0], pos[1]))
+            lists = tuple([CELL_OF[k][p] for k in range(9) for p in SQUARES_OF_MASK[subs[k]]] for subs in (pos[0], pos[1]))
         turn = self.engine.turn(pos)
         return (lists[0], lists[1]) if turn == 0 else (lists[1], lists[0])
 
     @torch.no_grad()
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
-        q = self.qnet(self.features(own, other, last_move).unsqueeze(0))[0]
-        return q[moves].tolist()
+        x = self.features(own, other, last_move).unsqueeze(0)
+        if self._layers is None:
+            return self.qnet(x)[0][moves].tolist()
+        for weight, bias, relu in self._layers:  # the Sequential's own ops, without nn.Module's call overhead
+            x = F.linear(x, weight, bias)
+            if relu:
+                x = torch.relu(x)
+        return x[0][moves].tolist()
 
-    def expand(self, node: Node, moves: list[int]) -> float:
-        """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move."""
-        q = self._q(node.pos, node.move, moves)
+    def expand(self, node: Node, moves: list[int], q: list[float] | None = None) -> float:
+        """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move.
+
+        ``q``: the moves' Q-values when the caller already has them (the root, read from the real observation);
+        else they are read on ``TurnFeatures``."""
+        if q is None:
+            q = self._q(node.pos, node.move, moves)
         top = max(q)
         weights = [math.exp((v - top) / self.temperature) for v in q]
         total = sum(weights)
@@ -152,8 +191,13 @@ class GuidedMCTS:
         return (max(-5.0, min(5.0, top)) / 5.0 + 1.0) / 2.0
 
     # -- the search --------------------------------------------------------------------------------------------
-    def search(self, pos: tuple, root_moves: list[int], rng: random.Random) -> tuple[int, dict[int, int]]:
-        """The chosen root move and the visit count of every searched root move."""
+    def search(self, pos: tuple, root_moves: list[int], rng: random.Random,
+               root_q: dict[int, float] | None = None) -> tuple[int, dict[int, int]]:
+        """The chosen root move and the visit count of every searched root move.
+
+        ``root_q`` (move -> Q-value), if given, sets the root's priors instead of a read on ``TurnFeatures``: the
+        robot's policy passes the Q-values of the real observation (its words, exact move order), which the
+        typical-turn features only approximate."""
         engine = self.engine
         turn = engine.turn(pos)
         for move in root_moves:  # A: a winning cell is taken at once
@@ -164,7 +208,7 @@ class GuidedMCTS:
         if len(moves) == 1:
             return moves[0], {moves[0]: 0}
         root = Node(pos, -1, -1)
-        self.expand(root, moves)
+        self.expand(root, moves, None if root_q is None else [root_q[m] for m in moves])
         rand = rng.random
         run_search(root, self.simulations, rand, self.policy, self.evaluator)
         return self.policy.choose(root, rand), visits_by_move(root)
@@ -194,42 +238,66 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
     """The robot's eval-time policy: the greedy dialogue policy, with every game move chosen by ``GuidedMCTS``.
 
     Dialogue acts stay the greedy policy's; on rows where ``action_mask`` allows game moves the search replaces
-    the action (its root moves are exactly those cells). Ultimate owners come from the temporal features when
-    the observation has them (exact), else from the board.
+    the action. The root is searched over the moves of ``root_key``: by default the agent's own ``greedy_mask``
+    (its look-ahead masks, as in greedy play: the search only reorders what the greedy policy could choose),
+    or ``action_mask`` (every legal move; the search's own root masks then keep wins and skip immediate losses).
+    The root's priors are the Q-values of the real observation (``action_value``, computed by the greedy
+    chain). Ultimate owners come from the temporal features when the observation has them (exact), else from
+    the board.
+
+    ``searching`` ((B,) bool or None): rows whose game move is searched; the others keep the greedy move.
+    ``pipelines.evaluate.play_games`` sets it to the games still being counted, so no search is spent on the
+    extra games of slots that already finished. ``decisions`` / ``cpu_seconds`` count the searched moves and
+    their process CPU time (the cost per robot move that eval reports).
     """
 
     in_keys = ["observation", "action_mask", "board"]
     out_keys = ["action"]
 
-    def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0, prune=None) -> None:
+    def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0, prune=None,
+                 root_key: str = GREEDY_MASK_KEY) -> None:
         """``prune``: an optional k-step rule (``modules.deep_lookahead.KStepLookahead``); the root then skips the
         moves it proves lost by force, so the simulations are spent on moves that can still be saved."""
         super().__init__()
-        self.greedy, self.search, self.prune = greedy, search, prune
+        if root_key not in ROOT_KEYS:
+            raise ValueError(f"root_key must be one of {', '.join(ROOT_KEYS)}, got {root_key!r}")
+        self.greedy, self.search, self.prune, self.root_key = greedy, search, prune, root_key
         self.generator = torch.Generator().manual_seed(int(seed))
+        self.searching: torch.Tensor | None = None
+        self.decisions, self.cpu_seconds = 0, 0.0
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tensordict = self.greedy(tensordict)
         cells = self.search.cells
-        moves = tensordict.get("action_mask")[:, :cells]
-        rows = moves.any(-1).nonzero().flatten().tolist()
+        legal = tensordict.get(AVAILABLE_KEY)[:, :cells]
+        playing = legal.any(-1)
+        if self.searching is not None:
+            playing = playing & self.searching
+        rows = playing.nonzero().flatten().tolist()
         if not rows:
             return tensordict
+        started = time.process_time()
+        moves = tensordict.get(self.root_key)[:, :cells] & legal
+        moves = torch.where(moves.any(-1, keepdim=True), moves, legal)
         boards = tensordict.get("board")
         order = move_order(tensordict.get("observation"), boards) if cells == 81 else None
+        q_rows = tensordict.get(ACTION_VALUE_KEY)[:, :cells].tolist()
         action = tensordict.get("action").clone()
         seeds = torch.randint(0, 2**62, (len(rows),), generator=self.generator).tolist()
         board_rows = boards.tolist()
         if self.prune is not None:
-            lost = self.prune.forced_losses(tensordict, tensordict.get("action_mask"))[:, :cells]
+            lost = self.prune.forced_losses(tensordict, tensordict.get(AVAILABLE_KEY))[:, :cells]
             survivors = moves & ~lost
             moves = torch.where(survivors.any(-1, keepdim=True), survivors, moves)
         for row, seed in zip(rows, seeds):
             owners = owners_from_order(board_rows[row], order[row].tolist()) if order is not None else None
             pos = self.search.engine.from_board(board_rows[row], 1, -1, owners)
             root_moves = moves[row].nonzero().flatten().tolist()
-            action[row], _ = self.search.search(pos, root_moves, random.Random(seed))
+            root_q = {m: q_rows[row][m] for m in root_moves}
+            action[row], _ = self.search.search(pos, root_moves, random.Random(seed), root_q)
         tensordict.set("action", action)
+        self.decisions += len(rows)
+        self.cpu_seconds += time.process_time() - started
         return tensordict
 
 

@@ -30,9 +30,12 @@ class EvalResult:
     avg_reward: float  # per action, as the paper
     avg_return: float  # per game
     avg_length: float  # actions per game
+    search_decisions: int | None = None  # with --search: robot game moves chosen by the search
+    search_cpu_s_per_decision: float | None = None  # their process CPU seconds per move
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The metrics; the search's cost only when a search played."""
+        return {key: value for key, value in asdict(self).items() if value is not None}
 
 
 def wilson_interval(successes: int, trials: int, z: float = 1.96) -> list[float]:
@@ -87,6 +90,8 @@ def play_games(make_env, policy, games: int, *, logger=None,
         td = env.reset()
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             while counting.any():
+                if hasattr(policy, "searching"):  # a searching policy spends no search on uncounted games
+                    policy.searching = counting
                 td = policy(td)
                 td, next_root = env.step_and_maybe_reset(td)
                 if logger is not None:
@@ -100,6 +105,8 @@ def play_games(make_env, policy, games: int, *, logger=None,
                 counting &= ~done
                 td = next_root
         env.close()
+        if hasattr(policy, "searching"):
+            policy.searching = None
         outcomes.append(slot_outcome)
         returns.append(slot_return)
         lengths.append(slot_length)
@@ -149,8 +156,14 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     else:
         config, policy = load_agent(checkpoint_path)
     if mcap_dir is None:
-        return evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent)
-    from logs import EpisodeLogger
+        result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent)
+    else:
+        from logs import EpisodeLogger
 
-    with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
-        return evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent, logger=logger)
+        with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
+            result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent,
+                                    logger=logger)
+    if search:
+        result.search_decisions = policy.decisions
+        result.search_cpu_s_per_decision = policy.cpu_seconds / max(policy.decisions, 1)
+    return result

@@ -12,7 +12,8 @@ from envs.opponents.arena import play_match
 from modules.guided_mcts import parse_qmcts
 from pipelines.config import load_config
 from pipelines.evaluate import evaluate_agent
-from pipelines.agents import load_guided_agent, register_agent_opponent
+from modules.guided_mcts import GuidedMCTSPolicy
+from pipelines.agents import guided_search, load_agent, load_guided_agent, register_agent_opponent
 from pipelines.train import train
 from tests.learning_helpers import write_tiny_config
 
@@ -91,6 +92,49 @@ def test_guided_policy_plays_real_dialogues(ultimate_checkpoint):
     assert run(0).to_dict() == result.to_dict()
 
 
+class _CheckedPolicy(GuidedMCTSPolicy):
+    """The guided policy, checking after each step that its game moves keep the agent's own masks."""
+
+    def forward(self, tensordict):
+        searching = self.searching
+        tensordict = super().forward(tensordict)
+        legal = tensordict.get("action_mask")[:, :81]
+        rows = legal.any(-1) if searching is None else legal.any(-1) & searching
+        greedy_mask = tensordict.get("greedy_mask")
+        chosen = tensordict.get("action")
+        assert bool(greedy_mask[rows].gather(1, chosen[rows].view(-1, 1)).all()), "a searched move left the masks"
+        return tensordict
+
+
+@pytest.mark.parametrize("seat", ["first", "second"])
+def test_guided_policy_keeps_the_agents_masks_and_counts_only_scored_games(ultimate_checkpoint, seat):
+    """Every searched robot move lies in the agent's greedy mask (its look-ahead masks), from both seats, and the
+    search runs only while a slot's first game is being scored (its cost per move is what eval reports)."""
+    config, greedy = load_agent(ultimate_checkpoint)
+    policy = _CheckedPolicy(greedy, guided_search(config, greedy, 6), seed=3)
+    result = evaluate_agent(config, policy, games=6, seat=seat, seed=4, opponent="random")
+    assert result.games == 6 and policy.searching is None
+    # a robot game move per robot turn at most: the 6 scored games' robot actions bound the searched moves
+    assert 0 < policy.decisions <= round(result.avg_length * result.games)
+    assert policy.cpu_seconds > 0
+    unscored = _CheckedPolicy(greedy, guided_search(config, greedy, 6), seed=3)
+    unscored.searching = torch.zeros(4, dtype=torch.bool)
+    from pipelines.run_env import make_run_env
+
+    env = make_run_env(config.env, batch_size=4, seed=0, first="robot")
+    td = env.reset()
+    for _ in range(20):  # the dialogue's opening acts, until the robot has a game move to make
+        if bool(td["action_mask"][:, :81].any()):
+            break
+        td = env.step_and_maybe_reset(greedy(td))[1]
+    assert bool(td["action_mask"][:, :81].any())
+    td = unscored(td)
+    assert unscored.decisions == 0 and torch.equal(td["action"], greedy(td.clone())["action"])
+    unscored.searching = None
+    unscored(td)
+    assert unscored.decisions > 0
+
+
 def test_ncbot_eval_search_option(ultimate_checkpoint):
     """`ncbot eval CKPT --search N` plays the robot's moves with the guided search; bad budgets exit 2."""
     import json
@@ -99,6 +143,27 @@ def test_ncbot_eval_search_option(ultimate_checkpoint):
 
     done = ncbot("eval", ultimate_checkpoint, "--search", "4", "--games", "2", "--seat", "first", "--json")
     assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout.strip().splitlines()[-1])["games"] == 2
+    metrics = json.loads(done.stdout.strip().splitlines()[-1])
+    assert metrics["games"] == 2 and metrics["search_decisions"] > 0 and metrics["search_cpu_s_per_decision"] > 0
+    plain = ncbot("eval", ultimate_checkpoint, "--games", "2", "--seat", "first", "--json")
+    assert "search_decisions" not in json.loads(plain.stdout.strip().splitlines()[-1])
     bad = ncbot("eval", ultimate_checkpoint, "--search", "0", "--games", "2")
     assert bad.returncode == 2 and "--search must be a positive" in bad.stderr
+
+
+def test_search_reads_the_same_q_values_as_the_network(ultimate_checkpoint):
+    """The search's direct layer calls (``mlp_layers``) give exactly the network's numbers, on a played position."""
+    import random
+
+    config, greedy = load_agent(ultimate_checkpoint)
+    search = guided_search(config, greedy, 4)
+    assert search._layers is not None
+    engine, rand = search.engine, random.Random(0)
+    pos, last = engine.from_board([0] * 81, 1), -1
+    for _ in range(12):
+        last = rand.choice(engine.moves(pos))
+        pos = engine.play(pos, last)
+    moves = engine.moves(pos)
+    fast = search._q(pos, last, moves)
+    search._layers = None
+    assert search._q(pos, last, moves) == fast
