@@ -179,7 +179,9 @@ def test_a_damaged_newest_checkpoint_falls_back_to_the_older_one(tmp_path: Path)
 
 # ------------------------------------------------------------------------------------------------- run identity
 def test_a_second_run_into_a_busy_folder_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path: Path) -> None:
-    config = write_tiny_config(tmp_path, **LONG)
+    # the first run must outlive two CLI start-ups on a loaded machine (LONG's 20K frames did not, once): it is
+    # killed below anyway
+    config = write_tiny_config(tmp_path, **{**LONG, "collector": {"total_frames": 10_000_000, "frames_per_batch": 64}})
     run = tmp_path / "run"
     process = start_training(config, run)
     try:
