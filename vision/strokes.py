@@ -79,25 +79,48 @@ def _bezier(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray, n: int) -> np.ndarra
     return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * p1 + t**2 * p2
 
 
-def _pen_cross(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
-    tilt = np.deg2rad(rng.uniform(-22, 22))
+@dataclass(frozen=True)
+class CrossHand:
+    """How a hand draws a cross: two bowed arms about 90 degrees apart (ranges drawn per mark, per arm)."""
+
+    tilt_deg: float        # the whole mark turned by up to this
+    angle_sd: float        # each arm's angle off 45 / 135 degrees (normal sd, degrees)
+    length: tuple[float, float]  # arm length, in mark sizes
+    shift: float           # where along an arm the other one crosses it, +- this share of its length
+    bow: float             # the arm's bow, +- this share of its length
+    hook: float            # chance of a hook where the pen lifts ...
+    hook_length: float     # ... reaching up to this share of the arm
+    retrace: float = 0.0   # chance that an arm is gone over twice (a little off the first pass)
+
+
+PEN_CROSS = CrossHand(tilt_deg=22, angle_sd=9, length=(0.72, 1.15), shift=0.18, bow=0.14, hook=0.15, hook_length=0.1)
+# the pen cross drawn in a hurry: more tilt, bowed and uneven arms, an arm sometimes gone over twice
+HASTY_CROSS = CrossHand(tilt_deg=30, angle_sd=14, length=(0.6, 1.2), shift=0.25, bow=0.25, hook=0.25,
+                        hook_length=0.14, retrace=0.25)
+
+
+def _cross(size: float, width: float, rng: np.random.Generator, hand: CrossHand) -> list[Stroke]:
+    tilt = np.deg2rad(rng.uniform(-hand.tilt_deg, hand.tilt_deg))
     strokes = []
     for base in (45.0, 135.0):
-        angle = np.deg2rad(base + rng.normal(0, 9)) + tilt
-        length = size * rng.uniform(0.72, 1.15)
+        angle = np.deg2rad(base + rng.normal(0, hand.angle_sd)) + tilt
+        length = size * rng.uniform(*hand.length)
         along = np.array([np.cos(angle), np.sin(angle)])
         normal = np.array([-along[1], along[0]])
-        shift = rng.uniform(-0.18, 0.18) * length  # where along this stroke the other one crosses it
+        shift = rng.uniform(-hand.shift, hand.shift) * length  # where along this stroke the other one crosses it
         p0 = -along * (length / 2 + shift)
         p2 = along * (length / 2 - shift)
-        p1 = (p0 + p2) / 2 + normal * rng.uniform(-0.14, 0.14) * length
-        points = _bezier(p0, p1, p2, 24)
-        if rng.random() < 0.5:
-            points = points[::-1]
-        if rng.random() < 0.15:  # a hook where the pen lifts
-            hook_dir = normal * rng.choice([-1, 1]) - along * 0.5
-            points = np.concatenate([points, points[-1] + hook_dir * np.linspace(0.03, 0.1, 3)[:, None] * length])
-        strokes.append(Stroke(points, _pressure_widths(len(points), width, rng)))
+        for _ in range(2 if hand.retrace and rng.random() < hand.retrace else 1):
+            p1 = (p0 + p2) / 2 + normal * rng.uniform(-hand.bow, hand.bow) * length
+            points = _bezier(p0, p1, p2, 24)
+            if rng.random() < 0.5:
+                points = points[::-1]
+            if rng.random() < hand.hook:  # a hook where the pen lifts
+                hook_dir = normal * rng.choice([-1, 1]) - along * 0.5
+                points = np.concatenate([points, points[-1] + hook_dir * np.linspace(0.03, hand.hook_length, 3)[:, None] * length])
+            strokes.append(Stroke(points, _pressure_widths(len(points), width, rng)))
+            if hand.retrace:  # a second pass starts a little off the first
+                p0, p2 = p0 + rng.normal(0, 0.04 * size, 2), p2 + rng.normal(0, 0.04 * size, 2)
     if rng.random() < 0.5:
         strokes.reverse()
     return strokes
@@ -167,32 +190,6 @@ def _hasty_nought(size: float, width: float, rng: np.random.Generator) -> list[S
     rot = np.array([[np.cos(tilt), -np.sin(tilt)], [np.sin(tilt), np.cos(tilt)]])
     points = np.stack([x, y], axis=1) @ rot.T
     return [Stroke(points, _pressure_widths(len(points), width, rng))]
-
-
-def _hasty_cross(size: float, width: float, rng: np.random.Generator) -> list[Stroke]:
-    """The pen cross drawn in a hurry: more tilt, bowed and uneven arms, an arm sometimes gone over twice."""
-    tilt = np.deg2rad(rng.uniform(-30, 30))
-    strokes = []
-    for base in (45.0, 135.0):
-        angle = np.deg2rad(base + rng.normal(0, 14)) + tilt
-        length = size * rng.uniform(0.6, 1.2)
-        along = np.array([np.cos(angle), np.sin(angle)])
-        normal = np.array([-along[1], along[0]])
-        shift = rng.uniform(-0.25, 0.25) * length
-        p0, p2 = -along * (length / 2 + shift), along * (length / 2 - shift)
-        for _ in range(2 if rng.random() < 0.25 else 1):
-            p1 = (p0 + p2) / 2 + normal * rng.uniform(-0.25, 0.25) * length
-            points = _bezier(p0, p1, p2, 24)
-            if rng.random() < 0.5:
-                points = points[::-1]
-            if rng.random() < 0.25:
-                hook_dir = normal * rng.choice([-1, 1]) - along * 0.5
-                points = np.concatenate([points, points[-1] + hook_dir * np.linspace(0.03, 0.14, 3)[:, None] * length])
-            strokes.append(Stroke(points, _pressure_widths(len(points), width, rng)))
-            p0, p2 = p0 + rng.normal(0, 0.04 * size, 2), p2 + rng.normal(0, 0.04 * size, 2)
-    if rng.random() < 0.5:
-        strokes.reverse()
-    return strokes
 
 
 def _marker_widths(n: int, width: float) -> np.ndarray:
@@ -285,11 +282,11 @@ def mark_strokes(kind: str, size: float, rng: np.random.Generator, width: float 
     elif width is None:  # mostly ballpoint; sometimes a felt-tip, which makes a small mark nearly a blob
         width = max(1.0, size * (rng.uniform(0.035, 0.10) if rng.random() < 0.85 else rng.uniform(0.10, 0.16)))
     if style == "pen":
-        return _pen_nought(size, width, rng) if kind == "nought" else _pen_cross(size, width, rng)
+        return _pen_nought(size, width, rng) if kind == "nought" else _cross(size, width, rng, PEN_CROSS)
     if style == "sketch":
         return _sketch_nought(size, width, rng) if kind == "nought" else _sketch_cross(size, width, rng)
     if style == "hasty":
-        return _hasty_nought(size, width, rng) if kind == "nought" else _hasty_cross(size, width, rng)
+        return _hasty_nought(size, width, rng) if kind == "nought" else _cross(size, width, rng, HASTY_CROSS)
     if style == "marker":
         return _marker_nought(size, width, rng) if kind == "nought" else _marker_cross(size, width, rng)
     raise ValueError(f"stroke style {style!r} has no polylines; expected one of {tuple(s for s in STYLES if s != 'hershey')}")
