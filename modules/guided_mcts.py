@@ -27,7 +27,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from envs.opponents.base import Opponent
-from envs.opponents.bitboards import CELL_OF, ONGOING, StandardBits, UltimateBits, make_bits
+from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
@@ -109,9 +109,6 @@ class QGuidedEvaluator:
         return weight * (1.0 - v_q) + (1.0 - weight) * self.rollout.evaluate(node, rand)
 
 
-SQUARES_OF_MASK = tuple(tuple(p for p in range(9) if mask >> p & 1) for mask in range(512))  # 9-bit set -> squares
-
-
 def mlp_layers(qnet: nn.Module) -> list[list] | None:
     """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``modules.qnet``), None otherwise.
 
@@ -158,8 +155,7 @@ class GuidedMCTS:
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
         """(cells of the side to move, cells of the other side) of a bitboard position."""
         if self.cells == 9:
-            sides = (pos[0], pos[1])
-            lists = ([c for c in range(9) if sides[0] >> c & 1], [c for c in range(9) if sides[1] >> c & 1])
+            lists = (list(SQUARES_OF_MASK[pos[0]]), list(SQUARES_OF_MASK[pos[1]]))
         else:
             lists = tuple([CELL_OF[k][p] for k in range(9) for p in SQUARES_OF_MASK[subs[k]]] for subs in (pos[0], pos[1]))
         turn = self.engine.turn(pos)

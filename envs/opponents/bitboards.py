@@ -21,6 +21,7 @@ FULL = 0b111111111
 LINE_MASKS = tuple(sum(1 << i for i in line) for line in LINES_3X3)
 IS_LINE = tuple(any(mask & line == line for line in LINE_MASKS) for mask in range(512))
 FREE_SQUARES = tuple(tuple(p for p in range(9) if not mask >> p & 1) for mask in range(512))
+SQUARES_OF_MASK = tuple(FREE_SQUARES[FULL ^ mask] for mask in range(512))  # 9-bit set -> its squares
 N_FREE = tuple(len(squares) for squares in FREE_SQUARES)
 CELL_OF = tuple(tuple(row) for row in SUBGRID_CELLS)  # (subgrid, square) -> full-grid cell
 SUBGRID_OF = SUBGRID_OF_CELL  # cell -> its subgrid
