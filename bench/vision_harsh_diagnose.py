@@ -11,11 +11,11 @@ import sys, collections, json
 import cv2, numpy as np
 from vision.data import HARSH_TUNING_SEED
 from vision.data.frames import random_scene, random_board, render
-from vision.grid import (_grid_lines, _remove_lines, denoise, PAGE_SIDE, DEFAULT_RHO, CELL_FLATTEN, CELL_INSET)
-from vision.illumination import balance_frame, flatten
+from vision.grid import _grid_lines, cut_cells, PAGE_SIDE, DEFAULT_RHO
+from vision.illumination import balance_frame
 from vision.page import locate_balanced_page
-from vision.lattice import lattice, remap_cells
-from vision.labels import CELL_SIZE, LABELS
+from vision.lattice import lattice
+from vision.labels import LABELS
 from vision.classifier import load_classifier
 from vision.grid import cell_probabilities
 import torch; torch.set_num_threads(1)
@@ -27,15 +27,7 @@ clf = load_classifier()
 rho = DEFAULT_RHO[grid]
 
 def cut(frame, crossings):
-    gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
-    gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
-    cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
-    for r in range(grid):
-        for c in range(grid):
-            x0, x1 = int(round(c*rho + CELL_INSET*rho)), int(round((c+1)*rho - CELL_INSET*rho))
-            y0, y1 = int(round(r*rho + CELL_INSET*rho)), int(round((r+1)*rho - CELL_INSET*rho))
-            cells[r*grid+c] = cv2.resize(gray[y0:y1, x0:x1], (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
-    return cells
+    return cut_cells(frame, crossings, grid, rho)[0]
 
 counts = collections.Counter(); conf = collections.Counter(); oconf = collections.Counter()
 total = 0; per_photo = []
@@ -48,10 +40,7 @@ for i in range(start, start + n):
     image = render(scene, board, rng)
     truth = np.array([LABELS.index({"x": "cross", "o": "nought", "": "nothing"}[s]) for s in board])
     total += len(truth)
-    left, top, side = scene.grid_rect
-    g = np.linspace(0, side, grid + 1)
-    pts = np.stack(np.meshgrid(left + g, top + g), -1).reshape(1, -1, 2).astype(np.float32)
-    true_x = scene._through_lens(cv2.perspectiveTransform(pts, scene.homography)[0]).reshape(grid+1, grid+1, 2)
+    true_x = scene.grid_crossings()
     frame = balance_frame(image)
     oracle = cell_probabilities(clf, cut(frame, true_x)).argmax(1)
     corners, mask = locate_balanced_page(frame)

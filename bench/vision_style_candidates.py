@@ -60,30 +60,18 @@ def true_crossing_crops(grid: int, n: int, seed: int, styles: tuple[str, ...]) -
     """Cells cut at the photos' TRUE grid-line crossings (as bench/vision_harsh_diagnose.py: the classifier's
     part alone, the reader's geometry errors left out)."""
     from vision.data.frames import random_board, random_scene, render
-    from vision.grid import CELL_FLATTEN, CELL_INSET, DEFAULT_RHO, _remove_lines, denoise
-    from vision.illumination import balance_frame, flatten
-    from vision.lattice import remap_cells
+    from vision.grid import DEFAULT_RHO, cut_cells
+    from vision.illumination import balance_frame
 
-    rho = DEFAULT_RHO[grid]
     cells, truth = [], []
     for i in range(n):
         rng = np.random.default_rng(seed + i)
         scene = random_scene(grid, rng, 640, 480, styles, "harsh")
         board = random_board(grid, rng)
         image = render(scene, board, rng)
-        left, top, side = scene.grid_rect
-        g = np.linspace(0, side, grid + 1)
-        pts = np.stack(np.meshgrid(left + g, top + g), -1).reshape(1, -1, 2).astype(np.float32)
-        crossings = scene._through_lens(cv2.perspectiveTransform(pts, scene.homography)[0]).reshape(grid + 1, grid + 1, 2)
-        gray = cv2.cvtColor(remap_cells(balance_frame(image), crossings, rho), cv2.COLOR_BGR2GRAY)
-        gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
-        inset = int(round(CELL_INSET * rho))
-        for r in range(grid):
-            for c in range(grid):
-                crop = gray[r * rho + inset:(r + 1) * rho - inset, c * rho + inset:(c + 1) * rho - inset]
-                cells.append(cv2.resize(crop, (40, 40), interpolation=cv2.INTER_AREA))
+        cells.append(cut_cells(balance_frame(image), scene.grid_crossings(), grid, DEFAULT_RHO[grid])[0])
         truth.extend(_INDEX[s] for s in board)
-    return {"cells": np.stack(cells), "truth": np.array(truth), "read": np.ones(len(truth), bool), "grid": np.array(grid)}
+    return {"cells": np.concatenate(cells), "truth": np.array(truth), "read": np.ones(len(truth), bool), "grid": np.array(grid)}
 
 
 def crop_sets(n9: int, n3: int) -> dict[str, dict[str, np.ndarray]]:

@@ -223,6 +223,25 @@ def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.n
     return out
 
 
+def cut_cells(frame: np.ndarray, crossings: np.ndarray, grid: int, rho: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n*n, 40, 40) cells and the grid warp they were cut from (lines removed), for a white-balanced BGR frame
+    and the grid-line crossings (grid+1, grid+1, 2) in it: the reader's own cut, also used at known crossings
+    (the benches' "true crossings", which leave the reader's geometry out)."""
+    gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
+    gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
+    # each cell is rho x rho in this warp: the lattice already holds the uneven boundaries
+    gx = gy = np.arange(grid + 1, dtype=np.float64) * rho
+    cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
+    for r in range(grid):
+        for c in range(grid):
+            w, h = gx[c + 1] - gx[c], gy[r + 1] - gy[r]
+            x0, x1 = int(round(gx[c] + CELL_INSET * w)), int(round(gx[c + 1] - CELL_INSET * w))
+            y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
+            crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
+            cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+    return cells, gray
+
+
 def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> PageCells:
     """Find the sheet and grid in a BGR frame and cut the cells; raises ValueError if either is missing."""
     check_grid(grid)
@@ -254,18 +273,7 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     from_page = np.linalg.inv(to_page)
     crossings = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), from_page).reshape(grid + 1, grid + 1, 2)
     grid_frame = crossings[[0, 0, -1, -1], [0, -1, -1, 0]].astype(np.float32)
-    gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
-    gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
-    # each cell is rho x rho in this warp: the lattice already holds the uneven boundaries
-    gx = gy = np.arange(grid + 1, dtype=np.float64) * rho
-    cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
-    for r in range(grid):
-        for c in range(grid):
-            w, h = gx[c + 1] - gx[c], gy[r + 1] - gy[r]
-            x0, x1 = int(round(gx[c] + CELL_INSET * w)), int(round(gx[c + 1] - CELL_INSET * w))
-            y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
-            crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
-            cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+    cells, gray = cut_cells(frame, crossings, grid, rho)
     return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
                      rim_fraction(rim_foreign), rim_foreign, corners, grid_frame, gray)
 

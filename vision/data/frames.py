@@ -66,6 +66,14 @@ class Scene:
         pts = np.array([[0, 0], [w, 0], [w, h], [0, h]], np.float32)[None]
         return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0])
 
+    def grid_crossings(self) -> np.ndarray:
+        """The grid-line crossings as they lie in the frame (lens included), float32 (grid+1, grid+1, 2): the
+        truth the reader's lattice estimates."""
+        left, top, side = self.grid_rect
+        g = np.linspace(0, side, self.grid + 1)
+        pts = np.stack(np.meshgrid(left + g, top + g), -1).reshape(1, -1, 2).astype(np.float32)
+        return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0]).reshape(self.grid + 1, self.grid + 1, 2)
+
     def _through_lens(self, points: np.ndarray) -> np.ndarray:
         if self.harsh is None:
             return points
