@@ -42,7 +42,7 @@ def test_ladder_writes_table_json_and_png(tmp_path) -> None:
     assert all(r["win"] == 0 for r in rows if r["opponent"] == "minimax")
     files = result["files"]
     markdown = open(files["markdown"]).read()
-    assert "| minimax | second | 12 |" in markdown and "Goals (issue 6)" in markdown
+    assert "| minimax | second | 12 |" in markdown and "Goals (issues 6 and 17;" in markdown
     saved = json.loads(open(files["json"]).read())
     assert saved["rows"] == json.loads(json.dumps(rows)) and saved["game"] == "standard"
     import matplotlib.image
@@ -75,7 +75,19 @@ def test_goals_follow_the_issue() -> None:
     assert not goal["met"] and goal["value"] == "1 losses"
     rows = [{"opponent": "mcts:100", "seat": s, "games": 10, "win": w, "draw": 0.0, "loss": 1 - w, "score": w}
             for s, w in (("first", 0.7), ("second", 0.4))]
-    assert check_goals("ultimate", rows) == [{"goal": "score >= 0.5 against mcts:100", "met": True, "value": "0.550"}]
+    (goal,) = check_goals("ultimate", rows)
+    assert goal["goal"] == "score >= 0.5 against mcts:100" and goal["met"]
+    assert goal["value"] == "0.550 [0.342, 0.742] over 20 games" and goal["verdict"] == "undecided"  # 20 games do not decide it
+    rows = [{"opponent": "mcts:1000", "seat": s, "games": 100, "win": w, "draw": 0.1, "loss": 0.9 - w, "score": w + 0.05,
+             "search_cpu_s_per_move": t} for s, w, t in (("first", 0.9, 0.12), ("second", 0.8, 0.25))]
+    score, budget = check_goals("ultimate", rows)
+    assert score["verdict"] == "met" and score["value"].startswith("0.900 [0.851, 0.934]")  # the lower bound clears 0.75
+    assert budget["verdict"] == "missed" and budget["value"] == "0.250 s in the slowest match"
+    rows[1]["score"] = 0.6
+    assert check_goals("ultimate", rows)[0]["verdict"] == "undecided"
+    for row in rows:
+        row["score"] = 0.6
+    assert check_goals("ultimate", rows)[0]["verdict"] == "missed"
 
 
 def test_cli_errors_are_one_line(tmp_path) -> None:
@@ -182,4 +194,8 @@ def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
     result = run_ladder(str(checkpoint), games=4, opponents=["rule"], seed=0, search=3, out_dir=str(tmp_path / "s"),
                         progress=False)
     assert "Robot decides by: Q-guided MCTS 3 sims, masks one_step." in result["markdown"]
-    assert json.loads(open(result["files"]["json"]).read())["search"] == 3
+    summary = json.loads(open(result["files"]["json"]).read())
+    assert summary["search"] == 3
+    for row in summary["rows"]:  # each match's own searched moves (not a running total) and their CPU per move
+        assert 4 <= row["search_moves"] <= 4 * 5 and 0 < row["search_cpu_s_per_move"] < 1
+    assert summary["goals"][-1]["goal"] == "<= 0.2 CPU s per searched move (one core)"
