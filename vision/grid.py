@@ -12,6 +12,7 @@ own four grid-line crossings (vision.lattice), straight from the frame at rho pi
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -35,6 +36,11 @@ NOISE_BLUR = 0.35             # Gaussian sigma per gray level of step beyond tha
 NOISE_BLUR_MAX = 1.2          # ... up to this many pixels
 CELL_FLATTEN = 1.0             # of a cell: the paper shade under the cells is a grey closing this wide (no mark fits)
 PAGE_RIM = 0.02               # of the page warp's side: no grid line lies this close to the page's edge
+LINE_GAP = 0.025              # of the page warp's side: gaps this long in a missing 3x3 line's ink are bridged
+WEAK_LINE = 0.2               # of the strongest line's ink: a weaker straight run is a mark's stroke, not the grid
+END_MATCH = 0.35              # of a cell: a line end no further inside than this from where even spacing puts
+                              # a 3x3 grid's edge may be that edge (a broken line ends further inside)
+FRAME_MATCH = 0.15            # of a cell: lines ending this close to a crossing line end at the grid's frame
 UNSURE_MARGIN = 0.5            # SVM score gap below which a cell is looked at again, turned and mirrored
 
 
@@ -60,11 +66,15 @@ class PageReading(PageCells):
     probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (n*n, 3), order LABELS
 
 
-def _line_mask(ink: np.ndarray, length: int, horizontal: bool, thicken: int = 3) -> np.ndarray:
-    """Ink that forms straight lines at least `length` long (thickened across so slight tilts survive)."""
+def _line_mask(ink: np.ndarray, length: int, horizontal: bool, thicken: int = 3, bridge: int = 0) -> np.ndarray:
+    """Ink that forms straight lines at least `length` long (thickened across so slight tilts survive;
+    gaps up to `bridge` pixels along the line closed first: a faint or streaked pen line thresholds in dashes)."""
     across = np.ones((thicken, 1) if horizontal else (1, thicken), np.uint8)
     along = np.ones((1, length) if horizontal else (length, 1), np.uint8)
-    return cv2.morphologyEx(cv2.dilate(ink, across), cv2.MORPH_OPEN, along)
+    thick = cv2.dilate(ink, across)
+    if bridge > 1:
+        thick = cv2.morphologyEx(thick, cv2.MORPH_CLOSE, np.ones((1, bridge) if horizontal else (bridge, 1), np.uint8))
+    return cv2.morphologyEx(thick, cv2.MORPH_OPEN, along)
 
 
 def _ink(gray: np.ndarray, block: int) -> np.ndarray:
@@ -81,19 +91,58 @@ def _bands(profile: np.ndarray, minimum: float) -> list[tuple[int, int]]:
     return [(int(run[0]), int(run[-1]) + 1) for run in np.split(on, splits)]
 
 
-def _lines(mask: np.ndarray, min_length: float) -> tuple[list[float], float, float]:
-    """Centres of the horizontal lines in a line mask, and the medians of their left and right ends."""
+class Line(NamedTuple):
+    """One straight ink line of a line mask: its centre across, where it starts and ends along, its ink."""
+
+    centre: float
+    start: float
+    end: float
+    ink: float
+
+
+def _lines(mask: np.ndarray, min_length: float) -> list[Line]:
+    """The horizontal lines of a line mask, without weak scraps: a stroke of a mark or a smudge that happens
+    to run straight for min_length makes a thin band of little ink, and four lines (two of them scraps)
+    would pass for a framed grid (`_framed`)."""
     profile = mask.sum(axis=1) / 255.0
-    centres, starts, ends = [], [], []
+    found = []
     for a, b in _bands(profile, min_length):
         hits = np.flatnonzero(mask[a:b].any(axis=0))
         weights = profile[a:b]
-        centres.append(float((np.arange(a, b) * weights).sum() / weights.sum()))
-        starts.append(hits[0])
-        ends.append(hits[-1] + 1)
-    if not centres:
-        return [], 0.0, 0.0
-    return centres, float(np.median(starts)), float(np.median(ends))
+        found.append(Line(float((np.arange(a, b) * weights).sum() / weights.sum()), float(hits[0]),
+                          float(hits[-1] + 1), float(weights.sum())))
+    if not found:
+        return []
+    strongest = max(line.ink for line in found)
+    return [line for line in found if line.ink >= WEAK_LINE * strongest]
+
+
+def _edges(along: list[Line], across: list[Line], grid: int) -> tuple[float, float]:
+    """A 3x3 grid's extent along one axis from the lines running along it (`along`: where they start and
+    end) and its two inner lines crossing it (`across`: their centres).
+
+    A line's end is where a shadow's edge, a faint stretch of pen or a motion streak broke it off, so the
+    median end of a 3x3 grid's two lines is pulled inwards when one of them breaks short. Even spacing of
+    the inner lines says where each edge should lie: the line end nearest to that, of those not clearly
+    short of it, is the edge (a hand-drawn # is uneven and overshoots); when every line stops short, the
+    prediction, unless they stop at a crossing line and none goes past it (then that line is a frame)."""
+    starts, ends = [line.start for line in along], [line.end for line in along]
+    median = (float(np.median(starts)), float(np.median(ends)))
+    if grid != 3 or len(across) != 2:  # 9x9: n-1 lines found are often not the inner ones (a frame, a gap)
+        return median
+    low, high = sorted(line.centre for line in across)
+    step = high - low
+    if step <= 0:
+        return median
+    reach = END_MATCH * step
+    near = [e for e in starts if e <= low - step + reach]
+    far = [e for e in ends if e >= high + step - reach]
+    frame = FRAME_MATCH * step  # lines that stop at a crossing line, none going past it: that line is a frame
+    framed0 = min(starts) > low - frame and any(abs(e - low) < frame for e in starts)
+    framed1 = max(ends) < high + frame and any(abs(e - high) < frame for e in ends)
+    edge0 = min(near, key=lambda e: abs(e - (low - step))) if near else (median[0] if framed0 else low - step)
+    edge1 = min(far, key=lambda e: abs(e - (high + step))) if far else (median[1] if framed1 else high + step)
+    return float(edge0), float(edge1)
 
 
 def _snap(start: float, stop: float, n: int, found: list[float]) -> np.ndarray:
@@ -120,25 +169,37 @@ def _grid_lines(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarra
     ink = _ink(flatten(page_gray, side // 16), side // 12)
     min_length = side / 5
     thicken = max(3, side // 50) | 1  # hand-drawn grid lines slant and bow by a few pixels
-    horizontal = _line_mask(ink, int(min_length), True, thicken)
-    vertical = _line_mask(ink, int(min_length), False, thicken)
     # a sliver of table along the warp's border (a curled sheet's edge bows out of the page quad) is a long
     # dark straight line too, but the grid never reaches the very edge of the page
     rim = max(3, int(PAGE_RIM * side))
-    horizontal[:rim], horizontal[-rim:], vertical[:, :rim], vertical[:, -rim:] = 0, 0, 0, 0
-    rows, x0, x1 = _lines(horizontal, min_length)
-    cols, y0, y1 = _lines(vertical.T, min_length)
-    if not rows or not cols or x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
+
+    def lines(horizontal: bool, bridge: int = 0) -> list[Line]:
+        mask = _line_mask(ink, int(min_length), horizontal, thicken, bridge)
+        mask = mask if horizontal else mask.T  # rows of a horizontal mask, columns of a vertical one
+        mask[:rim], mask[-rim:] = 0, 0
+        return _lines(mask, min_length)
+
+    rows, cols = lines(True), lines(False)
+    # a 3x3 grid has only two inner lines a way: one that a motion streak or a dim stretch left in dashes
+    # is looked for again with its gaps bridged (only then: bridging everywhere joins grain into "lines")
+    if grid == 3 and len(rows) < 2:
+        rows = lines(True, int(LINE_GAP * side))
+    if grid == 3 and len(cols) < 2:
+        cols = lines(False, int(LINE_GAP * side))
+    if not rows or not cols:
         return None
-    x0, x1 = _framed(cols, grid, (x0, x1))
-    y0, y1 = _framed(rows, grid, (y0, y1))
-    return _snap(x0, x1, grid, cols), _snap(y0, y1, grid, rows), ink
+    x0, x1 = _framed(cols, grid, _edges(rows, cols, grid))
+    y0, y1 = _framed(rows, grid, _edges(cols, rows, grid))
+    if x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
+        return None
+    return _snap(x0, x1, grid, [c.centre for c in cols]), _snap(y0, y1, grid, [r.centre for r in rows]), ink
 
 
-def _framed(centres: list[float], grid: int, ends: tuple[float, float]) -> tuple[float, float]:
+def _framed(lines: list[Line], grid: int, ends: tuple[float, float]) -> tuple[float, float]:
     """The grid's extent along one axis: its outer frame lines when exactly n+1 evenly spaced lines were
     found (a mark sitting on a frame line or a shadow breaks the lines' ends, never their centres), else
-    the median ends of the lines."""
+    the ends found by `_edges`."""
+    centres = [line.centre for line in lines]
     if len(centres) != grid + 1:
         return ends
     gaps = np.diff(np.sort(centres))
@@ -218,7 +279,9 @@ def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.n
     out = np.zeros(n * n, bool)
     for r in range(n):
         for c in range(n):
-            block = foreign[int(ys[r]):int(np.ceil(ys[r + 1])), int(xs[c]):int(np.ceil(xs[c + 1]))]
+            # an edge predicted from even spacing may lie past the warp's border (a page found cropped)
+            block = foreign[max(0, int(ys[r])):max(0, int(np.ceil(ys[r + 1]))),
+                            max(0, int(xs[c])):max(0, int(np.ceil(xs[c + 1])))]
             out[r * n + c] = block.size > 0 and block.mean() > OCCLUSION_FRACTION
     return out
 
