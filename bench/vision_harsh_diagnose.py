@@ -1,11 +1,13 @@
 """Where harsh-photo reading errors come from, counted by cause, on the TUNING split only (docs/vision.md).
 
-    python bench/vision_harsh_diagnose.py GRID N [START] [STYLES]      e.g. 9 200 0 pen
+    python bench/vision_harsh_diagnose.py GRID N [START] [STYLES] [CROPS.png]      e.g. 9 200 0 pen
 
 Every photo's true grid-line crossings are known (the generator's homography and lens), so each wrong cell
-is put down to: page or grid not found; the fitted lattice > 0.15 cell off at one of the cell's corners; a
+is put down to: page or grid not found; the fitted lattice > 0.15 cell off at one of the cell's corners (split
+by whether the page's corners were found more than half a cell off: then the page finder, else the grid); a
 smaller geometric error (right when cut at the true crossings); or the classifier (wrong even at the true
-crossings). Also prints errors by motion-blur length. Never run it on HARSH_HELDOUT_SEED.
+crossings). Also prints errors by motion-blur length, and with CROPS.png draws every wrong cell as the reader
+cut it beside the same cell cut at the true crossings. Never run it on HARSH_HELDOUT_SEED.
 """
 import sys, collections, json
 import cv2, numpy as np
@@ -22,6 +24,8 @@ import torch; torch.set_num_threads(1)
 
 grid = int(sys.argv[1]); n = int(sys.argv[2]); start = int(sys.argv[3]) if len(sys.argv) > 3 else 0
 styles = tuple(sys.argv[4].split("+")) if len(sys.argv) > 4 else ("pen",)
+crops_png = sys.argv[5] if len(sys.argv) > 5 else None
+tiles = []
 base = HARSH_TUNING_SEED + 100_000 * grid
 clf = load_classifier()
 rho = DEFAULT_RHO[grid]
@@ -62,14 +66,19 @@ for i in range(start, start + n):
     cr = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), np.linalg.inv(to_page)).reshape(grid+1, grid+1, 2)
     step = np.linalg.norm(true_x[0, -1] - true_x[0, 0]) / grid
     err = np.linalg.norm(cr - true_x, axis=-1) / step  # in cells
-    pred = cell_probabilities(clf, cut(frame, cr)).argmax(1)
+    cells = cut(frame, cr)
+    pred = cell_probabilities(clf, cells).argmax(1)
     wrong = np.flatnonzero(pred != truth)
+    page_off = np.linalg.norm(corners - scene.page_corners(), axis=-1).max() / step > 0.5
+    if crops_png and len(wrong):
+        true_cells = cut(frame, true_x)
+        tiles += [np.hstack([cells[k], np.full((40, 2), 128, np.uint8), true_cells[k]]) for k in wrong]
     nw = 0
     for k in wrong:
         r, c = divmod(k, grid)
         e = err[r:r+2, c:c+2].max()
         if e > 0.15:
-            cause = "geometry>0.15cell"
+            cause = "geometry>0.15cell, page corners >0.5 cell off" if page_off else "geometry>0.15cell, page right"
         elif oracle[k] == truth[k]:
             cause = "geometry-small(oracle right)"
         else:
@@ -89,3 +98,9 @@ print("geom max err quantiles", np.quantile(errs_geo, [0.5, 0.9, 0.99, 1.0]).rou
 print("worst photos", sorted(per_photo, key=lambda t: -t[2])[:12])
 
 for k in sorted(bym): print("motion", k, bym[k])
+
+if crops_png and tiles:  # rows of 6: the reader's cut | the cut at the true crossings, 3x enlarged
+    rows = [tiles[j:j + 6] + [np.zeros_like(tiles[0])] * (6 - len(tiles[j:j + 6])) for j in range(0, len(tiles), 6)]
+    sheet = np.vstack([np.hstack([np.pad(t, 3, constant_values=0) for t in row]) for row in rows])
+    cv2.imwrite(crops_png, cv2.resize(sheet, None, fx=3, fy=3, interpolation=cv2.INTER_NEAREST))
+    print("wrong cells drawn:", crops_png)
