@@ -196,4 +196,4 @@ def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
     rows = [{"opponent": "openspiel-mcts:1000", "seat": seat, "games": 10, "score": score}
             for seat, score in (("first", 0.6), ("second", 0.3))]
     assert check_goals("ultimate", rows) == [{"goal": "score >= 0.5 against openspiel-mcts:1000", "met": False,
-                                              "value": "0.450"}]
+                                              "value": "0.450 [0.258, 0.658] over 20 games", "verdict": "undecided"}]
