@@ -75,10 +75,10 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
             "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
             "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
         }
-        if hasattr(chooser, "decisions"):  # the guided search counts its moves and their process CPU time
-            moves = chooser.decisions - searched[0]
-            row["search_moves"] = moves
-            row["search_cpu_s_per_move"] = (chooser.cpu_seconds - searched[1]) / max(moves, 1)
+        if hasattr(chooser, "decisions"):  # the guided search counts its moves and their CPU over every match
+            moves = chooser.decisions - searched[0]  # named as ncbot eval --json names them
+            row["search_decisions"] = moves
+            row["search_cpu_s_per_decision"] = (chooser.cpu_seconds - searched[1]) / max(moves, 1)
         rows.append(row)
         if bar is not None:
             bar.update(1)
@@ -124,9 +124,9 @@ def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 goals.append({"goal": f"score >= {target} against {name}", "met": points / played >= target,
                               "value": f"{points / played:.3f} [{low:.3f}, {high:.3f}] over {played} games",
                               "verdict": verdict})
-    searched = [r for r in rows if "search_cpu_s_per_move" in r]
+    searched = [r for r in rows if "search_cpu_s_per_decision" in r]
     if searched:
-        worst = max(r["search_cpu_s_per_move"] for r in searched)
+        worst = max(r["search_cpu_s_per_decision"] for r in searched)
         goals.append({"goal": f"<= {SEARCH_SECONDS_PER_MOVE} CPU s per searched move (one core)",
                       "met": worst <= SEARCH_SECONDS_PER_MOVE, "value": f"{worst:.3f} s in the slowest match",
                       "verdict": "met" if worst <= SEARCH_SECONDS_PER_MOVE else "missed"})
@@ -140,7 +140,7 @@ def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str,
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         low, high = r["task_success_ci95"]
-        cpu = f"{r['search_cpu_s_per_move']:.3f}" if "search_cpu_s_per_move" in r else "-"
+        cpu = f"{r['search_cpu_s_per_decision']:.3f}" if "search_cpu_s_per_decision" in r else "-"
         lines.append(f"| {r.get('policy', 'agent')} | {r['opponent']} | {r['seat']} | {r['games']} | {r['win']:.3f} | {r['draw']:.3f} | {r['loss']:.3f} | "
                      f"{r['score']:.3f} | {r['task_success']:.3f} ({low:.3f}-{high:.3f}) | {r['avg_length']:.1f} | {cpu} |")
     if goals:

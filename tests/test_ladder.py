@@ -79,7 +79,7 @@ def test_goals_follow_the_issue() -> None:
     assert goal["goal"] == "score >= 0.5 against mcts:100" and goal["met"]
     assert goal["value"] == "0.550 [0.342, 0.742] over 20 games" and goal["verdict"] == "undecided"  # 20 games do not decide it
     rows = [{"opponent": "mcts:1000", "seat": s, "games": 100, "win": w, "draw": 0.1, "loss": 0.9 - w, "score": w + 0.05,
-             "search_cpu_s_per_move": t} for s, w, t in (("first", 0.9, 0.12), ("second", 0.8, 0.25))]
+             "search_cpu_s_per_decision": t} for s, w, t in (("first", 0.9, 0.12), ("second", 0.8, 0.25))]
     score, budget = check_goals("ultimate", rows)
     assert score["verdict"] == "met" and score["value"].startswith("0.900 [0.851, 0.934]")  # the lower bound clears 0.75
     assert budget["verdict"] == "missed" and budget["value"] == "0.250 s in the slowest match"
@@ -197,5 +197,5 @@ def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
     summary = json.loads(open(result["files"]["json"]).read())
     assert summary["search"] == 3
     for row in summary["rows"]:  # each match's own searched moves (not a running total) and their CPU per move
-        assert 4 <= row["search_moves"] <= 4 * 5 and 0 < row["search_cpu_s_per_move"] < 1
+        assert 4 <= row["search_decisions"] <= 4 * 5 and 0 < row["search_cpu_s_per_decision"] < 1
     assert summary["goals"][-1]["goal"] == "<= 0.2 CPU s per searched move (one core)"
