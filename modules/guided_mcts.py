@@ -5,7 +5,8 @@ evaluator, on the opponents' bitboards, with three inputs from the agent:
 - priors: softmax(Q / temperature) over the legal cells of the side to move, read from the Q-network on the
   features of a typical game turn seen from that side (``TurnFeatures``);
 - values: a leaf is scored by ``value_weight * v_Q + (1 - value_weight) * random playout``, where
-  v_Q = (clip(max Q, -5, 5) / 5 + 1) / 2 maps the paper's reward scale (+5 win / -5 loss) to [0, 1];
+  v_Q = (clip(max Q, -5, 5) / 5 + 1) / 2 maps the paper's reward scale (+5 win / -5 loss) to [0, 1]; or, given a
+  ``value_net`` (Ultimate, ``modules.value_net``), by that network alone (no playout);
 - the root keeps the paper's one-step masks: a winning cell is taken at once, and cells after which the other
   side wins at once are searched only when every cell is such (Algorithm 2's A and A_hat).
 
@@ -32,6 +33,7 @@ from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_s
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 from modules.qnet import ACTION_VALUE_KEY
+from modules.value_net import ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
 
@@ -131,11 +133,12 @@ def mlp_layers(qnet: nn.Module) -> list[list] | None:
 class GuidedMCTS:
     """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
 
-    The loop is ``envs.opponents.search.run_search`` with ``PUCT`` selection and ``QGuidedEvaluator``."""
+    The loop is ``envs.opponents.search.run_search`` with ``PUCT`` selection and ``QGuidedEvaluator`` (or
+    ``ValueNetEvaluator`` when a ``value_net`` is given)."""
 
     def __init__(self, qnet: nn.Module, features: TurnFeatures, game: str, free_move: str = "anywhere",
                  simulations: int = 100, c_puct: float = DEFAULT_C_PUCT, temperature: float = DEFAULT_TEMPERATURE,
-                 value_weight: float = DEFAULT_VALUE_WEIGHT) -> None:
+                 value_weight: float = DEFAULT_VALUE_WEIGHT, value_net: nn.Module | None = None) -> None:
         if simulations < 1:
             raise ValueError(f"guided MCTS needs at least 1 simulation, got {simulations}")
         if not 0.0 <= value_weight <= 1.0:
@@ -149,7 +152,9 @@ class GuidedMCTS:
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
         self.policy = PUCT(self.engine, self.c_puct)
-        self.evaluator = QGuidedEvaluator(self)
+        if value_net is not None and game != "ultimate":
+            raise ValueError(f"a value network scores Ultimate positions; this search plays {game}")
+        self.evaluator = QGuidedEvaluator(self) if value_net is None else ValueNetEvaluator(self, value_net)
 
     # -- Q-network reads --------------------------------------------------------------------------------------
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:

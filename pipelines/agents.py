@@ -7,7 +7,19 @@ opponent registry). Light to import: torch and the env load inside the functions
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 LOOKAHEAD_CHOICES = ("none", "one_step", "k1", "k2", "k3", "k4", "k5")
+
+
+def check_value_option(value: str | None, search: int | None) -> None:
+    """``--value`` before anything loads: it needs ``--search`` (it scores the search's leaves) and an existing file."""
+    if value is None:
+        return
+    if not search:
+        raise ValueError("--value scores the leaves of the search: give --search N too")
+    if not Path(value).is_file():
+        raise FileNotFoundError(f"--value {value!r} not found (expected a value.pt written by ncbot train-value)")
 
 
 def load_agent(checkpoint_path):
@@ -38,20 +50,23 @@ def resolve_lookahead(name: str, free_move: str) -> str:
     return rule
 
 
-def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | None = None, seed: int = 0):
+def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | None = None, seed: int = 0,
+               value: str | None = None):
     """(config, policy, description) of the robot as the ladder plays it.
 
     How the robot decides is part of what a ladder measures, so it is chosen here and named in the table:
     ``lookahead`` replaces the checkpoint's masks (``none``, ``one_step`` = the paper's, ``k1``..``k5``);
     ``search`` > 0 picks every game move by MCTS guided by the Q-network with that many simulations (dialogue
     acts stay greedy); with both, the search's root skips the moves the k-step rule proves lost (when some
-    move survives).
+    move survives). ``value``: a value network (``ncbot train-value``) scores the search's leaves.
     """
     from modules.masks import lookahead_rule
     from modules.policy import make_policies
 
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    if value is not None and not search:
+        raise ValueError("--value scores the leaves of the search: give --search N too")
     config, greedy = load_agent(checkpoint)
     if lookahead is not None:
         config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
@@ -65,11 +80,12 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
         return config, greedy, description
     from modules.guided_mcts import GuidedMCTSPolicy
 
-    mcts = guided_search(config, greedy, search)  # the same loaded Q-network, not a second read of the file
+    mcts = guided_search(config, greedy, search, value=value)  # the loaded Q-network, not a second read of the file
     rule = lookahead_rule(config.lookahead)
     prune = rule if hasattr(rule, "forced_losses") and getattr(rule, "plies", 0) >= 3 else None
     policy = GuidedMCTSPolicy(greedy, mcts, seed, prune=prune)
-    return config, policy, f"Q-guided MCTS {search} sims, masks {config.lookahead}"
+    leaves = f", leaves by value net {Path(value).name}" if value else ""
+    return config, policy, f"Q-guided MCTS {search} sims{leaves}, masks {config.lookahead}"
 
 
 # ---------------------------------------------------------------------------------------------- agent:CHECKPOINT
@@ -165,14 +181,22 @@ def register_agent_opponent() -> None:
 
 
 # ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
-def guided_search(config, greedy, simulations: int, free_move: str | None = None):
-    """A PUCT search whose priors and values come from an already loaded agent's Q-network."""
+def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
+    """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
+    loaded agent's Q-network."""
     from modules.guided_mcts import GuidedMCTS, TurnFeatures
 
     free_move = free_move or config.env.free_move
+    value_net = None
+    if value is not None:
+        if config.env.game != "ultimate":
+            raise ValueError(f"--value: value networks score Ultimate positions; this agent plays {config.env.game}")
+        from modules.value_net import load_value_net
+
+        value_net = load_value_net(value, free_move)
     qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
     features = TurnFeatures(config.env.game, config.env.temporal, free_move)
-    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations)
+    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations, value_net=value_net)
 
 
 def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
@@ -181,12 +205,12 @@ def load_guided_search(checkpoint: str, simulations: int, free_move: str | None 
     return config, guided_search(config, greedy, simulations, free_move)
 
 
-def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0):
+def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0, value: str | None = None):
     """(config, policy) for eval / ladder: the agent's greedy dialogue policy with game moves chosen by the search."""
     from modules.guided_mcts import GuidedMCTSPolicy
 
     config, greedy = load_agent(checkpoint)
-    return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations), seed)
+    return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations, value=value), seed)
 
 
 def register_qmcts_opponent() -> None:

@@ -10,6 +10,7 @@ from typing import Optional
 
 import typer
 
+from pipelines.agents import check_value_option  # light: pathlib only
 from pipelines.config import MAX_GAMES, MAX_SEED  # light: pydantic and yaml, no torch
 from pipelines.outputs import check_writable_dir, check_writable_file  # light: os and pathlib only
 
@@ -73,11 +74,13 @@ def eval_command(
     search: Optional[int] = typer.Option(None, "--search", max=100_000, help="Game moves by MCTS guided by the Q-network, N simulations."),
     exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
+    value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
     from pipelines.cli_first import ROBOT_SEAT, resolve_first
 
     seat = ROBOT_SEAT[resolve_first(first, seat, allowed=("robot", "human", "alternate"), default="alternate")]
+    check_value_option(value, search)
     if mcap is not None:
         check_writable_dir(mcap, "--mcap")
     import torch
@@ -91,7 +94,7 @@ def eval_command(
         return
     register_agent_opponent()  # --opponent agent:CKPT / qmcts:N:CKPT
     result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap,
-                                 search=search)
+                                 search=search, value=value)
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
     else:
@@ -165,9 +168,39 @@ def table_command(
     typer.echo(json.dumps(report.to_dict()) if as_json else report.table + "\n" + report.claims_text)
 
 
+def train_value_command(
+    out: str = typer.Argument(..., help="Folder for positions.pt, value.pt, value.json and value.png."),
+    free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids (the agent's env.free_move)."),
+    positions: int = typer.Option(100_000, "--positions", max=10_000_000, help="Labelled positions to generate."),
+    simulations: int = typer.Option(300, "--simulations", max=100_000, help="UCT playouts behind each label."),
+    hidden: str = typer.Option("256,256", "--hidden", help="Hidden layer sizes, comma-separated."),
+    epochs: int = typer.Option(20, "--epochs", max=10_000, help="Training passes over the positions."),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the games and the training."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show progress (rate, ETA) while labelling."),
+) -> None:
+    """Train the Ultimate value network that scores the Q-guided search's leaves (use it with --search N --value)."""
+    try:
+        sizes = [int(h) for h in hidden.split(",") if h.strip()]
+    except ValueError:
+        raise ValueError(f"--hidden must be comma-separated layer sizes such as 256,256, got {hidden!r}") from None
+    check_writable_dir(out, "OUT")
+    import torch
+
+    from pipelines.value_training import train_value
+
+    torch.set_num_threads(1)
+    report = train_value(out, free_move=free_move, positions=positions, simulations=simulations, hidden=sizes,
+                         epochs=epochs, seed=seed, progress=progress)
+    typer.echo(f"value network: validation MSE {report['val_mse']:.4f} (predicting the mean label: "
+               f"{report['val_mse_of_mean_label']:.4f}) on {report['val_positions']} positions of held-out games; "
+               f"labelling {report['labelling_cpu_s']} CPU s, training {report['training_cpu_s']} CPU s")
+    typer.echo(f"Wrote {out}/value.pt, value.json and value.png")
+
+
 def register(app: typer.Typer) -> None:
     """Add this area's commands to the root app."""
     app.command("train")(train_command)
     app.command("eval")(eval_command)
+    app.command("train-value")(train_value_command)
     app.command("ablate")(ablate_command)
     app.command("table")(table_command)

@@ -7,6 +7,7 @@ import typer
 
 from pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
 from pipelines.config import MAX_GAMES, MAX_SEED
+from pipelines.agents import check_value_option  # light: pathlib only
 from pipelines.outputs import check_writable_dir
 
 
@@ -61,6 +62,8 @@ def ladder_command(
                                          "Q-network with N simulations (as ncbot eval --search); default: greedy Q."),
     lookahead: Optional[str] = typer.Option(None, "--lookahead", help="Replace the checkpoint's masks: none | "
                                             "one_step (the paper's) | k1..k5 (forced-loss search of k plies)."),
+    value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (value.pt "
+                                        "from ncbot train-value) scores the search's leaves instead of random playouts."),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
@@ -71,6 +74,7 @@ def ladder_command(
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     if lookahead is not None and lookahead not in LOOKAHEAD_CHOICES:
         raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {lookahead!r}")
+    check_value_option(value, search)
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
     if out is not None:
@@ -81,7 +85,7 @@ def ladder_command(
     if names is not None and not names:
         raise ValueError(f"--opponents must name at least one opponent (e.g. random,rule,minimax), got {opponents!r}")
     result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline,
-                        search=search, lookahead=lookahead)
+                        search=search, lookahead=lookahead, value=value)
     typer.echo(result["markdown"])
     typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
 

@@ -142,17 +142,18 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
 
 
 def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", seat: str = "alternate",
-                        seed: int = 0, mcap_dir=None, search: int | None = None) -> EvalResult:
+                        seed: int = 0, mcap_dir=None, search: int | None = None, value: str | None = None) -> EvalResult:
     """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`).
 
-    `search` > 0 chooses the robot's game moves by MCTS guided by the Q-network with that many simulations.
+    `search` > 0 chooses the robot's game moves by MCTS guided by the Q-network with that many simulations;
+    `value`: a value network file that scores the search's leaves (Ultimate).
     """
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     from pipelines.agents import load_agent, load_guided_agent
 
     if search:
-        config, policy = load_guided_agent(checkpoint_path, search, seed)
+        config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
         config, policy = load_agent(checkpoint_path)
     if mcap_dir is None:

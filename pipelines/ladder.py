@@ -31,12 +31,12 @@ SEARCH_SECONDS_PER_MOVE = 0.2  # issue 17: the robot's decision budget with sear
 
 def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
                out_dir: str | None = None, progress: bool = True, baseline: bool = False,
-               search: int | None = None, lookahead: str | None = None) -> dict[str, Any]:
+               search: int | None = None, lookahead: str | None = None, value: str | None = None) -> dict[str, Any]:
     """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths.
 
     ``baseline`` also plays the agent's look-ahead masks alone (random choice inside them) on the same games,
     so the table shows what learning added beyond the masks. ``search`` / ``lookahead``: how the robot decides
-    (``load_robot``); the table header says which.
+    (``load_robot``; ``value``: a value network scores the search's leaves); the table header says which.
     """
     import torch
 
@@ -49,7 +49,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
     torch.set_num_threads(1)
     register_agent_opponent()
-    config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed)
+    config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed, value=value)
     game = config.env.game
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
     for name in names:  # fail fast, with the registry's message, before any game is played
@@ -88,7 +88,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     out = Path(out_dir) if out_dir else _default_out(checkpoint)
     markdown = ladder_markdown(checkpoint, game, config.agent.name, rows, goals, robot=robot)
     summary = {"checkpoint": str(checkpoint), "game": game, "agent": config.agent.name, "robot": robot,
-               "search": search or 0, "lookahead": config.lookahead, "seed": seed, "rows": rows, "goals": goals}
+               "search": search or 0, "value": value, "lookahead": config.lookahead, "seed": seed, "rows": rows, "goals": goals}
     files = {
         "markdown": atomic_write_text(markdown, out / "ladder.md"),
         "json": atomic_write_text(json.dumps(summary, indent=2), out / "ladder.json"),

@@ -1,0 +1,151 @@
+"""A position-value network for Ultimate: the leaf evaluator that lets the Q-guided search drop random playouts.
+
+Why: the Q-guided search (``modules.guided_mcts``) scored a leaf by 25 % of the Q-network's value and 75 % of one
+random playout. The Q-values were learnt against a random user, and one playout is a coin toss; against
+``mcts:10000`` (which averages ten thousand playouts a move) that search scored 0.15. This network is trained
+(``pipelines.value_training``) to predict the root value a plain UCT search finds from a position, so one
+forward pass gives a leaf what a few hundred playouts would, without their noise (expert iteration's "search
+as the target", with plain UCT as the expert).
+
+Positions are those of the bitboard engine (``envs.opponents.bitboards.UltimateBits``); features are seen from
+the side to move: its marks and the other side's (81 + 81, subgrid-major: index 9 * subgrid + square), the
+subgrids each side owns and the drawn ones (3 x 9), the subgrid the mover must play in (9, one-hot) and a free-
+move flag: ``N_FEATURES`` = 199. The network's output is a logit; its sigmoid is the mover's expected score
+(win 1, draw 0.5, loss 0). The eight symmetries of the square act on subgrids and squares alike
+(``modules.symmetry.square_symmetries``), so training sees every position in eight orientations.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from envs.opponents.bitboards import ONGOING
+from envs.opponents.search import Node, Rand, RandomRollout, result_value
+from modules.symmetry import square_symmetries
+
+VALUE_FORMAT = "ncbot-value-v1"
+N_FEATURES = 199
+DEFAULT_HIDDEN = (256, 256)
+DEFAULT_PLAYOUT_WEIGHT = 0.0  # the network alone: docs/ultimate.md "A value network for the search" measures the mix
+
+_BITS = tuple(tuple(float(mask >> p & 1) for p in range(9)) for mask in range(512))
+_TARGET = tuple(tuple(1.0 if k == t else 0.0 for k in range(9)) + (0.0,) for t in range(9))
+_FREE = (0.0,) * 9 + (1.0,)
+
+
+def position_features(pos: tuple) -> list[float]:
+    """The 199 features of an Ultimate bitboard position, seen from the side to move (see the module docstring)."""
+    subs0, subs1, decided, macro0, macro1, target, turn, _, _ = pos
+    if turn:
+        subs0, subs1, macro0, macro1 = subs1, subs0, macro1, macro0
+    bits = _BITS
+    features: list[float] = []
+    for mask in subs0:
+        features += bits[mask]
+    for mask in subs1:
+        features += bits[mask]
+    features += bits[macro0]
+    features += bits[macro1]
+    features += bits[decided & ~(macro0 | macro1)]
+    features += _TARGET[target] if target >= 0 else _FREE
+    return features
+
+
+def feature_symmetries() -> torch.Tensor:
+    """(8, 199) int64 gather maps: ``features[:, maps[g]]`` is the features of the position turned by symmetry g.
+
+    A symmetry moves subgrid k to s[k] and square p to s[p] in every subgrid (row 0 is the identity)."""
+    maps = []
+    for image in square_symmetries(3).tolist():
+        index = list(range(N_FEATURES))
+        for k in range(9):
+            for p in range(9):
+                for plane in (0, 81):
+                    index[plane + 9 * image[k] + image[p]] = plane + 9 * k + p
+            for plane in (162, 171, 180, 189):  # owned by the mover, by the other side, drawn; the target subgrid
+                index[plane + image[k]] = plane + k
+        maps.append(index)
+    return torch.tensor(maps)
+
+
+def make_value_net(hidden: tuple[int, ...] | list[int] = DEFAULT_HIDDEN) -> nn.Sequential:
+    """An MLP from the 199 features to one logit (the mover's expected score after a sigmoid)."""
+    layers: list[nn.Module] = []
+    width = N_FEATURES
+    for size in hidden:
+        layers += [nn.Linear(width, int(size)), nn.ReLU()]
+        width = int(size)
+    layers.append(nn.Linear(width, 1))
+    return nn.Sequential(*layers)
+
+
+def value_checkpoint(net: nn.Sequential, hidden: list[int], free_move: str, meta: dict[str, Any]) -> dict[str, Any]:
+    """What ``ncbot train-value`` saves: tensors and plain values only (``torch.load(weights_only=True)``)."""
+    return {"format": VALUE_FORMAT, "state_dict": net.state_dict(), "hidden": list(hidden), "free_move": free_move,
+            "meta": meta}
+
+
+def load_value_net(path: str, free_move: str) -> nn.Sequential:
+    """The value network saved at ``path`` for the ``free_move`` rule; one-line errors for anything else."""
+    from pathlib import Path
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"value network {path!r} not found (expected a value.pt written by ncbot train-value)")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # noqa: BLE001 - torch's unpickler raises anything on a foreign or truncated file
+        raise ValueError(f"value network {path!r} is corrupt or not ncbot's (expected a value.pt written by "
+                         "ncbot train-value)") from None
+    if not isinstance(data, dict) or data.get("format") != VALUE_FORMAT:
+        raise ValueError(f"{path!r} is not an ncbot value network (expected format {VALUE_FORMAT}, written by "
+                         "ncbot train-value)")
+    if data["free_move"] != free_move:
+        raise ValueError(f"value network {path!r} was trained on the {data['free_move']!r} free-move rule, the agent "
+                         f"plays {free_move!r} (train one with ncbot train-value --free-move {free_move})")
+    net = make_value_net(data["hidden"])
+    try:
+        net.load_state_dict(data["state_dict"])
+    except (RuntimeError, KeyError) as error:
+        raise ValueError(f"value network {path!r} does not fit its own hidden sizes {data['hidden']} "
+                         f"({str(error).splitlines()[0][:80]})") from None
+    return net.eval()
+
+
+class ValueNetEvaluator:
+    """Expands a leaf with the search's Q priors and scores it by the value network (``playout_weight`` > 0 mixes
+    in one random playout); a finished game scores its result. Values are for ``node.mover``."""
+
+    def __init__(self, search: Any, net: nn.Sequential, playout_weight: float = DEFAULT_PLAYOUT_WEIGHT) -> None:
+        if not 0.0 <= playout_weight <= 1.0:
+            raise ValueError(f"playout_weight must be in [0, 1], got {playout_weight}")
+        self.search, self.playout_weight = search, float(playout_weight)
+        self.rollout = RandomRollout(search.engine)
+        linears = [m for m in net if isinstance(m, nn.Linear)]
+        self._layers = [(m.weight, m.bias) for m in linears]  # nn.Module's call costs as much as these products
+
+    @torch.no_grad()
+    def value(self, pos: tuple) -> float:
+        """The side to move's expected score in [0, 1]."""
+        x = torch.tensor(position_features(pos))
+        last = len(self._layers) - 1
+        for i, (weight, bias) in enumerate(self._layers):
+            x = F.linear(x, weight, bias)
+            if i < last:
+                x = torch.relu(x)
+        return 1.0 / (1.0 + math.exp(-x.item()))
+
+    def evaluate(self, node: Node, rand: Rand) -> float:
+        search, engine = self.search, self.search.engine
+        result = engine.result(node.pos)
+        if result != ONGOING:
+            return result_value(result, node.mover)
+        if node.moves is None:
+            search.expand(node, engine.moves(node.pos))
+        value = 1.0 - self.value(node.pos)  # the network scores the side to move; the node belongs to its mover
+        if self.playout_weight == 0.0:
+            return value
+        return (1.0 - self.playout_weight) * value + self.playout_weight * self.rollout.evaluate(node, rand)
