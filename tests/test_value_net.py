@@ -58,6 +58,12 @@ def test_features_are_seen_from_the_side_to_move():
     assert features[81 + 9 * SUBGRID_OF[40] + SQUARE_OF[40]] == 1.0 and sum(features[:81]) == 0  # the other side's mark
     assert features[189 + 4] == 1.0 and features[198] == 0.0  # sent to subgrid 4, not a free move
     assert position_features(start)[198] == 1.0  # the opening move is free
+    board = [0] * 81
+    for k, p, code in ((0, 0, 1), (0, 1, 1), (4, 4, 2), (8, 8, 2)):  # X holds two of subgrid 0's top row
+        board[CELL_OF[k][p]] = code
+    threats = position_features(engine.from_board(board, 1, CELL_OF[8][8]))[199:]
+    assert threats[:9] == [1.0] + [0.0] * 8 and threats[9:18] == [0.0] * 9  # the mover's threat, none for O
+    assert threats[18:] == [0.0, 0.0]  # owning subgrid 0 would not complete a line of subgrids yet
 
 
 @pytest.fixture(scope="module")
