@@ -65,8 +65,7 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
 
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
-    if value is not None and not search:
-        raise ValueError("--value scores the leaves of the search: give --search N too")
+    check_value_option(value, search)
     config, greedy = load_agent(checkpoint)
     if lookahead is not None:
         config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
