@@ -117,7 +117,7 @@ def load_value_net(path: str, free_move: str) -> nn.Sequential:
     except Exception:  # noqa: BLE001 - torch's unpickler raises anything on a foreign or truncated file
         raise ValueError(f"value network {path!r} is corrupt or not ncbot's (expected a value.pt written by "
                          "ncbot train-value)") from None
-    if not isinstance(data, dict) or data.get("format") != VALUE_FORMAT:
+    if not isinstance(data, dict) or data.get("format") != VALUE_FORMAT or not {"state_dict", "hidden", "free_move"} <= set(data):
         raise ValueError(f"{path!r} is not an ncbot value network (expected format {VALUE_FORMAT}, written by "
                          "ncbot train-value)")
     if data["free_move"] != free_move:
