@@ -25,14 +25,13 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
-from torch.nn import functional as F
 
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
-from modules.qnet import ACTION_VALUE_KEY
+from modules.qnet import ACTION_VALUE_KEY, mlp_forward, mlp_layers
 from modules.value_net import ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
@@ -111,25 +110,6 @@ class QGuidedEvaluator:
         return weight * (1.0 - v_q) + (1.0 - weight) * self.rollout.evaluate(node, rand)
 
 
-def mlp_layers(qnet: nn.Module) -> list[list] | None:
-    """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``modules.qnet``), None otherwise.
-
-    The search reads the network once per expansion on one position: at that size ``nn.Module.__call__`` costs as
-    much as the matrix products, so ``GuidedMCTS`` runs the same ``F.linear``/``torch.relu`` ops on these tensors
-    (the same parameters, not copies: the same numbers as calling the network)."""
-    if not isinstance(qnet, nn.Sequential):
-        return None
-    layers: list[list] = []
-    for module in qnet:
-        if isinstance(module, nn.Linear):
-            layers.append([module.weight, module.bias, False])
-        elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
-            layers[-1][2] = True
-        else:
-            return None
-    return layers or None
-
-
 class GuidedMCTS:
     """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
 
@@ -153,7 +133,8 @@ class GuidedMCTS:
         self.temperature, self.value_weight = float(temperature), float(value_weight)
         self.policy = PUCT(self.engine, self.c_puct)
         if value_net is not None and game != "ultimate":
-            raise ValueError(f"a value network scores Ultimate positions; this search plays {game}")
+            raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
+                             "(--value needs an Ultimate agent)")
         self.evaluator = QGuidedEvaluator(self) if value_net is None else ValueNetEvaluator(self, value_net)
 
     # -- Q-network reads --------------------------------------------------------------------------------------
@@ -170,13 +151,8 @@ class GuidedMCTS:
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
         x = self.features(own, other, last_move).unsqueeze(0)
-        if self._layers is None:
-            return self.qnet(x)[0][moves].tolist()
-        for weight, bias, relu in self._layers:  # the Sequential's own ops, without nn.Module's call overhead
-            x = F.linear(x, weight, bias)
-            if relu:
-                x = torch.relu(x)
-        return x[0][moves].tolist()
+        q = self.qnet(x) if self._layers is None else mlp_forward(self._layers, x)
+        return q[0][moves].tolist()
 
     def expand(self, node: Node, moves: list[int], q: list[float] | None = None) -> float:
         """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move.

@@ -7,6 +7,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from torch import nn
+from torch.nn import functional as F
 
 OBSERVATION_KEY = "observation"
 ACTION_VALUE_KEY = "action_value"
@@ -30,6 +31,35 @@ def make_qnet(n_features: int, n_actions: int, hidden: Sequence[int] = (100, 100
         width = units
     layers.append(nn.Linear(width, n_actions))
     return TensorDictModule(nn.Sequential(*layers), in_keys=[OBSERVATION_KEY], out_keys=[ACTION_VALUE_KEY])
+
+
+def mlp_layers(net: nn.Module) -> list[list] | None:
+    """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``make_qnet``'s, or the value network
+    of ``modules.value_net``), None otherwise.
+
+    The searches read a network once per expansion on one position: at that size ``nn.Module.__call__`` costs as
+    much as the matrix products, so they run the same ``F.linear``/``torch.relu`` ops on these tensors with
+    ``mlp_forward`` (the same parameters, not copies: the same numbers as calling the network)."""
+    if not isinstance(net, nn.Sequential):
+        return None
+    layers: list[list] = []
+    for module in net:
+        if isinstance(module, nn.Linear):
+            layers.append([module.weight, module.bias, False])
+        elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
+            layers[-1][2] = True
+        else:
+            return None
+    return layers or None
+
+
+def mlp_forward(layers: list[list], x: torch.Tensor) -> torch.Tensor:
+    """The network of ``mlp_layers(net)`` applied to ``x``: its own ops, without ``nn.Module``'s call overhead."""
+    for weight, bias, relu in layers:
+        x = F.linear(x, weight, bias)
+        if relu:
+            x = torch.relu(x)
+    return x
 
 
 def seeded_init(module: nn.Module, seed: int) -> None:

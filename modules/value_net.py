@@ -12,21 +12,23 @@ the side to move: its marks and the other side's (81 + 81, subgrid-major: index 
 subgrids each side owns and the drawn ones (3 x 9), the subgrid the mover must play in (9, one-hot), a free-move
 flag, the open subgrids where each side could complete a line with one mark (2 x 9) and whether that would
 complete a line of subgrids (2): ``N_FEATURES`` = 219. The threats are what an MLP finds hard to compute from
-marks: with them the error on held-out games fell from 0.0045 to 0.0028 (docs/ultimate.md). The network's output is a logit; its sigmoid is the mover's expected score
-(win 1, draw 0.5, loss 0). The eight symmetries of the square act on subgrids and squares alike
-(``modules.symmetry.square_symmetries``), so training sees every position in eight orientations.
+marks: with them the error on held-out games fell from 0.0045 to 0.0028 (docs/ultimate.md). The network's output
+is a logit; its sigmoid is the mover's expected score (win 1, draw 0.5, loss 0). The eight symmetries of the
+square act on subgrids and squares alike (``modules.symmetry.square_symmetries``), so training sees every
+position in eight orientations.
 """
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import torch
 from torch import nn
-from torch.nn import functional as F
 
 from envs.opponents.bitboards import IS_LINE, ONGOING
 from envs.opponents.search import Node, Rand, RandomRollout, result_value
+from modules.qnet import mlp_forward, mlp_layers
 from modules.symmetry import square_symmetries
 
 VALUE_FORMAT = "ncbot-value-v1"
@@ -108,8 +110,6 @@ def value_checkpoint(net: nn.Sequential, hidden: list[int], free_move: str, meta
 
 def load_value_net(path: str, free_move: str) -> nn.Sequential:
     """The value network saved at ``path`` for the ``free_move`` rule; one-line errors for anything else."""
-    from pathlib import Path
-
     if not Path(path).is_file():
         raise FileNotFoundError(f"value network {path!r} not found (expected a value.pt written by ncbot train-value)")
     try:
@@ -141,19 +141,14 @@ class ValueNetEvaluator:
             raise ValueError(f"playout_weight must be in [0, 1], got {playout_weight}")
         self.search, self.playout_weight = search, float(playout_weight)
         self.rollout = RandomRollout(search.engine)
-        linears = [m for m in net if isinstance(m, nn.Linear)]
-        self._layers = [(m.weight, m.bias) for m in linears]  # nn.Module's call costs as much as these products
+        self.net, self._layers = net, mlp_layers(net)  # nn.Module's call costs as much as the matrix products
 
     @torch.no_grad()
     def value(self, pos: tuple) -> float:
         """The side to move's expected score in [0, 1]."""
         x = torch.tensor(position_features(pos))
-        last = len(self._layers) - 1
-        for i, (weight, bias) in enumerate(self._layers):
-            x = F.linear(x, weight, bias)
-            if i < last:
-                x = torch.relu(x)
-        return 1.0 / (1.0 + math.exp(-x.item()))
+        logit = self.net(x) if self._layers is None else mlp_forward(self._layers, x)
+        return 1.0 / (1.0 + math.exp(-logit.item()))
 
     def evaluate(self, node: Node, rand: Rand) -> float:
         search, engine = self.search, self.search.engine

@@ -187,9 +187,7 @@ def guided_search(config, greedy, simulations: int, free_move: str | None = None
 
     free_move = free_move or config.env.free_move
     value_net = None
-    if value is not None:
-        if config.env.game != "ultimate":
-            raise ValueError(f"--value: value networks score Ultimate positions; this agent plays {config.env.game}")
+    if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
         from modules.value_net import load_value_net
 
         value_net = load_value_net(value, free_move)

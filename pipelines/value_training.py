@@ -25,6 +25,7 @@ from typing import Any
 
 import torch
 
+from envs.core import FREE_MOVE_CHOICES
 from envs.opponents.bitboards import ONGOING, make_bits
 from envs.opponents.mcts import DEFAULT_EXPLORATION
 from envs.opponents.search import UCT, RandomRollout, run_search
@@ -36,7 +37,6 @@ from pipelines.checkpoint import atomic_save
 RANDOM_MOVE_SHARE = 0.15
 MAX_OPENING = 8
 VALIDATION_SHARE = 0.1
-FREE_MOVES = ("anywhere", "open_subgrids")
 
 
 def labelled_games(free_move: str, positions: int, simulations: int, seed: int, progress: bool = True
@@ -134,8 +134,8 @@ def draw_value_curve(history: list[dict], baseline: float, path: Path) -> Path:
 def train_value(out: str, *, free_move: str = "anywhere", positions: int = 100_000, simulations: int = 300,
                 hidden: list[int] | None = None, epochs: int = 20, seed: int = 0, progress: bool = True) -> dict[str, Any]:
     """Generate (or reuse) labelled positions, train the network, write value.pt / value.json / value.png."""
-    if free_move not in FREE_MOVES:
-        raise ValueError(f"--free-move must be one of {', '.join(FREE_MOVES)}, got {free_move!r}")
+    if free_move not in FREE_MOVE_CHOICES:
+        raise ValueError(f"--free-move must be one of {', '.join(FREE_MOVE_CHOICES)}, got {free_move!r}")
     for name, number, least in (("--positions", positions, 10), ("--simulations", simulations, 1), ("--epochs", epochs, 1)):
         if number < least:
             raise ValueError(f"{name} must be at least {least}, got {number}")

@@ -149,7 +149,12 @@ def test_bad_value_options_are_one_line_errors(trained, ultimate_checkpoint, tmp
     other_rule = train_value(str(tmp_path / "open"), free_move="open_subgrids", positions=60, simulations=5,
                              hidden=[8], epochs=1, seed=0, progress=False)
     assert other_rule["free_move"] == "open_subgrids"
+    standard = load_config(write_tiny_config(tmp_path, eval={"games": 8, "periodic_games": 8}))
+    assert standard.env.game == "standard"
+    train(standard, tmp_path / "standard")
     cases = [
+        (("eval", str(tmp_path / "standard" / "checkpoint.pt"), "--search", "4", "--value", value, "--games", "1"),
+         "value networks score Ultimate positions; this agent plays standard"),
         (("eval", ultimate_checkpoint, "--value", value), "give --search N too"),
         (("eval", ultimate_checkpoint, "--search", "4", "--value", str(tmp_path / "missing.pt")), "not found"),
         (("eval", ultimate_checkpoint, "--search", "4", "--value", str(corrupt), "--games", "1"), "corrupt or not ncbot's"),
