@@ -21,6 +21,7 @@ import math
 import random
 import time
 
+import numpy as np
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
@@ -31,7 +32,7 @@ from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, Standard
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
-from modules.qnet import ACTION_VALUE_KEY, mlp_forward, mlp_layers
+from modules.qnet import ACTION_VALUE_KEY, MLPReader
 from modules.value_net import ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
@@ -66,17 +67,19 @@ class TurnFeatures:
         base[word_start:word_start + len(model.words)] = torch.maximum(model.template_words[1 + MOVE],
                                                                        model.utterance_words[move_utterance])
         self.base = base
+        self.base_row = base.numpy().astype(np.float32)
         env.close()
 
-    def __call__(self, own: list[int], other: list[int], last_move: int) -> torch.Tensor:
-        """(F,) features for one position: ``own``/``other`` are the cells of the side to move / the other side."""
-        features = self.base.clone()
+    def __call__(self, own: list[int], other: list[int], last_move: int) -> np.ndarray:
+        """(F,) float32 features for one position: ``own``/``other`` are the cells of the side to move / the other
+        side. numpy, not torch: this runs once per search expansion, where torch's per-op cost dominates."""
+        features = self.base_row.copy()
         ones = [self.robot_plane + c for c in own] + [self.human_plane + c for c in other]
         if self.time_plane is not None:
             features[[self.time_plane + c for c in own + other]] = 0.5
             if last_move >= 0:
                 ones.append(self.time_plane + last_move)
-        features[ones] = 1.0  # one index write: this runs once per search expansion
+        features[ones] = 1.0
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -126,7 +129,7 @@ class GuidedMCTS:
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
         self.qnet, self.features = qnet, features
-        self._layers = mlp_layers(qnet)
+        self._reader = MLPReader.of(qnet)
         self.engine: StandardBits | UltimateBits = make_bits(game, free_move)
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
@@ -147,12 +150,13 @@ class GuidedMCTS:
         turn = self.engine.turn(pos)
         return (lists[0], lists[1]) if turn == 0 else (lists[1], lists[0])
 
-    @torch.no_grad()
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
-        x = self.features(own, other, last_move).unsqueeze(0)
-        q = self.qnet(x) if self._layers is None else mlp_forward(self._layers, x)
-        return q[0][moves].tolist()
+        x = self.features(own, other, last_move)
+        if self._reader is not None:
+            return self._reader(x)[moves].tolist()
+        with torch.no_grad():
+            return self.qnet(torch.from_numpy(x).unsqueeze(0))[0][moves].tolist()
 
     def expand(self, node: Node, moves: list[int], q: list[float] | None = None) -> float:
         """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move.

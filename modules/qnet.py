@@ -3,11 +3,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from torch import nn
-from torch.nn import functional as F
 
 OBSERVATION_KEY = "observation"
 ACTION_VALUE_KEY = "action_value"
@@ -33,33 +33,42 @@ def make_qnet(n_features: int, n_actions: int, hidden: Sequence[int] = (100, 100
     return TensorDictModule(nn.Sequential(*layers), in_keys=[OBSERVATION_KEY], out_keys=[ACTION_VALUE_KEY])
 
 
-def mlp_layers(net: nn.Module) -> list[list] | None:
-    """[weight, bias, ReLU after] per Linear of a Sequential of Linear/ReLU (``make_qnet``'s, or the value network
-    of ``modules.value_net``), None otherwise.
+class MLPReader:
+    """One-position reads of a Linear/ReLU ``nn.Sequential`` in numpy (``make_qnet``'s network, the value network
+    of ``modules.value_net``): ``reader(x)`` for a (F,) float32 array is the network's output as a float32 array.
 
-    The searches read a network once per expansion on one position: at that size ``nn.Module.__call__`` costs as
-    much as the matrix products, so they run the same ``F.linear``/``torch.relu`` ops on these tensors with
-    ``mlp_forward`` (the same parameters, not copies: the same numbers as calling the network)."""
-    if not isinstance(net, nn.Sequential):
-        return None
-    layers: list[list] = []
-    for module in net:
-        if isinstance(module, nn.Linear):
-            layers.append([module.weight, module.bias, False])
-        elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
-            layers[-1][2] = True
-        else:
+    Why: the searches read a network once per simulation on one position. At that size torch's per-op dispatch
+    (``nn.Module.__call__``, autograd's no-grad guard, ``F.linear``) costs more than the products; numpy's
+    matrix-vector products on the same float32 weights take half the time (docs/ultimate.md, seventh session).
+    The weights are copied when the reader is made: build it after the network is loaded or trained. Outputs
+    agree with the network's to float32 rounding (the sums run in another order), not bit for bit."""
+
+    def __init__(self, layers: list[tuple[np.ndarray, np.ndarray, bool]]) -> None:
+        self.layers = layers
+
+    @classmethod
+    def of(cls, net: nn.Module) -> "MLPReader | None":
+        """The reader of ``net`` if it is a Sequential of Linear layers each followed by at most one ReLU, else None."""
+        if not isinstance(net, nn.Sequential):
             return None
-    return layers or None
+        layers: list[list] = []
+        for module in net:
+            if isinstance(module, nn.Linear):
+                weight = module.weight.detach().numpy().T.astype(np.float32, copy=True)
+                layers.append([weight, module.bias.detach().numpy().astype(np.float32, copy=True), False])
+            elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
+                layers[-1][2] = True
+            else:
+                return None
+        return cls([tuple(layer) for layer in layers]) if layers else None
 
-
-def mlp_forward(layers: list[list], x: torch.Tensor) -> torch.Tensor:
-    """The network of ``mlp_layers(net)`` applied to ``x``: its own ops, without ``nn.Module``'s call overhead."""
-    for weight, bias, relu in layers:
-        x = F.linear(x, weight, bias)
-        if relu:
-            x = torch.relu(x)
-    return x
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        for weight, bias, relu in self.layers:
+            x = x @ weight
+            x += bias
+            if relu:
+                np.maximum(x, 0.0, out=x)
+        return x
 
 
 def seeded_init(module: nn.Module, seed: int) -> None:

@@ -23,12 +23,13 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from torch import nn
 
 from envs.opponents.bitboards import IS_LINE, ONGOING
 from envs.opponents.search import Node, Rand, RandomRollout, result_value
-from modules.qnet import mlp_forward, mlp_layers
+from modules.qnet import MLPReader
 from modules.symmetry import square_symmetries
 
 VALUE_FORMAT = "ncbot-value-v1"
@@ -141,14 +142,17 @@ class ValueNetEvaluator:
             raise ValueError(f"playout_weight must be in [0, 1], got {playout_weight}")
         self.search, self.playout_weight = search, float(playout_weight)
         self.rollout = RandomRollout(search.engine)
-        self.net, self._layers = net, mlp_layers(net)  # nn.Module's call costs as much as the matrix products
+        self.net, self._reader = net, MLPReader.of(net)  # torch's per-op cost exceeds the products at one position
 
-    @torch.no_grad()
     def value(self, pos: tuple) -> float:
         """The side to move's expected score in [0, 1]."""
-        x = torch.tensor(position_features(pos))
-        logit = self.net(x) if self._layers is None else mlp_forward(self._layers, x)
-        return 1.0 / (1.0 + math.exp(-logit.item()))
+        x = np.array(position_features(pos), dtype=np.float32)
+        if self._reader is not None:
+            logit = float(self._reader(x)[0])
+        else:
+            with torch.no_grad():
+                logit = self.net(torch.from_numpy(x)).item()
+        return 1.0 / (1.0 + math.exp(-logit))
 
     def evaluate(self, node: Node, rand: Rand) -> float:
         search, engine = self.search, self.search.engine
