@@ -64,6 +64,8 @@ def ladder_command(
                                             "one_step (the paper's) | k1..k5 (forced-loss search of k plies)."),
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (value.pt "
                                         "from ncbot train-value) scores the search's leaves instead of random playouts."),
+    workers: int = typer.Option(1, "--workers", help="Matches (opponent x seat) played in parallel processes; the "
+                                "rows are the same for any number."),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
@@ -72,6 +74,8 @@ def ladder_command(
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
+    if workers < 1:
+        raise ValueError(f"--workers must be a positive number of processes, got {workers}")
     if lookahead is not None and lookahead not in LOOKAHEAD_CHOICES:
         raise ValueError(f"--lookahead must be one of {', '.join(LOOKAHEAD_CHOICES)}, got {lookahead!r}")
     check_value_option(value, search)
@@ -85,7 +89,7 @@ def ladder_command(
     if names is not None and not names:
         raise ValueError(f"--opponents must name at least one opponent (e.g. random,rule,minimax), got {opponents!r}")
     result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline,
-                        search=search, lookahead=lookahead, value=value)
+                        search=search, lookahead=lookahead, value=value, workers=workers)
     typer.echo(result["markdown"])
     typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
 

@@ -31,57 +31,62 @@ SEARCH_SECONDS_PER_MOVE = 0.2  # issue 17: the robot's decision budget with sear
 
 def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
                out_dir: str | None = None, progress: bool = True, baseline: bool = False,
-               search: int | None = None, lookahead: str | None = None, value: str | None = None) -> dict[str, Any]:
+               search: int | None = None, lookahead: str | None = None, value: str | None = None,
+               workers: int = 1) -> dict[str, Any]:
     """Play every (opponent, seat) pair; write ladder.md / ladder.json / ladder.png; return rows, goals and paths.
 
     ``baseline`` also plays the agent's look-ahead masks alone (random choice inside them) on the same games,
     so the table shows what learning added beyond the masks. ``search`` / ``lookahead``: how the robot decides
     (``load_robot``; ``value``: a value network scores the search's leaves); the table header says which.
+    ``workers`` > 1 plays the matches in that many processes (200 games against ``mcts:10000`` take ~25 min per
+    seat): every match re-seeds the robot's own chance from its match seed, so the rows are the same for any
+    number of workers.
     """
     import torch
 
     from envs.opponents import make_opponent
-    from modules.masks import LookaheadOnlyPolicy
-    from pipelines.agents import load_robot, register_agent_opponent
-    from pipelines.evaluate import evaluate_agent
 
     if games < 1:
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
+    if workers < 1:
+        raise ValueError(f"--workers must be a positive number of processes, got {workers}")
     torch.set_num_threads(1)
-    register_agent_opponent()
-    config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed, value=value)
+    robot_spec = (checkpoint, search, lookahead, seed, value, baseline)
+    config, robot, choosers = load_ladder_robot(*robot_spec)
     game = config.env.game
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
     for name in names:  # fail fast, with the registry's message, before any game is played
         make_opponent(name, game=game, free_move=config.env.free_move)
-    policies = [("agent", policy)]
-    if baseline:
-        policies.append(("look-ahead only", LookaheadOnlyPolicy(seed, config.lookahead)))
-    rows = []
-    pairs = [(name, seat, who, chooser) for name in names for seat in SEATS for who, chooser in policies]
+    pairs = [(name, seat, who) for name in names for seat in SEATS for who in choosers]
+    # the agent and the baseline meet the same games: one match seed per (opponent, seat)
+    matches = [(name, seat, who, seed + 1000 * (index // len(choosers))) for index, (name, seat, who) in enumerate(pairs)]
     bar = None
     if progress:
         from pipelines.progress import progress_bar
 
-        bar = progress_bar(total=len(pairs), desc="ladder", unit="match")
-    for index, (name, seat, who, chooser) in enumerate(pairs):
-        if bar is not None:
-            bar.set_postfix_str(f"{who} vs {name} ({seat})")
-        match_seed = seed + 1000 * (index // len(policies))  # the agent and the baseline meet the same games
-        searched = (getattr(chooser, "decisions", 0), getattr(chooser, "cpu_seconds", 0.0))
-        result = evaluate_agent(config, chooser, games=games, seat=seat, seed=match_seed, opponent=name)
-        row = {
-            "policy": who, "opponent": name, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
-            "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
-            "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
-        }
-        if hasattr(chooser, "decisions"):  # the guided search counts its moves and their CPU over every match
-            moves = chooser.decisions - searched[0]  # named as ncbot eval --json names them
-            row["search_decisions"] = moves
-            row["search_cpu_s_per_decision"] = (chooser.cpu_seconds - searched[1]) / max(moves, 1)
-        rows.append(row)
-        if bar is not None:
-            bar.update(1)
+        bar = progress_bar(total=len(matches), desc="ladder", unit="match")
+    rows: list[dict[str, Any]] = [{} for _ in matches]
+    if workers > 1 and len(matches) > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(min(workers, len(matches)), mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=_load_worker_robot, initargs=robot_spec) as pool:
+            futures = {pool.submit(_play_worker_match, *match, games): index for index, match in enumerate(matches)}
+            for future in as_completed(futures):
+                index = futures[future]
+                rows[index] = future.result()
+                if bar is not None:
+                    name, seat, who, _ = matches[index]
+                    bar.set_postfix_str(f"done: {who} vs {name} ({seat})")
+                    bar.update(1)
+    else:
+        for index, (name, seat, who, match_seed) in enumerate(matches):
+            if bar is not None:
+                bar.set_postfix_str(f"{who} vs {name} ({seat})")
+            rows[index] = play_match(config, choosers[who], who, name, seat, match_seed, games)
+            if bar is not None:
+                bar.update(1)
     if bar is not None:
         bar.close()
     goals = check_goals(game, rows)
@@ -95,6 +100,63 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         "png": draw_ladder(rows, out / "ladder.png", title=f"{config.agent.name} on {game} ({robot}): score vs opponents"),
     }
     return {"rows": rows, "goals": goals, "markdown": markdown, "files": {k: str(v) for k, v in files.items()}}
+
+
+def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None, seed: int, value: str | None,
+                      baseline: bool) -> tuple[Any, str, dict[str, Any]]:
+    """(config, description of how the robot decides, {"agent": policy[, "look-ahead only": masks alone]})."""
+    from modules.masks import LookaheadOnlyPolicy
+    from pipelines.agents import load_robot, register_agent_opponent
+
+    register_agent_opponent()
+    config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed, value=value)
+    choosers = {"agent": policy}
+    if baseline:
+        choosers["look-ahead only"] = LookaheadOnlyPolicy(seed, config.lookahead)
+    return config, robot, choosers
+
+
+def play_match(config, chooser, who: str, opponent: str, seat: str, match_seed: int, games: int) -> dict[str, Any]:
+    """One ladder row: ``games`` games of ``chooser`` against ``opponent`` from ``seat``.
+
+    The chooser's own random stream (the search's per-move seeds, the baseline's choice) restarts from
+    ``match_seed``, so a match's games do not depend on which matches ran before it in the same process."""
+    from pipelines.evaluate import evaluate_agent
+
+    generator = getattr(chooser, "generator", None)
+    if generator is not None:
+        generator.manual_seed(match_seed)
+    searched = (getattr(chooser, "decisions", 0), getattr(chooser, "cpu_seconds", 0.0))
+    result = evaluate_agent(config, chooser, games=games, seat=seat, seed=match_seed, opponent=opponent)
+    row = {
+        "policy": who, "opponent": opponent, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
+        "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
+        "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
+    }
+    if hasattr(chooser, "decisions"):  # the guided search counts its moves and their CPU over every match
+        moves = chooser.decisions - searched[0]  # named as ncbot eval --json names them
+        row["search_decisions"] = moves
+        row["search_cpu_s_per_decision"] = (chooser.cpu_seconds - searched[1]) / max(moves, 1)
+    return row
+
+
+_WORKER_ROBOT: tuple[Any, dict[str, Any]] | None = None  # (config, choosers) of a ladder worker process
+
+
+def _load_worker_robot(*robot_spec: Any) -> None:
+    """Process-pool initializer: each worker loads the robot once, single-threaded like the parent."""
+    import torch
+
+    global _WORKER_ROBOT
+    torch.set_num_threads(1)
+    config, _, choosers = load_ladder_robot(*robot_spec)
+    _WORKER_ROBOT = (config, choosers)
+
+
+def _play_worker_match(opponent: str, seat: str, who: str, match_seed: int, games: int) -> dict[str, Any]:
+    assert _WORKER_ROBOT is not None, "ladder worker used before its initializer ran"
+    config, choosers = _WORKER_ROBOT
+    return play_match(config, choosers[who], who, opponent, seat, match_seed, games)
 
 
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -59,6 +59,22 @@ def test_same_seed_same_ladder(tmp_path) -> None:
     assert first["rows"] == again["rows"]
 
 
+def test_workers_play_the_same_rows(tmp_path) -> None:
+    """`--workers 2` plays the matches in two processes and gets the rows of one process, search and baseline
+    included (each match re-seeds the robot's own chance), in the same order; a match does not depend on which
+    matches ran before it: the same match seeds alone (rule's matches are the third and fourth, seeds 3 + 2000
+    and 3 + 3000) give the same rows."""
+    checkpoint = _checkpoint(tmp_path)
+    kwargs = dict(games=4, opponents=["random", "rule"], seed=3, search=4, baseline=True, progress=False)
+    one = run_ladder(str(checkpoint), out_dir=str(tmp_path / "one"), **kwargs)
+    two = run_ladder(str(checkpoint), out_dir=str(tmp_path / "two"), workers=2, **kwargs)
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "search_cpu_s_per_decision"} for r in rows]  # noqa: E731
+    assert strip(one["rows"]) == strip(two["rows"]) and len(one["rows"]) == 8
+    assert {r["policy"] for r in one["rows"]} == {"agent", "look-ahead only"}
+    alone = run_ladder(str(checkpoint), out_dir=str(tmp_path / "alone"), **{**kwargs, "opponents": ["rule"], "seed": 2003})
+    assert strip(alone["rows"]) == strip(one["rows"][4:])
+
+
 def test_ultimate_ladder_against_mcts(tmp_path) -> None:
     checkpoint = _checkpoint(tmp_path, "ultimate")
     result = run_ladder(str(checkpoint), games=2, opponents=["mcts:5"], seed=0, out_dir=str(tmp_path / "u"),
@@ -94,7 +110,8 @@ def test_cli_errors_are_one_line(tmp_path) -> None:
     checkpoint = _checkpoint(tmp_path)
     for args, message in (([str(tmp_path / "missing.pt")], "not found"),
                           ([str(checkpoint), "--opponents", "chess"], "unknown opponent 'chess'"),
-                          ([str(checkpoint), "--games", "0"], "--games must be a positive")):
+                          ([str(checkpoint), "--games", "0"], "--games must be a positive"),
+                          ([str(checkpoint), "--workers", "0"], "--workers must be a positive")):
         done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", *args], capture_output=True, text=True)
         assert done.returncode == 2, done.stderr
         assert message in done.stderr and "Traceback" not in done.stderr
