@@ -134,11 +134,14 @@ class GuidedMCTS:
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
-        self.policy = PUCT(self.engine, self.c_puct)
         if value_net is not None and game != "ultimate":
             raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
                              "(--value needs an Ultimate agent)")
-        self.evaluator = QGuidedEvaluator(self) if value_net is None else ValueNetEvaluator(self, value_net)
+        if value_net is None:  # the Q-guided leaf value needs the Q read of the expansion: expand at the leaf
+            self.policy, self.evaluator = PUCT(self.engine, self.c_puct), QGuidedEvaluator(self)
+        else:
+            self.policy = PUCT(self.engine, self.c_puct, expand=self.expand_visited)
+            self.evaluator = ValueNetEvaluator(self, value_net)
 
     # -- Q-network reads --------------------------------------------------------------------------------------
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
@@ -170,6 +173,14 @@ class GuidedMCTS:
         total = sum(weights)
         node.moves, node.priors = moves, [w / total for w in weights]
         return (max(-5.0, min(5.0, top)) / 5.0 + 1.0) / 2.0
+
+    def expand_visited(self, node: Node) -> bool:
+        """``PUCT``'s lazy expansion (value-network search): expand a node already scored once; False if its game
+        is over."""
+        if self.engine.result(node.pos) != ONGOING:
+            return False
+        self.expand(node, self.engine.moves(node.pos))
+        return True
 
     # -- the search --------------------------------------------------------------------------------------------
     def search(self, pos: tuple, root_moves: list[int], rng: random.Random,

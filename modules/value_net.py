@@ -134,8 +134,9 @@ def load_value_net(path: str, free_move: str) -> nn.Sequential:
 
 
 class ValueNetEvaluator:
-    """Expands a leaf with the search's Q priors and scores it by the value network (``playout_weight`` > 0 mixes
-    in one random playout); a finished game scores its result. Values are for ``node.mover``."""
+    """Scores a leaf by the value network (``playout_weight`` > 0 mixes in one random playout); a finished game
+    scores its result. Values are for ``node.mover``. It does not expand the leaf: the search's ``PUCT`` does
+    that when it first descends from it (``GuidedMCTS.expand_visited``)."""
 
     def __init__(self, search: Any, net: nn.Sequential, playout_weight: float = DEFAULT_PLAYOUT_WEIGHT) -> None:
         if not 0.0 <= playout_weight <= 1.0:
@@ -155,12 +156,9 @@ class ValueNetEvaluator:
         return 1.0 / (1.0 + math.exp(-logit))
 
     def evaluate(self, node: Node, rand: Rand) -> float:
-        search, engine = self.search, self.search.engine
-        result = engine.result(node.pos)
+        result = self.search.engine.result(node.pos)
         if result != ONGOING:
             return result_value(result, node.mover)
-        if node.moves is None:
-            search.expand(node, engine.moves(node.pos))
         value = 1.0 - self.value(node.pos)  # the network scores the side to move; the node belongs to its mover
         if self.playout_weight == 0.0:
             return value
