@@ -68,18 +68,25 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     rows: list[dict[str, Any]] = [{} for _ in matches]
     if workers > 1 and len(matches) > 1:
         import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(min(workers, len(matches)), mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_load_worker_robot, initargs=robot_spec) as pool:
-            futures = {pool.submit(_play_worker_match, *match, games): index for index, match in enumerate(matches)}
-            for future in as_completed(futures):
-                index = futures[future]
-                rows[index] = future.result()
+        # a multiprocessing Pool, not a ProcessPoolExecutor: on Ctrl-C or SIGTERM the executor's exit waits for
+        # the running matches (25 min each against mcts:10000); Pool.terminate stops the workers at once
+        pool = multiprocessing.get_context("spawn").Pool(min(workers, len(matches)), initializer=_load_worker_robot,
+                                                         initargs=robot_spec)
+        try:
+            tasks = [(index, *match, games) for index, match in enumerate(matches)]
+            for index, row in pool.imap_unordered(_play_worker_match, tasks):
+                rows[index] = row
                 if bar is not None:
                     name, seat, who, _ = matches[index]
                     bar.set_postfix_str(f"done: {who} vs {name} ({seat})")
                     bar.update(1)
+            pool.close()
+        except BaseException:
+            pool.terminate()
+            raise
+        finally:
+            pool.join()
     else:
         for index, (name, seat, who, match_seed) in enumerate(matches):
             if bar is not None:
@@ -145,18 +152,23 @@ _WORKER_ROBOT: tuple[Any, dict[str, Any]] | None = None  # (config, choosers) of
 
 def _load_worker_robot(*robot_spec: Any) -> None:
     """Process-pool initializer: each worker loads the robot once, single-threaded like the parent."""
+    import signal
+
     import torch
 
     global _WORKER_ROBOT
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent stops the workers
     torch.set_num_threads(1)
     config, _, choosers = load_ladder_robot(*robot_spec)
     _WORKER_ROBOT = (config, choosers)
 
 
-def _play_worker_match(opponent: str, seat: str, who: str, match_seed: int, games: int) -> dict[str, Any]:
+def _play_worker_match(task: tuple) -> tuple[int, dict[str, Any]]:
+    """(index, row) of one match, ``task`` = (index, opponent, seat, who, match seed, games)."""
     assert _WORKER_ROBOT is not None, "ladder worker used before its initializer ran"
+    index, opponent, seat, who, match_seed, games = task
     config, choosers = _WORKER_ROBOT
-    return play_match(config, choosers[who], who, opponent, seat, match_seed, games)
+    return index, play_match(config, choosers[who], who, opponent, seat, match_seed, games)
 
 
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -106,6 +106,44 @@ def test_goals_follow_the_issue() -> None:
     assert check_goals("ultimate", rows)[0]["verdict"] == "missed"
 
 
+def test_a_stopped_ladder_stops_its_workers(tmp_path) -> None:
+    """SIGTERM while `--workers 2` play: exit 143 with the one line, and both worker processes are gone at once
+    (they do not finish their matches first)."""
+    import os
+    import signal
+    import time
+
+    checkpoint = _checkpoint(tmp_path)
+    ladder = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--opponents",
+                               "random", "--games", "100000", "--workers", "2", "--out", str(tmp_path / "l")],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def children() -> list[int]:
+        found = []
+        for entry in os.listdir("/proc"):
+            try:
+                fields = open(f"/proc/{entry}/stat").read().rsplit(")", 1)[1].split()
+            except (OSError, IndexError):
+                continue
+            if entry.isdigit() and int(fields[1]) == ladder.pid and fields[0] != "Z":
+                found.append(int(entry))
+        return found
+
+    deadline = time.monotonic() + 120
+    while len(children()) < 2 and time.monotonic() < deadline:  # the pool's workers (and its resource tracker)
+        time.sleep(0.5)
+    workers = children()
+    assert len(workers) >= 2, "the ladder did not start its workers"
+    time.sleep(5)  # let the workers load the robot and start playing
+    ladder.send_signal(signal.SIGTERM)
+    _, stderr = ladder.communicate(timeout=60)
+    assert ladder.returncode == 143, stderr
+    assert "terminated (SIGTERM)" in stderr and "Traceback" not in stderr
+    time.sleep(1)
+    assert not [pid for pid in workers if os.path.exists(f"/proc/{pid}") and
+                open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+
+
 def test_cli_errors_are_one_line(tmp_path) -> None:
     checkpoint = _checkpoint(tmp_path)
     for args, message in (([str(tmp_path / "missing.pt")], "not found"),

@@ -1,0 +1,72 @@
+"""Q-guided search speed: CPU seconds per decision at several budgets, and how many simulations fit in 0.2 s.
+
+Run by hand (figures go to docs/ultimate.md, "A faster search"):
+
+    python bench/guided_search_speed.py CHECKPOINT --value VALUE.pt
+    python bench/guided_search_speed.py CHECKPOINT --value VALUE.pt --budgets 1600 4000 --positions 12
+
+Issue 17 gives the robot 0.2 CPU s per move on one core; the stronger the search within that budget, the better
+it plays against ``mcts:10000``. Positions come from seeded random openings of 4 to 40 moves (Ultimate), the same
+for every row. The "torch reads" row reads both networks through ``nn.Module`` instead of the search's numpy
+reader (``modules.qnet.MLPReader``): the two rows' ratio is the reader's gain on this machine, measured in one run.
+"""
+from __future__ import annotations
+
+import argparse
+import random
+import time
+
+import torch
+
+from envs.opponents.bitboards import ONGOING
+from pipelines.agents import load_agent, guided_search
+
+BUDGET_SECONDS = 0.2
+
+
+def positions(engine, count: int, seed: int) -> list[tuple]:
+    """``count`` unfinished positions after seeded random openings of 4..40 moves."""
+    rng, found = random.Random(seed), []
+    while len(found) < count:
+        pos = engine.from_board([0] * 81, 1)
+        for _ in range(rng.randint(4, 40)):
+            pos = engine.play(pos, rng.choice(engine.moves(pos)))
+            if engine.result(pos) != ONGOING:
+                break
+        if engine.result(pos) == ONGOING:
+            found.append(pos)
+    return found
+
+
+def cpu_per_search(search, boards: list[tuple]) -> float:
+    """Mean process CPU seconds of one search over ``boards`` (the root masks included, as the robot runs it)."""
+    started = time.process_time()
+    for index, pos in enumerate(boards):
+        search.search(pos, search.engine.moves(pos), random.Random(index))
+    return (time.process_time() - started) / len(boards)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("checkpoint", help="an Ultimate checkpoint.pt written by ncbot train")
+    parser.add_argument("--value", required=True, help="value.pt written by ncbot train-value (same free-move rule)")
+    parser.add_argument("--budgets", type=int, nargs="+", default=[1600, 3200, 4000, 4800])
+    parser.add_argument("--positions", type=int, default=8)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    config, greedy = load_agent(args.checkpoint)
+    print(f"{'reads':<13} {'simulations':>11} {'CPU s/decision':>15} {'sims/CPU s':>11} {'fits 0.2 s':>10}")
+    for budget in args.budgets:
+        for reads in ("numpy", "torch") if budget == args.budgets[0] else ("numpy",):
+            search = guided_search(config, greedy, budget, value=args.value)
+            if reads == "torch":  # the nn.Module path every reader falls back to
+                search._reader = search.evaluator._reader = None
+            boards = positions(search.engine, args.positions, args.seed)
+            seconds = cpu_per_search(search, boards)
+            print(f"{reads + ' reads':<13} {budget:>11} {seconds:>15.3f} {budget / seconds:>11.0f} "
+                  f"{'yes' if seconds <= BUDGET_SECONDS else 'no':>10}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
