@@ -40,15 +40,17 @@ VALIDATION_SHARE = 0.1
 
 
 def labelled_games(free_move: str, positions: int, simulations: int, seed: int, progress: bool = True
-                   ) -> list[list[tuple[list[float], float]]]:
-    """Self-play games of UCT; per game, (features, UCT root value for the side to move) of each decided position."""
+                   ) -> list[list[tuple[bytes, float]]]:
+    """Self-play games of UCT; per game, (features, UCT root value for the side to move) of each decided position.
+
+    The features (all 0 or 1) are kept as one byte each: 120K positions as Python float lists took ~200 MB."""
     from pipelines.progress import progress_bar
 
     engine = make_bits("ultimate", free_move)
     rng = random.Random(seed)
     rand = rng.random
     start = engine.from_board([0] * 81, 1, -1)
-    games: list[list[tuple[list[float], float]]] = []
+    games: list[list[tuple[bytes, float]]] = []
     count = 0
     with progress_bar(total=positions, desc="labelled positions", unit="pos", disable=not progress) as bar:
         while count < positions:
@@ -60,7 +62,7 @@ def labelled_games(free_move: str, positions: int, simulations: int, seed: int, 
                     root = policy.root(pos, moves)
                     run_search(root, simulations, rand, policy, RandomRollout(engine))
                     value = sum(c.value for c in root.children) / sum(c.visits for c in root.children)
-                    game.append((position_features(pos), value))
+                    game.append((bytes(map(int, position_features(pos))), value))
                     count += 1
                     bar.update(1)
                     move = policy.choose(root, rand) if rand() >= RANDOM_MOVE_SHARE else moves[int(rand() * len(moves))]
@@ -71,7 +73,7 @@ def labelled_games(free_move: str, positions: int, simulations: int, seed: int, 
     return games
 
 
-def split_games(games: list[list[tuple[list[float], float]]], seed: int) -> tuple[torch.Tensor, ...]:
+def split_games(games: list[list[tuple[bytes, float]]], seed: int) -> tuple[torch.Tensor, ...]:
     """(x_train, y_train, x_val, y_val): whole games to validation, VALIDATION_SHARE of them."""
     order = list(range(len(games)))
     random.Random(seed).shuffle(order)
@@ -79,7 +81,8 @@ def split_games(games: list[list[tuple[list[float], float]]], seed: int) -> tupl
     parts = []
     for chosen in (order[n_val:], order[:n_val]):
         samples = [sample for g in chosen for sample in games[g]]
-        x = torch.tensor([f for f, _ in samples]).reshape(-1, N_FEATURES)
+        rows = bytearray(b"".join(f for f, _ in samples))
+        x = torch.frombuffer(rows, dtype=torch.uint8).float().reshape(-1, N_FEATURES) if rows else torch.zeros(0, N_FEATURES)
         y = torch.tensor([v for _, v in samples]).reshape(-1, 1)
         parts += [x, y]
     return tuple(parts)
