@@ -139,9 +139,16 @@ def test_a_stopped_ladder_stops_its_workers(tmp_path) -> None:
     _, stderr = ladder.communicate(timeout=60)
     assert ladder.returncode == 143, stderr
     assert "terminated (SIGTERM)" in stderr and "Traceback" not in stderr
-    time.sleep(1)
-    assert not [pid for pid in workers if os.path.exists(f"/proc/{pid}") and
-                open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+    def alive(pid: int) -> bool:
+        try:
+            return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    deadline = time.monotonic() + 10  # the pool's resource tracker leaves when it reads its pipe's end
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [pid for pid in workers if alive(pid)]
 
 
 def test_cli_errors_are_one_line(tmp_path) -> None:
