@@ -132,10 +132,8 @@ class PUCT:
         self.engine, self.c_puct, self.expand = engine, c_puct, expand
 
     def child(self, node: Node, rand: Rand) -> Node | None:
-        if node.moves is None and self.expand is not None and not self.expand(node):
-            return None
-        if not node.moves:
-            return None
+        if node.moves is None and (self.expand is None or not self.expand(node)):
+            return None  # a leaf: not expanded yet (expand at evaluation), or its game is over
         sqrt_parent = math.sqrt(max(1, node.visits))
         c_puct, children = self.c_puct, node.children
         if not children:
