@@ -59,7 +59,8 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         make_opponent(name, game=game, free_move=config.env.free_move)
     pairs = [(name, seat, who) for name in names for seat in SEATS for who in choosers]
     # the agent and the baseline meet the same games: one match seed per (opponent, seat)
-    matches = [(name, seat, who, seed + 1000 * (index // len(choosers))) for index, (name, seat, who) in enumerate(pairs)]
+    matches = [(name, seat, who, seed + 1000 * (index // len(choosers)))
+               for index, (name, seat, who) in enumerate(pairs)]
     bar = None
     if progress:
         from pipelines.progress import progress_bar
@@ -91,7 +92,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         for index, (name, seat, who, match_seed) in enumerate(matches):
             if bar is not None:
                 bar.set_postfix_str(f"{who} vs {name} ({seat})")
-            rows[index] = play_match(config, choosers[who], who, name, seat, match_seed, games)
+            rows[index] = play_ladder_match(config, choosers[who], who, name, seat, match_seed, games)
             if bar is not None:
                 bar.update(1)
     if bar is not None:
@@ -123,7 +124,8 @@ def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None
     return config, robot, choosers
 
 
-def play_match(config, chooser, who: str, opponent: str, seat: str, match_seed: int, games: int) -> dict[str, Any]:
+def play_ladder_match(config, chooser, who: str, opponent: str, seat: str, match_seed: int,
+                      games: int) -> dict[str, Any]:
     """One ladder row: ``games`` games of ``chooser`` against ``opponent`` from ``seat``.
 
     The chooser's own random stream (the search's per-move seeds, the baseline's choice) restarts from
@@ -168,7 +170,7 @@ def _play_worker_match(task: tuple) -> tuple[int, dict[str, Any]]:
     assert _WORKER_ROBOT is not None, "ladder worker used before its initializer ran"
     index, opponent, seat, who, match_seed, games = task
     config, choosers = _WORKER_ROBOT
-    return index, play_match(config, choosers[who], who, opponent, seat, match_seed, games)
+    return index, play_ladder_match(config, choosers[who], who, opponent, seat, match_seed, games)
 
 
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
