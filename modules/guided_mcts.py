@@ -66,14 +66,13 @@ class TurnFeatures:
                              key=lambda u: len(model.utterance_texts[u]))
         base[word_start:word_start + len(model.words)] = torch.maximum(model.template_words[1 + MOVE],
                                                                        model.utterance_words[move_utterance])
-        self.base = base
-        self.base_row = base.numpy().astype(np.float32)
+        self.base = base.numpy()  # float32; one position's features start from a numpy copy (``__call__``)
         env.close()
 
     def __call__(self, own: list[int], other: list[int], last_move: int) -> np.ndarray:
         """(F,) float32 features for one position: ``own``/``other`` are the cells of the side to move / the other
         side. numpy, not torch: this runs once per search expansion, where torch's per-op cost dominates."""
-        features = self.base_row.copy()
+        features = self.base.copy()
         ones = [self.robot_plane + c for c in own] + [self.human_plane + c for c in other]
         if self.time_plane is not None:
             features[[self.time_plane + c for c in own + other]] = 0.5
@@ -84,7 +83,7 @@ class TurnFeatures:
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
         """(B, F) features of (B, cells) boards (codes 1/2) seen from ``player``; ``last_move`` (B,), -1 none."""
-        features = self.base.repeat(boards.shape[0], 1)
+        features = torch.from_numpy(self.base).repeat(boards.shape[0], 1)
         features[:, self.robot_plane:self.robot_plane + self.cells] = (boards == player).float()
         features[:, self.human_plane:self.human_plane + self.cells] = ((boards != 0) & (boards != player)).float()
         if self.time_plane is not None:
