@@ -75,13 +75,31 @@ def enabled_acts(driver) -> list[str]:
     return [b.get_attribute("data-act") for b in driver.find_elements(By.CSS_SELECTOR, "[data-act]") if b.is_enabled()]
 
 
+def robot_reaction(driver) -> tuple[str, str]:
+    """What changes once the robot has taken an answer: the sequence number of its latest line and what it heard."""
+    from selenium.webdriver.common.by import By
+
+    return driver.find_element(By.ID, "robot-says").get_attribute("data-seq"), driver.find_element(By.ID, "heard").text
+
+
+def wait_answer_taken(driver, before: tuple[str, str], what: str) -> None:
+    """Wait until the robot took an answer given when the page showed `before` (`robot_reaction`).
+
+    Why not only "the status left 'Answer the robot'": an answer the robot does not understand makes it ask again
+    at once, and the page can go from one answer window to the next between two polls; the robot's new line or
+    what it heard changes either way."""
+    wait_for(driver, lambda d: not status(d).startswith(ANSWERING) or robot_reaction(d) != before, timeout=30,
+             what=what)
+
+
 def answer_with_button(driver, act: str | None = None) -> str:
     """Press `act` (default: the first enabled of PREFERRED_ACTS) and wait until the robot took it."""
     from selenium.webdriver.common.by import By
 
     act = act or next(a for a in PREFERRED_ACTS if a in enabled_acts(driver))
+    before = robot_reaction(driver)
     driver.find_element(By.CSS_SELECTOR, f'[data-act="{act}"]').click()
-    wait_for(driver, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the answer to be taken")
+    wait_answer_taken(driver, before, "the answer to be taken")
     return act
 
 
@@ -89,10 +107,11 @@ def type_answer(driver, text: str) -> None:
     """Type `text` in the answer box, press Say and wait until the robot took it."""
     from selenium.webdriver.common.by import By
 
+    before = robot_reaction(driver)
     box = driver.find_element(By.ID, "say-text")
     box.send_keys(text)
     driver.find_element(By.ID, "say-button").click()
-    wait_for(driver, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the typed answer to be taken")
+    wait_answer_taken(driver, before, "the typed answer to be taken")
 
 
 def start_game(driver, url: str, first: str = "robot", screenshot: Path | None = None) -> None:
@@ -171,13 +190,14 @@ def main() -> None:
             from selenium.webdriver.common.by import By
 
             if d.find_element(By.ID, "robot-says").text.startswith("Would you like to play"):
+                before = robot_reaction(d)
                 box = d.find_element(By.ID, "say-text")
                 box.send_keys("yes please")
                 if shots is not None and not outcomes:
                     time.sleep(0.5)
                     d.save_screenshot(str(shots / "answer.png"))
                 d.find_element(By.ID, "say-button").click()
-                wait_for(d, lambda d: not status(d).startswith(ANSWERING), timeout=30, what="the typed answer")
+                wait_answer_taken(d, before, "the typed answer")
             else:
                 answer_with_button(d)
 
