@@ -142,6 +142,10 @@ class GuidedMCTS:
             self.policy = PUCT(self.engine, self.c_puct, expand=self.expand_visited)
             self.evaluator = ValueNetEvaluator(self, value_net)
 
+    def refresh(self) -> None:
+        """Copy the Q-network's current weights into the numpy reader (a search during training, after updates)."""
+        self._reader = MLPReader.of(self.qnet)
+
     # -- Q-network reads --------------------------------------------------------------------------------------
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
         """(cells of the side to move, cells of the other side) of a bitboard position."""

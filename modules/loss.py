@@ -32,6 +32,7 @@ from modules.masks import AVAILABLE_KEY
 from modules.qnet import ACTION_VALUE_KEY, QValues
 
 BOOTSTRAP_VALUE_KEY = "bootstrap_value"  # max of Q over the bootstrap mask, written by `value_network`
+PRIORITY_KEY = "td_error"  # |Q(s, a) - y| per row, written by the loss for a prioritised replay buffer
 LOSS_FUNCTIONS = {"l2": "l2", "mse": "l2", "huber": "smooth_l1", "smooth_l1": "smooth_l1"}
 PRECISIONS = ("fp32", "bf16")
 
@@ -51,7 +52,8 @@ class CompetitiveDQNLoss(LossModule):
         steps_to_next_obs: str = "steps_to_next_obs"
         value: str = BOOTSTRAP_VALUE_KEY
         action_value: str = ACTION_VALUE_KEY
-        priority: str = "td_error"
+        priority: str = PRIORITY_KEY
+        priority_weight: str = "priority_weight"
 
     default_keys = _AcceptedKeys
     default_value_estimator = ValueEstimators.TD0
@@ -156,8 +158,16 @@ class CompetitiveDQNLoss(LossModule):
         target = self.target_value_network[0](next_state.copy())
         return torch.gather(target.get(ACTION_VALUE_KEY).float(), -1, online.get("action").unsqueeze(-1))
 
+    def q_values(self, tensordict: TensorDictBase) -> torch.Tensor:
+        """Q(s, .) of the online network on the rows' observations (float32, with gradients; other losses on the
+        same network, e.g. the search teacher's margin loss, read it here)."""
+        with self._matmul_precision():
+            return self._qnet(tensordict.select(*self._qnet.in_keys)).get(self.tensor_keys.action_value).float()
+
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
-        """Loss on Q(s, a) against the masked TD(0) target; writes `td_error` (|Q - y|) for prioritised replay."""
+        """Loss on Q(s, a) against the masked TD(0) target; writes `td_error` (|Q - y|) for prioritised replay and,
+        when the batch carries the sampler's `priority_weight`, weights each row's error by it (importance
+        sampling, as TorchRL's DQNLoss does)."""
         keys = self.tensor_keys
         with self._matmul_precision():
             q_values = self._qnet(tensordict.select(*self._qnet.in_keys)).get(keys.action_value).float()
@@ -165,7 +175,9 @@ class CompetitiveDQNLoss(LossModule):
                 next_value = self._double_dqn_next_value(tensordict)
                 target = self.value_estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
         predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
-        loss = distance_loss(predicted, target.float(), self.loss_function).mean()
+        error = distance_loss(predicted, target.float(), self.loss_function)
+        weight = tensordict.get(keys.priority_weight, None)
+        loss = (error * weight.reshape(error.shape)).mean() if weight is not None else error.mean()
         with torch.no_grad():
             tensordict.set(keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
         return TensorDict({"loss": loss, "q_mean": predicted.detach().mean(), "target_mean": target.mean()},

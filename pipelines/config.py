@@ -138,6 +138,12 @@ class BufferConfig(Section):
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
+    # prioritised replay (Schaul et al. 2016; TorchRL's TensorDictPrioritizedReplayBuffer): rows drawn in proportion
+    # to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on Ultimate a loss to the random user
+    # is rare (~0.5 % of robot-second games), so a uniform buffer replays its surprising last steps as rarely.
+    prioritized: bool = False
+    alpha: Fraction = 0.6
+    beta: Fraction = 0.4
 
 
 class OptimConfig(Section):
@@ -243,6 +249,26 @@ class SelfPlayConfig(Section):
     epsilon: Fraction = 0.05  # random moves of a snapshot (keeps self-play games diverse)
 
 
+class SearchTargetsConfig(Section):
+    """Targets improved by search (section ``search_targets``; modules/search_targets.py): expert iteration into Q.
+
+    After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
+    Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
+    update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above every other
+    move of the greedy mask by ``margin``). Why: the issue names it (AlphaZero / expert iteration distil search
+    into the network); a 32-simulation search already removes a third of robot-second losses at test time."""
+
+    enabled: bool = False
+    simulations: Annotated[int, Field(gt=0, le=100_000)] = 32
+    rows_per_batch: Annotated[int, Field(gt=0, le=100_000)] = 16  # searched robot moves per collected batch
+    seat: Literal["both", "second"] = "both"  # label moves from every game, or only from robot-second games
+    start_frames: Annotated[int, Field(ge=0, le=10**10)] = 1_000_000  # the network should be worth searching first
+    weight: Annotated[Number, Field(ge=0)] = 1.0  # of the margin loss, beside the TD loss
+    margin: Annotated[Number, Field(gt=0)] = 1.0  # l(a_E, a) of DQfD, in Q units (the paper's rewards are +-5)
+    buffer_size: Annotated[int, Field(gt=0, le=10_000_000)] = 50_000  # labels kept (the newest)
+    batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # labels per update
+
+
 class RunConfig(Section):
     """One training run: every section of the YAML file (pydantic copies each default section per instance)."""
 
@@ -258,6 +284,7 @@ class RunConfig(Section):
     logger: LoggerConfig = LoggerConfig()
     checkpoint: CheckpointConfig = CheckpointConfig()
     selfplay: SelfPlayConfig = SelfPlayConfig()
+    search_targets: SearchTargetsConfig = SearchTargetsConfig()
 
     @model_validator(mode="after")
     def _check_across_sections(self) -> RunConfig:

@@ -14,10 +14,12 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-from modules.loss import CompetitiveDQNLoss, make_target_updater
+from modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
+from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from modules.symmetry import BoardSymmetries
 from modules.transitions import LOSS_KEYS
 from pipelines.config import RunConfig
+from pipelines.prioritized_sampler import ProportionalSampler
 
 
 def scheduled_lr(config: RunConfig, frames: int) -> float:
@@ -28,9 +30,22 @@ def scheduled_lr(config: RunConfig, frames: int) -> float:
     return config.optim.lr + progress * (config.schedule.lr_end - config.optim.lr)
 
 
-def make_replay_buffer(size: int, batch_size: int) -> TensorDictReplayBuffer:
-    """The run's uniform replay buffer: TorchRL's TensorDictReplayBuffer + RandomSampler over a LazyTensorStorage."""
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), batch_size=batch_size)
+def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
+                       beta: float = 0.4) -> TensorDictReplayBuffer:
+    """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
+    RandomSampler or, `prioritized`, a proportional one (`pipelines.prioritized_sampler`: rows drawn by the loss's
+    |TD error|, each with its importance weight `priority_weight`)."""
+    sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
+                                  batch_size=batch_size)
+
+
+def _draw(buffer: TensorDictReplayBuffer, count: int) -> list[TensorDictBase]:
+    """`count` batches of the buffer's batch size, drawn in one sampling call (see `Learner.update_many`)."""
+    size = buffer.batch_size
+    with warnings.catch_warnings():  # TorchRL warns that the call's size overrides the constructor's: intended
+        warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+        return list(buffer.sample(size * count).split(size))
 
 
 @dataclass
@@ -42,6 +57,9 @@ class Learner:
     optimizer: torch.optim.Optimizer
     max_grad_norm: float
     symmetries: BoardSymmetries | None = None  # buffer.augment=d4: each sample seen under a random board symmetry
+    teacher: SearchTeacher | None = None  # search_targets: labels of the Q-guided search, a margin loss beside TD
+    teacher_weight: float = 1.0
+    teacher_margin: float = 1.0
 
     def __post_init__(self) -> None:
         # the online parameters, listed once: LossModule.parameters() walks its modules at every call (~80 us, which
@@ -80,12 +98,20 @@ class Learner:
         turned.set(mask_key, next_mask)
         return turned
 
-    def update(self, batch: TensorDictBase) -> torch.Tensor:
-        """One gradient step on a sampled batch, then a target-network step; returns the loss (0-d tensor, no sync)."""
+    def update(self, batch: TensorDictBase, labels: TensorDictBase | None = None) -> torch.Tensor:
+        """One gradient step on a sampled batch (and, with `labels` of the search teacher, its margin loss), then a
+        target-network step; returns the loss (0-d tensor, no sync)."""
+        sampled = batch
         if self.symmetries is not None:
             batch = self.augmented(batch)
-        loss_td = self.loss_module(batch)
+        loss_td = self.loss_module(batch)  # writes the rows' |TD error| into `batch` (prioritised replay reads it)
+        if batch is not sampled:
+            sampled.set(PRIORITY_KEY, batch.get(PRIORITY_KEY))
         loss = loss_td["loss"]
+        if labels is not None:
+            q_values = self.loss_module.q_values(labels)
+            loss = loss + self.teacher_weight * margin_loss(q_values, labels.get(EXPERT_ACTION_KEY),
+                                                            labels.get(LABEL_MASK_KEY), self.teacher_margin)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(self._parameters, self.max_grad_norm, foreach=True)
@@ -103,11 +129,18 @@ class Learner:
         """
         if count <= 0:
             return []
-        size = buffer.batch_size
-        with warnings.catch_warnings():  # TorchRL warns that the call's size overrides the constructor's: intended
-            warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
-            draw = buffer.sample(size * count)
-        return [self.update(part) for part in draw.split(size)]
+        parts = _draw(buffer, count)
+        labels = _draw(self.teacher.labels, count) if self.teacher is not None and self.teacher.ready() \
+            else [None] * count
+        if not isinstance(buffer.sampler, ProportionalSampler):
+            return [self.update(part, label) for part, label in zip(parts, labels)]
+        # prioritised: the draw is one sample of the priorities (as Ape-X's learner takes a few batches per fetch);
+        # each part's new |TD error| goes back to the sampler after its update
+        losses = []
+        for part, label in zip(parts, labels):
+            losses.append(self.update(part, label))
+            buffer.update_priority(part.get("index"), part.get(PRIORITY_KEY))
+        return losses
 
     def state_dict(self) -> dict:
         state = {"loss": self.loss_module.state_dict(), "optimizer": self.optimizer.state_dict(),

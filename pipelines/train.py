@@ -158,8 +158,13 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     symmetries = make_symmetries(config.buffer.augment, env, seed)
     learner = Learner.from_config(qnet, config, symmetries)
+    teacher = _make_teacher(config, agent.greedy, seed)  # search_targets: labels of the Q-guided search, or None
+    learner.teacher = teacher
+    if teacher is not None:
+        learner.teacher_weight, learner.teacher_margin = config.search_targets.weight, config.search_targets.margin
     multistep = make_multistep(config.loss.n_step, config.loss.gamma)  # n-step returns when loss.n_step > 1
-    buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
+    buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size, prioritized=config.buffer.prioritized,
+                                alpha=config.buffer.alpha, beta=config.buffer.beta)
 
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
     history: list[dict[str, Any]] = []
@@ -170,6 +175,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             agent.egreedy.load_state_dict(state["egreedy"])
             if state.get("buffer") is not None:
                 buffer.load_state_dict(state["buffer"])
+            if teacher is not None and state.get("teacher") is not None:
+                teacher.load_state_dict(state["teacher"])
             torch.set_rng_state(state["rng"])
         except (RuntimeError, KeyError, TypeError, ValueError) as error:  # the checkpoint's parts do not fit this config
             raise ValueError(f"checkpoint {str(run.state_path)!r} does not fit the run's config "
@@ -206,6 +213,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             "config": config.to_dict(), "n_features": env.n_features, "n_actions": env.n_actions,
             "qnet": qnet.state_dict(), "learner": learner.state_dict(), "egreedy": agent.egreedy.state_dict(),
             "buffer": buffer.state_dict() if config.checkpoint.save_buffer else None,
+            "teacher": teacher.state_dict(keep_labels=config.checkpoint.save_buffer) if teacher is not None else None,
             "rng": torch.get_rng_state(), "history": history, "run_id": run.run_id,
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
             "wall_time": counters["wall_offset"] + time.monotonic() - started,
@@ -228,6 +236,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             counters["episodes"] += episodes_ended
             # learning reward, bootstrap mask and n-step windows under their own keys (modules/transitions.py)
             buffer.extend(prepare_transitions(batch, config, multistep))
+            if teacher is not None and counters["frames"] >= config.search_targets.start_frames:
+                teacher.label(batch)
             if mcap_logger is not None:
                 mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=seed,
                                          epsilon=float(agent.egreedy.eps), env_steps=counters["frames"], env=env)
@@ -291,6 +301,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             result = evaluate_agent(config, agent.greedy, games=config.eval.games, seat=seat, seed=seed + 2 * EVAL_SEED_OFFSET,
                                     logger=mcap_logger, agent_name=config.agent.name)
             report[seat] = result.to_dict()
+        if teacher is not None:
+            report["search_targets"] = {"labels": teacher.searched, "search_cpu_s": round(teacher.cpu_seconds, 2)}
         if selfplay_pool is not None:
             from pipelines.selfplay import pool_summary
 
@@ -301,6 +313,22 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
                         title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")
     env.close()
     return report
+
+
+def _make_teacher(config: RunConfig, greedy: Any, seed: int):
+    """The search teacher of `search_targets` (modules/search_targets.py) on the run's own Q-network, or None."""
+    settings = config.search_targets
+    if not settings.enabled:
+        return None
+    from modules.guided_mcts import GuidedMCTS, TurnFeatures
+    from modules.search_targets import SearchTeacher
+
+    env = config.env
+    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
+    search = GuidedMCTS(qnet, TurnFeatures(env.game, env.temporal, env.free_move), env.game, env.free_move,
+                        settings.simulations)
+    return SearchTeacher(greedy, search, rows_per_batch=settings.rows_per_batch, seat=settings.seat,
+                         buffer_size=settings.buffer_size, batch_size=settings.batch_size, seed=seed)
 
 
 def _open_mcap(config: RunConfig, out_dir: Path):

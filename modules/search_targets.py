@@ -1,0 +1,94 @@
+"""Targets improved by search: the Q-network is also trained towards the moves its own Q-guided search picks.
+
+Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``modules.guided_mcts``, priors and leaf
+values from the current Q-network plus random playouts) is a better player than the greedy network it starts
+from, so its choices are labels. Each label is (observation, greedy mask, searched move); the learner adds DQfD's
+large-margin loss (Hester et al. 2018) on a batch of labels to the TD loss:
+
+    J_E = max_{a in mask} [Q(s, a) + l(a_E, a)] - Q(s, a_E),   l = margin for a != a_E, 0 for a_E
+
+which is zero once Q ranks the searched move above every other move of the mask by the margin, and leaves the
+values themselves to the TD loss. Labels come from the robot's game moves of the collected batches (optionally
+only robot-second games, the weak seat on Ultimate), searched with the network as it is at that point of training.
+"""
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+from modules.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
+from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+
+EXPERT_ACTION_KEY = "expert_action"
+LABEL_MASK_KEY = "label_mask"  # the moves the label ranks the searched move against (the greedy mask)
+SEARCH_IN_KEYS = ("observation", AVAILABLE_KEY, "board", "lookahead_reward", "winning_actions")
+
+
+def margin_loss(q_values: torch.Tensor, expert_action: torch.Tensor, mask: torch.Tensor, margin: float) -> torch.Tensor:
+    """DQfD's supervised large-margin loss, averaged over rows: (B, A) Q-values, (B,) searched moves, (B, A) masks."""
+    q = q_values.masked_fill(~mask, float("-inf"))
+    bonus = torch.full_like(q, float(margin))
+    bonus.scatter_(-1, expert_action.unsqueeze(-1), 0.0)
+    expert_q = q_values.gather(-1, expert_action.unsqueeze(-1)).squeeze(-1)
+    return ((q + bonus).amax(-1) - expert_q).mean()
+
+
+class SearchTeacher:
+    """Labels robot game moves of collected batches with the moves the Q-guided search picks (see module doc)."""
+
+    def __init__(self, greedy: torch.nn.Module, search: GuidedMCTS, *, rows_per_batch: int, seat: str = "both",
+                 buffer_size: int = 50_000, batch_size: int = 128, seed: int = 0) -> None:
+        if seat not in ("both", "second"):
+            raise ValueError(f"seat must be 'both' or 'second', got {seat!r}")
+        self.search, self.rows_per_batch, self.seat = search, int(rows_per_batch), seat
+        self.policy = GuidedMCTSPolicy(greedy, search, seed)  # root: the greedy mask, priors: the real observation
+        self.generator = torch.Generator().manual_seed(int(seed) + 17)
+        self.labels = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=batch_size)
+        self.searched = 0  # labels made, and the CPU they took (the policy's own count)
+
+    @property
+    def cpu_seconds(self) -> float:
+        return self.policy.cpu_seconds
+
+    def candidates(self, batch: TensorDictBase) -> torch.Tensor:
+        """Flat row indices of robot game moves with a choice: at least two moves in the greedy mask."""
+        cells = self.search.cells
+        choice = batch.get(GREEDY_MASK_KEY)[..., :cells].sum(-1) >= 2
+        if self.seat == "second":
+            choice = choice & ~batch.get("robot_first").squeeze(-1)
+        return choice.reshape(-1).nonzero().flatten()
+
+    @torch.no_grad()
+    def label(self, batch: TensorDictBase) -> int:
+        """Search up to ``rows_per_batch`` random candidate rows of a collected batch; store their labels."""
+        rows = self.candidates(batch)
+        if rows.numel() == 0:
+            return 0
+        pick = rows[torch.randperm(rows.numel(), generator=self.generator)[:self.rows_per_batch]]
+        flat = batch.reshape(-1)
+        states = flat.select(*SEARCH_IN_KEYS)[pick].clone()
+        self.search.refresh()  # the network as it is now
+        searched = self.policy(states)
+        self.labels.extend(TensorDict({
+            "observation": searched.get("observation"),
+            LABEL_MASK_KEY: searched.get(GREEDY_MASK_KEY),
+            EXPERT_ACTION_KEY: searched.get("action"),
+        }, batch_size=[pick.numel()]))
+        self.searched += pick.numel()
+        return pick.numel()
+
+    def ready(self) -> bool:
+        return len(self.labels) >= self.labels.batch_size
+
+    def state_dict(self, keep_labels: bool = True) -> dict:
+        """Generators and count (and the labels, unless a run keeps no replay data in its checkpoints)."""
+        return {"generator": self.generator.get_state(), "policy_generator": self.policy.generator.get_state(),
+                "searched": self.searched, "labels": self.labels.state_dict() if keep_labels else None}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.generator.set_state(state["generator"])
+        self.policy.generator.set_state(state["policy_generator"])
+        self.searched = state["searched"]
+        if state.get("labels") is not None:
+            self.labels.load_state_dict(state["labels"])
