@@ -133,6 +133,9 @@ class GuidedMCTS:
         self.cells = 9 if game == "standard" else 81
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
+        # after a search: each visited root move's mean value in [0, 1] for the side to move ({} when the root
+        # rules decided without searching); the search teacher reads it (modules/search_targets.py)
+        self.root_values: dict[int, float] = {}
         if value_net is not None and game != "ultimate":
             raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
                              "(--value needs an Ultimate agent)")
@@ -195,6 +198,7 @@ class GuidedMCTS:
         typical-turn features only approximate."""
         engine = self.engine
         turn = engine.turn(pos)
+        self.root_values = {}
         for move in root_moves:  # A: a winning cell is taken at once
             if engine.result(engine.play(pos, move)) == turn:
                 return move, {move: 0}
@@ -206,6 +210,8 @@ class GuidedMCTS:
         self.expand(root, moves, None if root_q is None else [root_q[m] for m in moves])
         rand = rng.random
         run_search(root, self.simulations, rand, self.policy, self.evaluator)
+        self.root_values = {child.move: child.value / child.visits for child in root.children
+                            if child is not None and child.visits}
         return self.policy.choose(root, rand), visits_by_move(root)
 
 
@@ -260,6 +266,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
         self.generator = torch.Generator().manual_seed(int(seed))
         self.searching: torch.Tensor | None = None
         self.decisions, self.cpu_seconds = 0, 0.0
+        self.root_values: dict[int, dict[int, float]] = {}  # row -> the search's root values, of the last call
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tensordict = self.greedy(tensordict)
@@ -269,6 +276,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
         if self.searching is not None:
             playing = playing & self.searching
         rows = playing.nonzero().flatten().tolist()
+        self.root_values = {}
         if not rows:
             return tensordict
         started = time.process_time()
@@ -290,6 +298,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
             root_moves = moves[row].nonzero().flatten().tolist()
             root_q = {m: q_rows[row][m] for m in root_moves}
             action[row], _ = self.search.search(pos, root_moves, random.Random(seed), root_q)
+            self.root_values[row] = self.search.root_values
         tensordict.set("action", action)
         self.decisions += len(rows)
         self.cpu_seconds += time.process_time() - started

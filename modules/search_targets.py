@@ -8,7 +8,10 @@ large-margin loss (Hester et al. 2018) on a batch of labels to the TD loss:
     J_E = max_{a in mask} [Q(s, a) + l(a_E, a)] - Q(s, a_E),   l = margin for a != a_E, 0 for a_E
 
 which is zero once Q ranks the searched move above every other move of the mask by the margin, and leaves the
-values themselves to the TD loss. Labels come from the robot's game moves of the collected batches (optionally
+values themselves to the TD loss. The mask is DQfD's (every move the greedy policy could play, ``gap=None``) or,
+by default, only the moves the search valued clearly below the searched one (``gap``): on Ultimate most moves
+against the random user are near ties, and the full mask taught the search's tie-breaks and wrecked the agent
+(docs/ultimate.md, eighth session). Labels come from the robot's game moves of the collected batches (optionally
 only robot-second games, the weak seat on Ultimate), searched with the network as it is at that point of training.
 """
 from __future__ import annotations
@@ -38,14 +41,14 @@ class SearchTeacher:
     """Labels robot game moves of collected batches with the moves the Q-guided search picks (see module doc)."""
 
     def __init__(self, greedy: torch.nn.Module, search: GuidedMCTS, *, rows_per_batch: int, seat: str = "both",
-                 buffer_size: int = 50_000, batch_size: int = 128, seed: int = 0) -> None:
+                 gap: float | None = 0.1, buffer_size: int = 50_000, batch_size: int = 128, seed: int = 0) -> None:
         if seat not in ("both", "second"):
             raise ValueError(f"seat must be 'both' or 'second', got {seat!r}")
-        self.search, self.rows_per_batch, self.seat = search, int(rows_per_batch), seat
+        self.search, self.rows_per_batch, self.seat, self.gap = search, int(rows_per_batch), seat, gap
         self.policy = GuidedMCTSPolicy(greedy, search, seed)  # root: the greedy mask, priors: the real observation
         self.generator = torch.Generator().manual_seed(int(seed) + 17)
         self.labels = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=batch_size)
-        self.searched = 0  # labels made, and the CPU they took (the policy's own count)
+        self.searched = self.kept = 0  # moves searched, labels kept (CPU: the policy's own count)
 
     @property
     def cpu_seconds(self) -> float:
@@ -70,13 +73,33 @@ class SearchTeacher:
         states = flat.select(*SEARCH_IN_KEYS)[pick].clone()
         self.search.refresh()  # the network as it is now
         searched = self.policy(states)
-        self.labels.extend(TensorDict({
-            "observation": searched.get("observation"),
-            LABEL_MASK_KEY: searched.get(GREEDY_MASK_KEY),
-            EXPERT_ACTION_KEY: searched.get("action"),
-        }, batch_size=[pick.numel()]))
         self.searched += pick.numel()
-        return pick.numel()
+        expert = searched.get("action")
+        mask = searched.get(GREEDY_MASK_KEY).clone()
+        if self.gap is not None:
+            mask = self.decisive_masks(expert, mask)
+        keep = mask.sum(-1) >= 2  # a label must rank the searched move above at least one other move
+        if not keep.any():
+            return 0
+        self.labels.extend(TensorDict({"observation": searched.get("observation")[keep], LABEL_MASK_KEY: mask[keep],
+                                       EXPERT_ACTION_KEY: expert[keep]}, batch_size=[int(keep.sum())]))
+        self.kept += int(keep.sum())
+        return int(keep.sum())
+
+    def decisive_masks(self, expert: torch.Tensor, greedy_mask: torch.Tensor) -> torch.Tensor:
+        """Per searched row: the searched move and the moves whose root value is below its value by more than
+        ``gap`` (win-probability units). Near-tied moves are left out: most of Ultimate's moves against the random
+        user are near ties, and a margin between them would only teach the search's tie-breaks."""
+        mask = torch.zeros_like(greedy_mask)
+        for row, values in self.policy.root_values.items():
+            best = int(expert[row])
+            if best not in values:
+                continue
+            mask[row, best] = True
+            for move, value in values.items():
+                if value < values[best] - self.gap and greedy_mask[row, move]:
+                    mask[row, move] = True
+        return mask
 
     def ready(self) -> bool:
         return len(self.labels) >= self.labels.batch_size
@@ -84,11 +107,11 @@ class SearchTeacher:
     def state_dict(self, keep_labels: bool = True) -> dict:
         """Generators and count (and the labels, unless a run keeps no replay data in its checkpoints)."""
         return {"generator": self.generator.get_state(), "policy_generator": self.policy.generator.get_state(),
-                "searched": self.searched, "labels": self.labels.state_dict() if keep_labels else None}
+                "searched": self.searched, "kept": self.kept, "labels": self.labels.state_dict() if keep_labels else None}
 
     def load_state_dict(self, state: dict) -> None:
         self.generator.set_state(state["generator"])
         self.policy.generator.set_state(state["policy_generator"])
-        self.searched = state["searched"]
+        self.searched, self.kept = state["searched"], state["kept"]
         if state.get("labels") is not None:
             self.labels.load_state_dict(state["labels"])

@@ -265,8 +265,14 @@ class SearchTargetsConfig(Section):
     start_frames: Annotated[int, Field(ge=0, le=10**10)] = 1_000_000  # the network should be worth searching first
     weight: Annotated[Number, Field(ge=0)] = 1.0  # of the margin loss, beside the TD loss
     margin: Annotated[Number, Field(gt=0)] = 1.0  # l(a_E, a) of DQfD, in Q units (the paper's rewards are +-5)
+    # the margin holds against moves the search valued below the searched one by more than this (win probability);
+    # null: against every move of the greedy mask (DQfD as published)
+    gap: Fraction | None = 0.1
     buffer_size: Annotated[int, Field(gt=0, le=10_000_000)] = 50_000  # labels kept (the newest)
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # labels per update
+    # Ultimate: a value network (ncbot train-value, for the run's free-move rule) scores the search's leaves
+    # instead of Q + random playouts; its training time belongs to the run's budget
+    value: str | None = None
 
 
 class RunConfig(Section):

@@ -302,7 +302,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
                                     logger=mcap_logger, agent_name=config.agent.name)
             report[seat] = result.to_dict()
         if teacher is not None:
-            report["search_targets"] = {"labels": teacher.searched, "search_cpu_s": round(teacher.cpu_seconds, 2)}
+            report["search_targets"] = {"searched": teacher.searched, "labels": teacher.kept,
+                                        "search_cpu_s": round(teacher.cpu_seconds, 2)}
         if selfplay_pool is not None:
             from pipelines.selfplay import pool_summary
 
@@ -320,14 +321,25 @@ def _make_teacher(config: RunConfig, greedy: Any, seed: int):
     settings = config.search_targets
     if not settings.enabled:
         return None
+    with torch.random.fork_rng():  # building it draws no number from the run's stream: same run up to start_frames
+        return _build_teacher(config, greedy, seed)
+
+
+def _build_teacher(config: RunConfig, greedy: Any, seed: int):
+    settings = config.search_targets
     from modules.guided_mcts import GuidedMCTS, TurnFeatures
     from modules.search_targets import SearchTeacher
 
     env = config.env
+    value_net = None
+    if settings.value is not None:
+        from modules.value_net import load_value_net
+
+        value_net = load_value_net(settings.value, env.free_move)
     qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
     search = GuidedMCTS(qnet, TurnFeatures(env.game, env.temporal, env.free_move), env.game, env.free_move,
-                        settings.simulations)
-    return SearchTeacher(greedy, search, rows_per_batch=settings.rows_per_batch, seat=settings.seat,
+                        settings.simulations, value_net=value_net)
+    return SearchTeacher(greedy, search, rows_per_batch=settings.rows_per_batch, seat=settings.seat, gap=settings.gap,
                          buffer_size=settings.buffer_size, batch_size=settings.batch_size, seed=seed)
 
 

@@ -49,11 +49,13 @@ def _config_path(game: str) -> Path:
     return Path(__file__).resolve().parents[1] / "pipelines" / "configs" / ("ultimate.yaml" if game == "ultimate" else "default.yaml")
 
 
-def _teacher(config, agent, seat: str = "both", rows: int = 6, simulations: int = 8) -> SearchTeacher:
+def _teacher(config, agent, seat: str = "both", rows: int = 6, simulations: int = 8,
+             gap: float | None = None) -> SearchTeacher:
     env = config.env
     search = GuidedMCTS(agent.greedy[0].module, TurnFeatures(env.game, env.temporal, env.free_move), env.game,
                         env.free_move, simulations)
-    return SearchTeacher(agent.greedy, search, rows_per_batch=rows, seat=seat, buffer_size=100, batch_size=4, seed=1)
+    return SearchTeacher(agent.greedy, search, rows_per_batch=rows, seat=seat, gap=gap, buffer_size=100, batch_size=4,
+                         seed=1)
 
 
 @pytest.mark.parametrize("seat", ["both", "second"])
@@ -67,7 +69,7 @@ def test_teacher_labels_robot_moves_with_a_choice_inside_the_greedy_mask(seat: s
     if seat == "second":
         assert not flat["robot_first"][rows].any()
         assert teacher.candidates(batch).numel() < _teacher(config, agent, "both").candidates(batch).numel()
-    assert teacher.label(batch) == 6 and len(teacher.labels) == 6 and teacher.ready()
+    assert teacher.label(batch) == 6 and len(teacher.labels) == 6 and teacher.ready()  # gap None: every row kept
     labels = teacher.labels[:]
     chosen = labels[LABEL_MASK_KEY].gather(-1, labels[EXPERT_ACTION_KEY].unsqueeze(-1))
     assert chosen.all() and torch.all(labels[EXPERT_ACTION_KEY] < 81)  # a game move the greedy policy could play
@@ -75,6 +77,27 @@ def test_teacher_labels_robot_moves_with_a_choice_inside_the_greedy_mask(seat: s
     again = _teacher(config, agent, seat)  # same seed, same network, same batch: same labels
     again.label(batch)
     assert torch.equal(again.labels[:][EXPERT_ACTION_KEY], labels[EXPERT_ACTION_KEY])
+
+
+def test_decisive_masks_keep_the_searched_move_and_the_clearly_worse_ones() -> None:
+    config, agent, batch = _agent_and_batch(frames=16)
+    teacher = _teacher(config, agent, gap=0.1)
+    teacher.policy.root_values = {0: {3: 0.9, 4: 0.85, 5: 0.5, 6: 0.2}, 1: {7: 0.6}}
+    greedy_mask = torch.ones(2, 90, dtype=torch.bool)
+    greedy_mask[0, 6] = False  # not a move the greedy policy could play: never in a label
+    mask = teacher.decisive_masks(torch.tensor([3, 7]), greedy_mask)
+    assert mask[0].nonzero().flatten().tolist() == [3, 5]  # 4 is a near tie (0.05 < gap)
+    assert mask[1].nonzero().flatten().tolist() == [7]  # nothing clearly worse: the row is dropped by label()
+
+
+def test_labels_with_a_gap_rank_the_searched_move_against_clearly_worse_moves_only() -> None:
+    config, agent, batch = _agent_and_batch()
+    teacher = _teacher(config, agent, rows=12, simulations=32, gap=0.05)
+    kept = teacher.label(batch)
+    assert teacher.searched == 12 and 0 < kept <= 12 and teacher.kept == kept
+    labels = teacher.labels[:]
+    assert torch.all(labels[LABEL_MASK_KEY].sum(-1) >= 2)
+    assert labels[LABEL_MASK_KEY].gather(-1, labels[EXPERT_ACTION_KEY].unsqueeze(-1)).all()
 
 
 def test_search_reads_the_network_as_it_is_after_refresh() -> None:
@@ -107,7 +130,7 @@ def test_learner_adds_the_weighted_margin_loss_to_the_td_loss() -> None:
 
 
 def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
-    overrides = ["search_targets.enabled=true", "search_targets.start_frames=128", "search_targets.simulations=4",
+    overrides = ["search_targets.enabled=true", "search_targets.start_frames=128", "search_targets.simulations=16",
                  "search_targets.rows_per_batch=4", "search_targets.batch_size=8"]
 
     def run(name: str, extra: list[str]) -> dict:
@@ -119,7 +142,7 @@ def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
         return list(torch.load(tmp_path / name / "checkpoint.pt", weights_only=True)["qnet"].values())
 
     first, again, plain = run("a", overrides), run("b", overrides), run("p", [])
-    assert first["search_targets"]["labels"] > 0 and "search_targets" not in plain
+    assert first["search_targets"]["searched"] > 0 and "search_targets" not in plain
     assert first["search_targets"]["labels"] == again["search_targets"]["labels"]
     assert all(torch.equal(a, b) for a, b in zip(weights("a"), weights("b")))
     assert not all(torch.equal(a, b) for a, b in zip(weights("a"), weights("p")))
