@@ -21,6 +21,11 @@ It prints the training wall time at which each first reaches task success 0.95 a
 
 Snapshots are evaluated in time order and evaluation stops at the first snapshot with 0.995 in both seats.
 
+``--ours-search N [--ours-value V]`` adds a second curve for ours, "ours + search": the same snapshots deciding every
+game move by the Q-guided search (``ncbot eval --search N --value V``), with the value network's own CPU seconds
+(labelling + training, its value.json) added to both clocks. It answers "how soon do I have an agent that plays
+this well as deployed with search"; greedy stays the headline (OpenSpiel's DQN has no search).
+
     python bench/time_to_quality.py                          # 3x3
     python bench/time_to_quality.py --game ultimate --clock cpu --cap-seconds 900
 
@@ -127,13 +132,24 @@ def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: 
     return {**run, "snapshots": snapshots}
 
 
-def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int) -> dict[str, float]:
-    from pipelines.agents import load_agent
+def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int | None = None,
+                  value: str | None = None) -> dict[str, float]:
+    """Task success of a snapshot from each seat: greedy, or (``search``) with its game moves chosen by the
+    Q-guided search of ``search`` simulations (``value``: a value network scores the leaves), as ``ncbot eval
+    --search N --value V`` plays it."""
+    from pipelines.agents import load_agent, load_guided_agent
     from pipelines.evaluate import evaluate_agent
 
-    config, greedy = load_agent(snapshot["path"])
-    return {seat: evaluate_agent(config, greedy, games=games, seat=seat, seed=seed).task_success
+    config, policy = load_guided_agent(snapshot["path"], search, seed, value) if search else load_agent(snapshot["path"])
+    return {seat: evaluate_agent(config, policy, games=games, seat=seat, seed=seed).task_success
             for seat in ("first", "second")}
+
+
+def value_network_cpu(value: str) -> float:
+    """CPU seconds that made a value network (labelling + training, from the value.json ncbot train-value wrote
+    beside it): part of the time to an agent that searches with it."""
+    report = json.loads((Path(value).parent / "value.json").read_text())
+    return float(report["labelling_cpu_s"]) + float(report["training_cpu_s"])
 
 
 # ------------------------------------------------------------------------------------------------------ theirs
@@ -295,6 +311,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--dqn-hidden", default="32,32", help="DQN hidden layers (the tic_tac_toe example: 32,32)")
     parser.add_argument("--config", default=None, help="our config (default: default.yaml / ultimate.yaml)")
     parser.add_argument("--only", choices=("ours", "dqn"), default=None, help="train and evaluate one side only")
+    parser.add_argument("--ours-search", type=int, default=None,
+                        help="also evaluate our snapshots with the Q-guided search of N simulations at decision time "
+                             "(a second curve, 'ours + search'; greedy stays the headline)")
+    parser.add_argument("--ours-value", default=None,
+                        help="with --ours-search on Ultimate: the value network (ncbot train-value) for the search's "
+                             "leaves; its labelling + training CPU seconds are added to that curve's clocks")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="/tmp/time_to_quality")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
@@ -323,6 +345,18 @@ def main(argv: list[str] | None = None) -> None:
         print(f"ours: {len(ours['snapshots'])} snapshots; evaluating", flush=True)
         ours["points"] = curve(ours["snapshots"], lambda s: evaluate_ours(s, args.games, args.seed + 17))
         report["ours"] = {k: v for k, v in ours.items() if k != "snapshots"}
+        if args.ours_search:
+            extra = value_network_cpu(args.ours_value) if args.ours_value else 0.0
+            print(f"ours + search {args.ours_search}{' + value network' if args.ours_value else ''}: evaluating "
+                  f"(+{extra:.1f} s on both clocks for the value network)", flush=True)
+            points = curve(ours["snapshots"], lambda s: evaluate_ours(s, args.games, args.seed + 17, args.ours_search,
+                                                                      args.ours_value))
+            for point in points:
+                point["wall_time"] += extra
+                point["cpu_time"] += extra
+            report["ours_search"] = {**{k: v for k, v in ours.items() if k not in ("snapshots", "points")},
+                                     "points": points, "simulations": args.ours_search, "value": args.ours_value,
+                                     "value_network_cpu_s": extra}
     if args.only in (None, "dqn"):
         print(f"OpenSpiel DQN: training (load {load_average()})", flush=True)
         theirs = train_dqn(game, out / "dqn_snapshots.pt", args.cap_seconds, clock, args.snapshot_seconds, args.dqn_opponent,
@@ -334,21 +368,26 @@ def main(argv: list[str] | None = None) -> None:
         report["dqn"] = theirs
     print(f"\n{game}: training wall time to task success vs uniform random, both seats ({args.games} games per seat), "
           f"cap {args.cap_seconds:.0f} {args.clock} s")
-    print("| threshold | clock | ours (s) | OpenSpiel DQN (s) | DQN / ours |\n|---|---|---|---|---|")
+    sides = ("ours", "ours_search", "dqn")
+    print("| threshold | clock | ours, greedy (s) | ours + search (s) | OpenSpiel DQN (s) | DQN / ours greedy | "
+          "DQN / ours + search |\n|---|---|---|---|---|---|---|")
     for threshold in THRESHOLDS:
         for clock in ("wall_time", "cpu_time"):
             times = {side: first_time(report[side]["points"], threshold, clock) if side in report else None
-                     for side in ("ours", "dqn")}
+                     for side in sides}
             report[f"{clock}_to_{threshold}"] = times
             shown = {side: "-" if side not in report else ("never" if t is None else f"{t:.1f}") for side, t in times.items()}
-            if times["ours"] and times["dqn"]:
-                ratio = f"{times['dqn'] / times['ours']:.1f}x"
-            elif times["ours"] and "dqn" in report:
-                ratio = f"> {report['dqn']['points'][-1][clock] / times['ours']:.1f}x"
-            else:
-                ratio = "-"
-            print(f"| {threshold} | {clock.split('_')[0]} | {shown['ours']} | {shown['dqn']} | {ratio} |")
-    for side in ("ours", "dqn"):
+
+            def ratio(side: str) -> str:
+                if times[side] and times["dqn"]:
+                    return f"{times['dqn'] / times[side]:.1f}x"
+                if times[side] and "dqn" in report:  # the DQN never got there: a lower bound from its last point
+                    return f"> {report['dqn']['points'][-1][clock] / times[side]:.1f}x"
+                return "-"
+
+            print(f"| {threshold} | {clock.split('_')[0]} | {shown['ours']} | {shown['ours_search']} | {shown['dqn']} | "
+                  f"{ratio('ours')} | {ratio('ours_search')} |")
+    for side in sides:
         if side in report:
             print(f"{side}: load average {report[side]['load_before']} -> {report[side]['load_after']}, "
                   f"{report[side]['cpu_share']:.2f} of a core ({report[side]['cpu_seconds']} CPU s in "

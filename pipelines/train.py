@@ -105,6 +105,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
     from pipelines.outputs import check_free_space, check_writable_dir
     from pipelines.run_folder import RunFolder
 
+    _check_teacher_value(config)  # before the run folder is claimed: a bad path must not leave a started run
     check_writable_dir(out_dir, "--resume" if resume else "--out")
     check_free_space(out_dir, checkpoint_bytes(config), "a checkpoint of this run")
     run = RunFolder.open(out_dir, resume=resume, overwrite=overwrite,
@@ -314,6 +315,20 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
                         title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")
     env.close()
     return report
+
+
+def _check_teacher_value(config: RunConfig) -> None:
+    """`search_targets.value` names a value network for this run's game and rule (one-line errors otherwise)."""
+    settings = config.search_targets
+    if not settings.enabled or settings.value is None:
+        return
+    if config.env.game != "ultimate":
+        raise ValueError(f"config key 'search_targets.value' scores Ultimate positions; this run plays "
+                         f"{config.env.game} (leave it null)")
+    from modules.value_net import load_value_net
+
+    with torch.random.fork_rng():
+        load_value_net(settings.value, config.env.free_move)
 
 
 def _make_teacher(config: RunConfig, greedy: Any, seed: int):

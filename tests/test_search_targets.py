@@ -146,3 +146,22 @@ def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
     assert first["search_targets"]["labels"] == again["search_targets"]["labels"]
     assert all(torch.equal(a, b) for a, b in zip(weights("a"), weights("b")))
     assert not all(torch.equal(a, b) for a, b in zip(weights("a"), weights("p")))
+
+
+@pytest.mark.parametrize("overrides,message", [
+    (["search_targets.value=/no/such/value.pt"], "value network '/no/such/value.pt' not found"),
+    (["search_targets.value={value}", "env.game=standard"], "'search_targets.value' scores Ultimate positions"),
+    (["search_targets.value={value}", "env.free_move=open_subgrids"], "trained on the 'anywhere' free-move rule"),
+])
+def test_a_bad_teacher_value_network_is_one_line_before_the_run_folder_is_made(tmp_path: Path, overrides, message) -> None:
+    from modules.value_net import make_value_net, value_checkpoint
+    from tests.learning_helpers import ncbot
+
+    value = tmp_path / "value.pt"
+    torch.save(value_checkpoint(make_value_net([8]), [8], "anywhere", {}), value)
+    config = write_tiny_config(tmp_path, env={"game": "ultimate", "free_move": "anywhere"})
+    result = ncbot("train", str(config), "--out", str(tmp_path / "run"), "search_targets.enabled=true",
+                   *[o.format(value=value) for o in overrides])
+    assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
