@@ -57,12 +57,12 @@ def test_loss_weights_each_rows_error_by_its_priority_weight() -> None:
     errors = batch.clone()
     loss(errors)
     squared = errors["td_error"].squeeze(-1) ** 2
-    assert float(plain) == pytest.approx(float(squared.mean()), rel=1e-5)
+    assert plain.item() == pytest.approx(float(squared.mean()), rel=1e-5)
     weight = torch.zeros(16)
     weight[:4] = torch.tensor([1.0, 0.5, 0.25, 2.0])
     weighted = batch.clone()
     weighted.set("priority_weight", weight)
-    assert float(loss(weighted)["loss"]) == pytest.approx(float((squared * weight).mean()), rel=1e-5)
+    assert loss(weighted)["loss"].item() == pytest.approx(float((squared * weight).mean()), rel=1e-5)
 
 
 def test_learner_sends_each_updated_rows_new_td_error_back_to_the_sampler() -> None:

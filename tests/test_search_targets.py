@@ -126,7 +126,7 @@ def test_learner_adds_the_weighted_margin_loss_to_the_td_loss() -> None:
     td_loss = reference.loss_module(batch.clone())["loss"]
     q = reference.loss_module.q_values(labels)
     expected = td_loss + 0.5 * margin_loss(q, labels[EXPERT_ACTION_KEY], labels[LABEL_MASK_KEY], 2.0)
-    assert float(learner.update(batch.clone(), labels)) == pytest.approx(float(expected), rel=1e-5)
+    assert float(learner.update(batch.clone(), labels)) == pytest.approx(expected.item(), rel=1e-5)
 
 
 def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
