@@ -1,8 +1,8 @@
 """Targets improved by search: the Q-network is also trained towards the moves its own Q-guided search picks.
 
-Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``modules.guided_mcts``, priors and leaf
-values from the current Q-network plus random playouts) is a better player than the greedy network it starts
-from, so its choices are labels. Each label is (observation, greedy mask, searched move); the learner adds DQfD's
+Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``modules.guided_mcts``: priors from the
+current Q-network, leaves scored by Q plus random playouts or by a value network) is a better player than the greedy
+network it starts from, so its choices are labels. Each label is (observation, greedy mask, searched move); the learner adds DQfD's
 large-margin loss (Hester et al. 2018) on a batch of labels to the TD loss:
 
     J_E = max_{a in mask} [Q(s, a) + l(a_E, a)] - Q(s, a_E),   l = margin for a != a_E, 0 for a_E
@@ -24,7 +24,7 @@ from modules.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 
 EXPERT_ACTION_KEY = "expert_action"
-LABEL_MASK_KEY = "label_mask"  # the moves the label ranks the searched move against (the greedy mask)
+LABEL_MASK_KEY = "label_mask"  # the searched move and the moves the label ranks it above
 SEARCH_IN_KEYS = ("observation", AVAILABLE_KEY, "board", "lookahead_reward", "winning_actions")
 
 
