@@ -152,6 +152,26 @@ def value_network_cpu(value: str) -> float:
     return float(report["labelling_cpu_s"]) + float(report["training_cpu_s"])
 
 
+def check_search_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """--ours-search / --ours-value: a positive budget; a value network for the rule ours trains on, with the
+    value.json its CPU seconds are read from (one line and exit 2 otherwise, via ``parser.error``)."""
+    if args.ours_search is not None and args.ours_search < 1:
+        parser.error(f"--ours-search must be a positive number of simulations, got {args.ours_search}")
+    if args.ours_value is None:
+        return
+    if not args.ours_search:
+        parser.error("--ours-value scores the leaves of the search: give --ours-search N too")
+    if not args.ultimate:
+        parser.error("--ours-value is for Ultimate (--game ultimate): value networks score Ultimate positions")
+    from modules.value_net import load_value_net
+
+    try:
+        load_value_net(args.ours_value, args.free_move)
+        value_network_cpu(args.ours_value)
+    except (OSError, ValueError, KeyError) as error:
+        parser.error(f"--ours-value: {error}")
+
+
 # ------------------------------------------------------------------------------------------------------ theirs
 def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: str, hidden: list[int], out: Path,
                seed: int) -> None:
@@ -328,6 +348,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.worker:
         dqn_worker(game, args.cap_seconds, clock, args.snapshot_seconds, args.dqn_opponent, hidden, Path(args.out), args.seed)
         return
+    check_search_options(parser, args)  # before any training: a bad value network must not cost a run
     from envs.opponents.openspiel import import_pyspiel
 
     import_pyspiel()  # one clear line if the optional package is missing, before any training

@@ -197,3 +197,44 @@ def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
             for seat, score in (("first", 0.6), ("second", 0.3))]
     assert check_goals("ultimate", rows) == [{"goal": "score >= 0.5 against openspiel-mcts:1000", "met": False,
                                               "value": "0.450 [0.258, 0.658] over 20 games", "verdict": "undecided"}]
+
+
+def test_time_to_quality_ours_with_search_and_its_option_errors(tmp_path, capsys) -> None:
+    """`--ours-search N --ours-value V`: a snapshot evaluated with the value-network search (real, tiny budget),
+    the value network's CPU read from its value.json; bad options stop before any training with one line, exit 2."""
+    import json
+
+    from envs import make_env
+    from modules.qnet import make_qnet
+    from modules.value_net import make_value_net, value_checkpoint
+    from pipelines.checkpoint import FORMAT, atomic_save
+    from pipelines.config import RunConfig
+
+    bench = _bench()
+    config = RunConfig()
+    config.env.game, config.env.free_move = "ultimate", "open_subgrids"
+    env = make_env("ultimate", batch_size=(1,), free_move="open_subgrids")
+    path = tmp_path / "run" / "checkpoint.pt"
+    atomic_save({"format": FORMAT, "config": config.to_dict(), "n_features": env.n_features,
+                 "n_actions": env.n_actions, "qnet": make_qnet(env.n_features, env.n_actions, config.agent.hidden).state_dict()},
+                path)
+    value = tmp_path / "value" / "value.pt"
+    value.parent.mkdir()
+    torch.save(value_checkpoint(make_value_net([8]), [8], "open_subgrids", {}), value)
+    (value.parent / "value.json").write_text(json.dumps({"labelling_cpu_s": 10.5, "training_cpu_s": 1.5}))
+    assert bench.value_network_cpu(str(value)) == 12.0
+    success = bench.evaluate_ours({"path": str(path)}, 2, seed=0, search=4, value=str(value))
+    assert set(success) == {"first", "second"} and all(0.0 <= v <= 1.0 for v in success.values())
+    for argv, message in [
+        (["--game", "ultimate", "--ours-value", str(value)], "give --ours-search N too"),
+        (["--game", "ultimate", "--ours-search", "0"], "--ours-search must be a positive number"),
+        (["--ours-search", "4", "--ours-value", str(value)], "--ours-value is for Ultimate"),
+        (["--game", "ultimate", "--ours-search", "4", "--ours-value", str(tmp_path / "none.pt")], "not found"),
+        (["--game", "ultimate", "--free-move", "anywhere", "--ours-search", "4", "--ours-value", str(value)],
+         "trained on the 'open_subgrids' free-move rule"),
+    ]:
+        with pytest.raises(SystemExit) as stop:
+            bench.main([*argv, "--only", "ours", "--out", str(tmp_path / "out")])
+        error = capsys.readouterr().err.strip().splitlines()[-1]
+        assert stop.value.code == 2 and message in error, (argv, error)
+    assert not (tmp_path / "out").exists()
