@@ -138,9 +138,10 @@ class BufferConfig(Section):
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
-    # prioritised replay (Schaul et al. 2016; TorchRL's TensorDictPrioritizedReplayBuffer): rows drawn in proportion
-    # to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on Ultimate a loss to the random user
-    # is rare (~0.5 % of robot-second games), so a uniform buffer replays its surprising last steps as rarely.
+    # prioritised replay (Schaul et al. 2016; pipelines/prioritized_sampler.py, TorchRL's PrioritizedSampler
+    # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
+    # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
+    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
@@ -254,9 +255,10 @@ class SearchTargetsConfig(Section):
 
     After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
     Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
-    update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above every other
-    move of the greedy mask by ``margin``). Why: the issue names it (AlphaZero / expert iteration distil search
-    into the network); a 32-simulation search already removes a third of robot-second losses at test time."""
+    update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above the moves
+    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: the issue names
+    it (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
+    with every teacher tried (docs/ultimate.md, eighth session)."""
 
     enabled: bool = False
     simulations: Annotated[int, Field(gt=0, le=100_000)] = 32
