@@ -35,6 +35,7 @@ import envs.dialogue as dlg
 from envs.core import (
     FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, check_free_move, check_game,  # noqa: F401
 )
+from envs.threat_features import threat_planes
 from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
     AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
 )
@@ -74,6 +75,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         dialogues: str = "compact",
         hearing: Any = None,
         dialogue_subset: tuple[int, int] | None = None,
+        threat_features: bool = False,
     ) -> None:
         batch = check_batch(batch_size)
         check_game(game)
@@ -84,6 +86,9 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
         if not isinstance(offer_taken_cells, bool):
             raise ValueError(f"offer_taken_cells must be true or false, got {offer_taken_cells!r}")
+        if not isinstance(threat_features, bool):
+            raise ValueError(f"threat_features must be true or false, got {threat_features!r}")
+        self.threat_features = threat_features  # beyond the paper: envs/threat_features.py
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
@@ -94,7 +99,7 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self.model = dlg.build_dialogue_model(game, self.dialogues, self.dialogue_subset)
         self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
         self.hearing = check_hearing(hearing)
-        for name, value in describe(self.model, self.cells, self.temporal).items():
+        for name, value in describe(self.model, self.cells, self.temporal, threat_features).items():
             setattr(self, name, value)
         for name, spec in make_specs(batch, self.cells, self.n_actions, self.n_features, len(self.model.utterance_texts)).items():
             setattr(self, name, spec)
@@ -202,6 +207,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         parts = [*self.engine.mark_parts(boards), self.d.words[:, :-1]]  # one cat makes every part float32
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
+        if self.threat_features:
+            parts.append(threat_planes(boards.board, boards.owners if self.cells == 81 else None))
         return torch.cat(parts, dim=1)
 
     def _output(self, reward: torch.Tensor | None = None, reset_rows: torch.Tensor | None = None) -> TensorDict:

@@ -108,7 +108,7 @@ def reply_tables(model: dlg.DialogueModel, silence: int, utterance_is_move: torc
     return counts.reshape(-1).clone(), replies.reshape(-1).contiguous()
 
 
-def describe(model: dlg.DialogueModel, cells: int, temporal: bool) -> dict[str, Any]:
+def describe(model: dlg.DialogueModel, cells: int, temporal: bool, threat_features: bool = False) -> dict[str, Any]:
     """The env's metadata attributes: action names, templates, robot commands, user acts, words, feature names."""
     action_names = dlg.action_names(cells)
     width = len(str(cells - 1))
@@ -118,6 +118,10 @@ def describe(model: dlg.DialogueModel, cells: int, temporal: bool) -> dict[str, 
     names += [f"word[{w}]" for w in model.words]
     if temporal:
         names += [f"time[{c:0{width}d}]" for c in range(cells)]
+    if threat_features:
+        from envs.threat_features import threat_names
+
+        names += threat_names(cells)
     return {
         "action_names": action_names,
         "n_actions": len(action_names),

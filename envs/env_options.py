@@ -9,7 +9,7 @@ from envs.core import FIRST_CHOICES
 
 # starts: deprecated spelling of first; offer_taken_cells and dialogues: the paper's readings (docs/reproduction.md)
 OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues",
-                "hearing", "dialogue_subset")
+                "hearing", "dialogue_subset", "threat_features")
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:

@@ -69,6 +69,15 @@ class TurnFeatures:
         self.base = base.numpy()  # float32; one position's features start from a numpy copy (``__call__``)
         env.close()
 
+    def check_reads(self, qnet: nn.Module) -> None:
+        """A clear error when ``qnet`` reads other features than these: an agent trained with the env's
+        ``threat_features`` option (these are marks, time and words only; a search or snapshot cannot read it yet)."""
+        first = next((m for m in qnet.modules() if isinstance(m, nn.Linear)), None)
+        if first is not None and first.in_features != self.n_features:
+            raise ValueError(f"this agent's Q-network reads {first.in_features} features, a typical game turn has "
+                             f"{self.n_features} (an agent trained with env.options.threat_features: the Q-guided "
+                             "search, self-play and agent opponents do not build those features)")
+
     def __call__(self, own: list[int], other: list[int], last_move: int) -> np.ndarray:
         """(F,) float32 features for one position: ``own``/``other`` are the cells of the side to move / the other
         side. numpy, not torch: this runs once per search expansion, where torch's per-op cost dominates."""
@@ -127,6 +136,7 @@ class GuidedMCTS:
             raise ValueError(f"value_weight must be in [0, 1], got {value_weight}")
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
+        features.check_reads(qnet)
         self.qnet, self.features = qnet, features
         self._reader = MLPReader.of(qnet)
         self.engine: StandardBits | UltimateBits = make_bits(game, free_move)

@@ -116,6 +116,7 @@ class AgentOpponent:
         self.qnet.load_state_dict(data["qnet"])
         self.qnet.eval()
         self.features = TurnFeatures(game, config.env.temporal, free_move)
+        self.features.check_reads(self.qnet)
         self.cells = self.features.cells
         self.rules = make_game(game, free_move)
         self.game, self.free_move = game, free_move
