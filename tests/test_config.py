@@ -12,7 +12,8 @@ from pipelines.config import apply_overrides, config_from_dict, dump_config, loa
 CONFIGS = Path(__file__).resolve().parents[1] / "pipelines" / "configs"
 
 
-RUN_CONFIGS = [CONFIGS / "default.yaml", CONFIGS / "ultimate.yaml", *sorted((CONFIGS / "paper").glob("*.yaml"))]
+RUN_CONFIGS = [CONFIGS / "default.yaml", CONFIGS / "ultimate.yaml", CONFIGS / "ultimate_threats.yaml",
+               *sorted((CONFIGS / "paper").glob("*.yaml"))]
 
 
 @pytest.mark.parametrize("path", RUN_CONFIGS, ids=lambda p: p.name)
@@ -119,3 +120,9 @@ def test_numbers_from_yaml_and_plain_dicts_for_checkpoints(tmp_path: Path) -> No
     assert data["selfplay"]["pool_size"] == 5 and data["logger"]["backend"] == "csv"
     assert config_from_dict(data) == config
     assert dump_config(config).startswith("env:\n  game: standard\n")
+
+
+def test_ultimate_threats_is_ultimate_plus_the_threat_planes_only() -> None:
+    base, threats = load_config(CONFIGS / "ultimate.yaml").to_dict(), load_config(CONFIGS / "ultimate_threats.yaml").to_dict()
+    assert threats["env"].pop("options") == {"threat_features": True} and base["env"].pop("options") == {}
+    assert threats == base
