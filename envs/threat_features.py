@@ -12,35 +12,19 @@ from __future__ import annotations
 
 import torch
 
-from envs.core import HUMAN, LINES_3X3, ROBOT, SUBGRID_CELLS
-
-_LINES = torch.tensor(LINES_3X3)  # (8, 3) squares of each line
-_LINE_SQUARES = torch.nn.functional.one_hot(_LINES, 9).float()  # (8, 3, 9): which square each line slot is
-_GRID_CELLS = torch.tensor(SUBGRID_CELLS)  # (9, 9): Ultimate cell of (subgrid, square)
-_CELL_ORDER = torch.argsort(_GRID_CELLS.reshape(-1))  # (81,): (subgrid, square) order -> cell order
-
-
-def completing_squares(grids: torch.Tensor, player: int) -> torch.Tensor:
-    """(B, G, 9) codes of G 3x3 grids -> (B, G, 9) bool: empty squares that complete a line of ``player``."""
-    lines = grids[..., _LINES]  # (B, G, 8, 3)
-    two = (lines == player).sum(-1) == 2
-    empty = lines == 0
-    slots = (empty & two.unsqueeze(-1)).float()  # the empty slot of a line with two of the player's marks
-    return torch.einsum("bgls,lsq->bgq", slots, _LINE_SQUARES) > 0
+from envs.core import HUMAN, ROBOT
+from envs.opponents.lines import OPEN, completing_cells, subgrid_taking_cells
 
 
 def threat_planes(board: torch.Tensor, owners: torch.Tensor | None) -> torch.Tensor:
-    """(B, cells) board codes (+ (B, 9) Ultimate subgrid owners) -> (B, n) float32 planes (module doc)."""
+    """(B, cells) board codes (+ (B, 9) Ultimate subgrid owners) -> (B, n) float32 planes (module doc).
+
+    The line arithmetic is the rule opponents' (``envs.opponents.lines``): one gather of each cell's line partners."""
     if board.shape[1] == 9:
-        grids = board.long().unsqueeze(1)
-        planes = [completing_squares(grids, p).reshape(board.shape[0], 9) for p in (ROBOT, HUMAN)]
-        return torch.cat(planes, dim=1).float()
-    grids = board.long()[:, _GRID_CELLS]  # (B, 9 subgrids, 9 squares)
-    open_grid = (owners == 0).unsqueeze(-1)
-    planes = [(completing_squares(grids, p) & open_grid).reshape(board.shape[0], 81)[:, _CELL_ORDER]
-              for p in (ROBOT, HUMAN)]
-    macro = owners.unsqueeze(1)  # (B, 1, 9): drawn subgrids (3) belong to nobody
-    planes += [completing_squares(macro, p).reshape(board.shape[0], 9) for p in (ROBOT, HUMAN)]
+        planes = [completing_cells(board, p) for p in (ROBOT, HUMAN)]
+    else:
+        planes = [subgrid_taking_cells(board, p, owners) for p in (ROBOT, HUMAN)]
+        planes += [completing_cells(owners, p, blocked=OPEN) for p in (ROBOT, HUMAN)]  # drawn subgrids: nobody's
     return torch.cat(planes, dim=1).float()
 
 
