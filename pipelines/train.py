@@ -336,26 +336,14 @@ def _make_teacher(config: RunConfig, greedy: Any, seed: int):
     settings = config.search_targets
     if not settings.enabled:
         return None
-    with torch.random.fork_rng():  # building it draws no number from the run's stream: same run up to start_frames
-        return _build_teacher(config, greedy, seed)
-
-
-def _build_teacher(config: RunConfig, greedy: Any, seed: int):
-    settings = config.search_targets
-    from modules.guided_mcts import GuidedMCTS, TurnFeatures
     from modules.search_targets import SearchTeacher
+    from pipelines.agents import guided_search
 
-    env = config.env
-    value_net = None
-    if settings.value is not None:
-        from modules.value_net import load_value_net
-
-        value_net = load_value_net(settings.value, env.free_move)
-    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
-    search = GuidedMCTS(qnet, TurnFeatures(env.game, env.temporal, env.free_move), env.game, env.free_move,
-                        settings.simulations, value_net=value_net)
-    return SearchTeacher(greedy, search, rows_per_batch=settings.rows_per_batch, seat=settings.seat, gap=settings.gap,
-                         buffer_size=settings.buffer_size, batch_size=settings.batch_size, seed=seed)
+    with torch.random.fork_rng():  # building it draws no number from the run's stream: same run up to start_frames
+        search = guided_search(config, greedy, settings.simulations, value=settings.value)
+        return SearchTeacher(greedy, search, rows_per_batch=settings.rows_per_batch, seat=settings.seat,
+                             gap=settings.gap, buffer_size=settings.buffer_size, batch_size=settings.batch_size,
+                             seed=seed)
 
 
 def _open_mcap(config: RunConfig, out_dir: Path):
