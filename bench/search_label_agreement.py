@@ -30,11 +30,9 @@ def main() -> None:
 
     import torch
 
-    from modules.guided_mcts import GuidedMCTS, TurnFeatures
     from modules.policy import make_policies
     from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
-    from modules.value_net import load_value_net
-    from pipelines.agents import load_agent
+    from pipelines.agents import guided_search, load_agent
     from pipelines.run_env import make_run_env
     from pipelines.train import make_collector
 
@@ -46,14 +44,11 @@ def main() -> None:
     collector = make_collector(env, agent.explore, args.frames, args.frames)
     batch = next(iter(collector)).clone()
     collector.shutdown()
-    game, free_move, temporal = config.env.game, config.env.free_move, config.env.temporal
     teachers = [("Q priors + playouts, 32 simulations", 32, None)]
     if args.value:
         teachers.append(("value network, 200 simulations", 200, args.value))
     for name, simulations, value in teachers:
-        value_net = load_value_net(value, free_move) if value else None
-        search = GuidedMCTS(greedy[0].module, TurnFeatures(game, temporal, free_move), game, free_move, simulations,
-                            value_net=value_net)
+        search = guided_search(config, greedy, simulations, value=value)
         teacher = SearchTeacher(greedy, search, rows_per_batch=args.moves, seat=args.seat, gap=None, seed=1)
         teacher.label(batch)
         labels = teacher.labels[:]
