@@ -27,9 +27,11 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
 
+from envs.core import HUMAN, ROBOT
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
+from envs.threat_features import position_threat_planes, threat_planes_of_board
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 from modules.qnet import ACTION_VALUE_KEY, MLPReader
@@ -48,18 +50,23 @@ class TurnFeatures:
     Own marks as robot moves, the other side's as human moves, the words of "I take this one" and the user's
     move utterance, no command, and (temporal) the last mark at 1.0 and the others at 0.5 (a tree node knows its
     last move but not the order of the earlier ones). Same reading as ``pipelines.agents.AgentOpponent``.
+    ``threats``: the env's ``threat_features`` planes too, seen from the side to move; Ultimate subgrid owners are
+    read from the board (exact under ``open_subgrids``; under ``anywhere`` a subgrid holding lines of both sides
+    counts as the robot's, as in ``envs.opponents.lines.subgrid_owners``).
     """
 
-    def __init__(self, game: str, temporal: bool, free_move: str = "anywhere") -> None:
+    def __init__(self, game: str, temporal: bool, free_move: str = "anywhere", threats: bool = False) -> None:
         from envs import make_env
         from envs.dialogue import MOVE, USER_ACTS
 
-        env = make_env(game, batch_size=(1,), temporal=temporal, free_move=free_move, seed=0)
+        env = make_env(game, batch_size=(1,), temporal=temporal, free_move=free_move, seed=0, threat_features=threats)
         names, model = env.feature_names, env.model
         self.cells, self.n_features = env.cells, env.n_features
         self.robot_plane = 0
         self.human_plane = self.cells
-        self.time_plane = self.n_features - self.cells if temporal else None
+        first_cell = "0" * len(str(self.cells - 1))  # the feature names' zero-padded first cell: [0] or [00]
+        self.time_plane = names.index(f"time[{first_cell}]") if temporal else None
+        self.threat_plane = names.index(f"robot_threat[{first_cell}]") if threats else None  # planes run to the end
         base = torch.zeros(self.n_features)
         word_start = names.index(f"word[{model.words[0]}]")
         move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
@@ -70,13 +77,12 @@ class TurnFeatures:
         env.close()
 
     def check_reads(self, qnet: nn.Module) -> None:
-        """A clear error when ``qnet`` reads other features than these: an agent trained with the env's
-        ``threat_features`` option (these are marks, time and words only; a search or snapshot cannot read it yet)."""
+        """A clear error when ``qnet`` reads other features than these (built for another env: other game,
+        temporal features or threat planes) instead of a shape error deep inside a search."""
         first = next((m for m in qnet.modules() if isinstance(m, nn.Linear)), None)
         if first is not None and first.in_features != self.n_features:
-            raise ValueError(f"this agent's Q-network reads {first.in_features} features, a typical game turn has "
-                             f"{self.n_features} (an agent trained with env.options.threat_features: the Q-guided "
-                             "search, self-play and agent opponents do not build those features)")
+            raise ValueError(f"this agent's Q-network reads {first.in_features} features, a typical game turn of "
+                             f"this env has {self.n_features} (features built for another env configuration)")
 
     def __call__(self, own: list[int], other: list[int], last_move: int) -> np.ndarray:
         """(F,) float32 features for one position: ``own``/``other`` are the cells of the side to move / the other
@@ -88,6 +94,10 @@ class TurnFeatures:
             if last_move >= 0:
                 ones.append(self.time_plane + last_move)
         features[ones] = 1.0
+        if self.threat_plane is not None:
+            board = np.zeros(self.cells, dtype=np.int8)
+            board[own], board[other] = ROBOT, HUMAN
+            features[self.threat_plane:] = position_threat_planes(board)
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -100,6 +110,9 @@ class TurnFeatures:
             has_last = (last_move >= 0).nonzero().flatten()
             times[has_last, last_move[has_last]] = 1.0
             features[:, self.time_plane:self.time_plane + self.cells] = times
+        if self.threat_plane is not None:  # the side to move as the robot (code 1), the other as the human
+            seen = torch.where(boards == player, ROBOT, torch.where(boards != 0, HUMAN, 0)).to(torch.int8)
+            features[:, self.threat_plane:] = threat_planes_of_board(seen)
         return features
 
 

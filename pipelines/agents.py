@@ -115,7 +115,7 @@ class AgentOpponent:
         self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
         self.qnet.load_state_dict(data["qnet"])
         self.qnet.eval()
-        self.features = TurnFeatures(game, config.env.temporal, free_move)
+        self.features = TurnFeatures(game, config.env.temporal, free_move, config.env.threats)
         self.features.check_reads(self.qnet)
         self.cells = self.features.cells
         self.rules = make_game(game, free_move)
@@ -193,7 +193,7 @@ def guided_search(config, greedy, simulations: int, free_move: str | None = None
 
         value_net = load_value_net(value, free_move)
     qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
-    features = TurnFeatures(config.env.game, config.env.temporal, free_move)
+    features = TurnFeatures(config.env.game, config.env.temporal, free_move, config.env.threats)
     return GuidedMCTS(qnet, features, config.env.game, free_move, simulations, value_net=value_net)
 
 

@@ -89,6 +89,11 @@ class EnvConfig(Section):
         """The env's ``dialogue_subset`` option: None (every dialogue) or (k, seed)."""
         chosen = self.dialogue_subset
         return None if chosen is None or chosen.k is None else (chosen.k, chosen.seed)
+
+    @property
+    def threats(self) -> bool:
+        """The env's ``threat_features`` option (beyond the paper): the observation ends with threat planes."""
+        return bool(self.options.get("threat_features", False))
     # what the robot hears of the simulated user: uniform (the words said, uniform random confidences) | channel
     # (words and confidences sampled from the ASR channel model fitted on TTS -> noise -> pocketsphinx round trips,
     # docs/speech.md) at an SNR drawn per utterance in asr_snr_db, in asr_noise; asr_channel: None = shipped model

@@ -37,10 +37,11 @@ class SnapshotPool(Opponent):
 
     name = "selfplay"
 
-    def __init__(self, game: str, free_move: str, temporal: bool, settings: SelfPlayConfig, seed: int = 0) -> None:
+    def __init__(self, game: str, free_move: str, temporal: bool, settings: SelfPlayConfig, seed: int = 0,
+                 threats: bool = False) -> None:
         super().__init__(game, free_move, seed)
         self.settings = settings
-        self.features = TurnFeatures(game, temporal, free_move)
+        self.features = TurnFeatures(game, temporal, free_move, threats)
         self.engine = make_bits(game, free_move)
         self.snapshots: list[nn.Module] = []
         self.added = 0
@@ -112,7 +113,8 @@ def make_selfplay_pool(env_config, settings: SelfPlayConfig, seed: int) -> Snaps
 
     Built before the Q-network because the network's sizes come from the env, which needs its opponent.
     """
-    return SnapshotPool(env_config.game, env_config.free_move, env_config.temporal, settings, seed=seed)
+    return SnapshotPool(env_config.game, env_config.free_move, env_config.temporal, settings, seed=seed,
+                        threats=env_config.threats)
 
 
 def pool_summary(pool: SnapshotPool) -> dict:

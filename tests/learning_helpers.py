@@ -25,7 +25,7 @@ TINY = {
 def write_tiny_config(folder: Path, **sections: dict) -> Path:
     data = {key: dict(value) for key, value in TINY.items()}
     for section, values in sections.items():
-        data[section].update(values)
+        data.setdefault(section, {}).update(values)
     path = folder / "tiny.yaml"
     path.write_text(yaml.safe_dump(data))
     return path

@@ -2,6 +2,7 @@
 board, their place in the observation and names, and a clear error where a typical-turn reader meets such an agent."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -61,13 +62,78 @@ def test_threat_planes_match_a_brute_force_reading_over_random_games(game: str) 
     assert checked > 10  # positions with threats were seen, not only empty boards
 
 
-def test_an_agent_with_threat_features_is_refused_by_typical_turn_readers() -> None:
-    from modules.guided_mcts import GuidedMCTS, TurnFeatures
+def _seen_by(board: torch.Tensor, owners: torch.Tensor | None, player: int):
+    """The position from ``player``'s side: its marks (and subgrids) as the robot's (code 1), the other's as 2."""
+    def swap(codes: torch.Tensor) -> torch.Tensor:
+        return codes if player == ROBOT else torch.where((codes == ROBOT) | (codes == HUMAN), 3 - codes, codes)
+    return swap(board), None if owners is None else swap(owners)
+
+
+@pytest.mark.parametrize("game", ["standard", "ultimate"])
+def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_side_to_move(game: str) -> None:
+    """The search's and self-play's features (``TurnFeatures``) of real positions: the same planes as the env's
+    observation (robot to move), seen from the other side too, and the one-position numpy path equal to the batch."""
+    from modules.guided_mcts import TurnFeatures
+
+    env = make_env(game, batch_size=(16,), threat_features=True, free_move="open_subgrids", seed=5, first="alternate")
+    features = TurnFeatures(game, True, "open_subgrids", threats=True)
+    assert features.n_features == env.n_features and features.threat_plane == env.n_features - (2 * env.cells + (18 if game == "ultimate" else 0))
+    generator = torch.Generator().manual_seed(1)
+    td = env.reset()
+    checked = 0
+    for _ in range(50):
+        boards = env.boards.board.clone()
+        owners = env.boards.owners.clone() if game == "ultimate" else None
+        last = torch.full((16,), -1)
+        for player in (ROBOT, HUMAN):
+            seen = features.batch(boards, player, last)[:, features.threat_plane:]
+            expected = threat_planes(*_seen_by(boards, owners, player))
+            assert torch.equal(seen, expected)
+            for row in range(0, 16, 5):
+                cells = boards[row]
+                own = (cells == player).nonzero().flatten().tolist()
+                other = ((cells != 0) & (cells != player)).nonzero().flatten().tolist()
+                one = features(own, other, -1)
+                assert one.dtype == np.float32 and torch.equal(torch.from_numpy(one[features.threat_plane:]), expected[row])
+                checked += int(expected[row].sum() > 0)
+        mask = td["action_mask"]
+        action = torch.multinomial(mask.float() + 1e-9 * (~mask).float(), 1, generator=generator).squeeze(1)
+        td = env.step(td.set("action", action))["next"]
+        if td["done"].any():
+            td = env.reset(td.clone().set("_reset", td["done"].clone()))
+    assert checked > 20
+
+
+def test_a_threat_reading_agent_is_searched_and_a_mismatched_reader_is_refused() -> None:
+    from envs.opponents import make_opponent
+    from envs.opponents.arena import play_match
+    from modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
     from modules.qnet import make_qnet
 
     env = make_env("ultimate", batch_size=(1,), threat_features=True)
     qnet = make_qnet(env.n_features, env.n_actions, [8])
-    with pytest.raises(ValueError, match="reads 469 features, a typical game turn has 289"):
+    with pytest.raises(ValueError, match="reads 469 features, a typical game turn of this env has 289"):
         GuidedMCTS(qnet.module, TurnFeatures("ultimate", True), "ultimate", "anywhere", 4)
+    search = GuidedMCTS(qnet.module, TurnFeatures("ultimate", True, threats=True), "ultimate", "anywhere", 8)
+    result = play_match(QMCTSOpponent(search, "ultimate", "anywhere", 0), make_opponent("random", game="ultimate"), 2, seed=0)
+    assert result.games == 2 and result.first_wins + result.second_wins + result.draws == 2
     with pytest.raises(ValueError, match="must be true or false"):
         make_env("ultimate", batch_size=(1,), threat_features="yes")
+
+
+def test_a_run_with_threat_planes_self_plays_and_is_searched_at_eval(tmp_path) -> None:
+    """End to end: self-play snapshots read the planes while training, ``ncbot eval --search`` plays with them."""
+    import json
+
+    from tests.learning_helpers import ncbot, write_tiny_config
+
+    config = write_tiny_config(tmp_path, env={"options": {"threat_features": True}},
+                               selfplay={"enabled": True, "snapshot_every_frames": 128, "random_share": 0.0})
+    done = ncbot("train", str(config), "--out", str(tmp_path / "run"))
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((tmp_path / "run" / "eval.json").read_text())
+    assert summary["selfplay"]["snapshots_taken"] >= 2
+    done = ncbot("eval", str(tmp_path / "run" / "checkpoint.pt"), "--search", "4", "--games", "4", "--json")
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads(done.stdout.strip().splitlines()[-1])
+    assert metrics["search_decisions"] > 0
