@@ -10,14 +10,11 @@ to compute them from the mark bits. Planes, each 0/1, in this order:
 """
 from __future__ import annotations
 
-from functools import lru_cache
-
-import numpy as np
 import torch
 
-from envs.core import DRAWN, HUMAN, ROBOT
-from envs.opponents.lines import (LINE_INDEX, OPEN, SENTINEL, SUBGRID_INDEX, SUBGRID_OF_CELL, completing_cells,
-                                  partner_pairs, subgrid_owners, subgrid_taking_cells)
+from envs.core import HUMAN, ROBOT
+from envs.opponents.bitboards import CELL_OF, FULL, LINE_MASKS, SQUARES_OF_MASK
+from envs.opponents.lines import OPEN, completing_cells, subgrid_owners, subgrid_taking_cells
 
 
 def threat_planes(board: torch.Tensor, owners: torch.Tensor | None) -> torch.Tensor:
@@ -40,36 +37,40 @@ def threat_planes_of_board(board: torch.Tensor, owners: torch.Tensor | None = No
     return threat_planes(board, owners)
 
 
-@lru_cache(maxsize=None)
-def _tables(cells: int) -> tuple[np.ndarray, ...]:
-    """numpy copies of the line tables: cell partner pairs, the 9-cell owner grid's pairs, Ultimate's lines."""
-    return (partner_pairs(cells).numpy(), partner_pairs(9).numpy(), LINE_INDEX[81].numpy(), SUBGRID_INDEX.numpy(),
-            SUBGRID_OF_CELL.numpy())
+def _completing_squares(mask: int) -> int:
+    """9-bit set of the squares that would complete a line of ``mask`` (the third square of a line holding two)."""
+    squares = 0
+    for line in LINE_MASKS:
+        if bin(line & mask).count("1") == 2:
+            squares |= line & ~mask
+    return squares
 
 
-def _completing(marks: np.ndarray, pairs: np.ndarray, owner: int, blocked: int = 0) -> np.ndarray:
-    padded = np.append(marks, SENTINEL)
-    return ((padded[pairs[..., 0]] == owner) & (padded[pairs[..., 1]] == owner)).any(-1) & (marks == blocked)
+COMPLETING = tuple(_completing_squares(mask) for mask in range(512))  # one lookup per subgrid and side
 
 
-def position_threat_planes(board: np.ndarray) -> np.ndarray:
-    """(n,) float32 ``threat_planes_of_board`` of one (cells,) int8 board, in numpy.
+def position_threat_indices(pos: tuple, cells: int) -> list[int]:
+    """Indices into the ``threat_planes`` of one bitboard position (``envs.opponents.bitboards``) that are 1, seen
+    from the side to move (its threats first, as the robot's).
 
     Why: the Q-guided search builds one position's features per expansion; the batched torch version costs ~0.3 ms
-    there, this ~0.03 ms. Tested equal to the torch version on random games."""
-    pairs, grid_pairs, lines, subgrid_cells, subgrid_of_cell = _tables(board.shape[0])
-    if board.shape[0] == 9:
-        planes = [_completing(board, pairs, p) for p in (ROBOT, HUMAN)]
-    else:
-        marks = board[lines]  # (72, 3): the 8 lines of each subgrid
-        owners = np.zeros(9, dtype=np.int8)
-        for code in (HUMAN, ROBOT):  # ROBOT written last, as in subgrid_owners
-            owners[(marks == code).all(1).reshape(9, -1).any(1)] = code
-        owners[(owners == OPEN) & (board[subgrid_cells] != 0).all(1)] = DRAWN
-        open_cell = (owners == OPEN)[subgrid_of_cell]
-        planes = [_completing(board, pairs, p) & open_cell for p in (ROBOT, HUMAN)]
-        planes += [_completing(owners, grid_pairs, p, blocked=OPEN) for p in (ROBOT, HUMAN)]
-    return np.concatenate(planes).astype(np.float32)
+    there, these table lookups a few microseconds, and the bitboard knows the exact subgrid owners. Tested equal to
+    ``threat_planes`` on random games of both games."""
+    if cells == 9:
+        bits0, bits1, turn, _ = pos
+        sides = (bits0, bits1) if turn == 0 else (bits1, bits0)
+        free = FULL ^ (bits0 | bits1)
+        return [plane * 9 + c for plane, bits in enumerate(sides) for c in SQUARES_OF_MASK[COMPLETING[bits] & free]]
+    subs0, subs1, decided, macro0, macro1, _, turn = pos[:7]
+    sides, macros = ((subs0, subs1), (macro0, macro1)) if turn == 0 else ((subs1, subs0), (macro1, macro0))
+    indices = []
+    for plane, subs in enumerate(sides):
+        for k in SQUARES_OF_MASK[FULL ^ decided]:  # open subgrids only
+            threats = COMPLETING[subs[k]] & (FULL ^ (subs0[k] | subs1[k]))
+            indices += [plane * 81 + CELL_OF[k][p] for p in SQUARES_OF_MASK[threats]]
+    for plane, macro in enumerate(macros):
+        indices += [162 + plane * 9 + k for k in SQUARES_OF_MASK[COMPLETING[macro] & (FULL ^ decided)]]
+    return indices
 
 
 def threat_names(cells: int) -> list[str]:

@@ -31,7 +31,7 @@ from envs.core import HUMAN, ROBOT
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
-from envs.threat_features import position_threat_planes, threat_planes_of_board
+from envs.threat_features import position_threat_indices, threat_planes_of_board
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 from modules.qnet import ACTION_VALUE_KEY, MLPReader
@@ -67,6 +67,7 @@ class TurnFeatures:
         first_cell = "0" * len(str(self.cells - 1))  # the feature names' zero-padded first cell: [0] or [00]
         self.time_plane = names.index(f"time[{first_cell}]") if temporal else None
         self.threat_plane = names.index(f"robot_threat[{first_cell}]") if threats else None  # planes run to the end
+        self.engine = make_bits(game, free_move)  # reads the threats of a position given as cell lists
         base = torch.zeros(self.n_features)
         word_start = names.index(f"word[{model.words[0]}]")
         move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
@@ -84,9 +85,10 @@ class TurnFeatures:
             raise ValueError(f"this agent's Q-network reads {first.in_features} features, a typical game turn of "
                              f"this env has {self.n_features} (features built for another env configuration)")
 
-    def __call__(self, own: list[int], other: list[int], last_move: int) -> np.ndarray:
+    def __call__(self, own: list[int], other: list[int], last_move: int, pos: tuple | None = None) -> np.ndarray:
         """(F,) float32 features for one position: ``own``/``other`` are the cells of the side to move / the other
-        side. numpy, not torch: this runs once per search expansion, where torch's per-op cost dominates."""
+        side; ``pos`` the same position as a bitboard when the caller has it (the threat planes are read from it).
+        numpy, not torch: this runs once per search expansion, where torch's per-op cost dominates."""
         features = self.base.copy()
         ones = [self.robot_plane + c for c in own] + [self.human_plane + c for c in other]
         if self.time_plane is not None:
@@ -95,9 +97,14 @@ class TurnFeatures:
                 ones.append(self.time_plane + last_move)
         features[ones] = 1.0
         if self.threat_plane is not None:
-            board = np.zeros(self.cells, dtype=np.int8)
-            board[own], board[other] = ROBOT, HUMAN
-            features[self.threat_plane:] = position_threat_planes(board)
+            if pos is None:
+                board = [0] * self.cells
+                for cell in own:
+                    board[cell] = ROBOT
+                for cell in other:
+                    board[cell] = HUMAN
+                pos = self.engine.from_board(board, ROBOT)
+            features[[self.threat_plane + i for i in position_threat_indices(pos, self.cells)]] = 1.0
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -184,7 +191,7 @@ class GuidedMCTS:
 
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
-        x = self.features(own, other, last_move)
+        x = self.features(own, other, last_move, pos)
         if self._reader is not None:
             return self._reader(x)[moves].tolist()
         with torch.no_grad():

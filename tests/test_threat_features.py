@@ -72,11 +72,14 @@ def _seen_by(board: torch.Tensor, owners: torch.Tensor | None, player: int):
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_side_to_move(game: str) -> None:
     """The search's and self-play's features (``TurnFeatures``) of real positions: the same planes as the env's
-    observation (robot to move), seen from the other side too, and the one-position numpy path equal to the batch."""
+    observation (robot to move), seen from the other side too, and the one-position paths (cell lists, the search's
+    bitboards) equal to the batch."""
+    from envs.opponents.bitboards import make_bits
     from modules.guided_mcts import TurnFeatures
 
     env = make_env(game, batch_size=(16,), threat_features=True, free_move="open_subgrids", seed=5, first="alternate")
     features = TurnFeatures(game, True, "open_subgrids", threats=True)
+    engine = make_bits(game, "open_subgrids")
     assert features.n_features == env.n_features and features.threat_plane == env.n_features - (2 * env.cells + (18 if game == "ultimate" else 0))
     generator = torch.Generator().manual_seed(1)
     td = env.reset()
@@ -93,8 +96,11 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
                 cells = boards[row]
                 own = (cells == player).nonzero().flatten().tolist()
                 other = ((cells != 0) & (cells != player)).nonzero().flatten().tolist()
-                one = features(own, other, -1)
+                one = features(own, other, -1)  # the cell-list path: owners read from the board
                 assert one.dtype == np.float32 and torch.equal(torch.from_numpy(one[features.threat_plane:]), expected[row])
+                pos = engine.from_board(cells.tolist(), player, -1, None if owners is None else owners[row].tolist())
+                searched = features(own, other, -1, pos)  # the search's path: the bitboard's exact owners
+                assert torch.equal(torch.from_numpy(searched), torch.from_numpy(one))
                 checked += int(expected[row].sum() > 0)
         mask = td["action_mask"]
         action = torch.multinomial(mask.float() + 1e-9 * (~mask).float(), 1, generator=generator).squeeze(1)
