@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 
 from envs.core import HUMAN, ROBOT
-from envs.opponents.bitboards import CELL_OF, FULL, LINE_MASKS, SQUARES_OF_MASK
+from envs.opponents.bitboards import CELL_OF, COMPLETING, FULL, SQUARES_OF_MASK
 from envs.opponents.lines import OPEN, completing_cells, subgrid_owners, subgrid_taking_cells
 
 
@@ -35,18 +35,6 @@ def threat_planes_of_board(board: torch.Tensor, owners: torch.Tensor | None = No
     if board.shape[1] == 81 and owners is None:
         owners = subgrid_owners(board)
     return threat_planes(board, owners)
-
-
-def _completing_squares(mask: int) -> int:
-    """9-bit set of the squares that would complete a line of ``mask`` (the third square of a line holding two)."""
-    squares = 0
-    for line in LINE_MASKS:
-        if bin(line & mask).count("1") == 2:
-            squares |= line & ~mask
-    return squares
-
-
-COMPLETING = tuple(_completing_squares(mask) for mask in range(512))  # one lookup per subgrid and side
 
 
 def position_threat_indices(pos: tuple, cells: int) -> list[int]:

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from envs.opponents.bitboards import IS_LINE, ONGOING
+from envs.opponents.bitboards import COMPLETING, ONGOING
 from envs.opponents.search import Node, Rand, RandomRollout, result_value
 from modules.qnet import MLPReader
 from modules.symmetry import square_symmetries
@@ -40,8 +40,6 @@ DEFAULT_PLAYOUT_WEIGHT = 0.0  # the network alone: docs/ultimate.md "A value net
 _BITS = tuple(tuple(float(mask >> p & 1) for p in range(9)) for mask in range(512))
 _TARGET = tuple(tuple(1.0 if k == t else 0.0 for k in range(9)) + (0.0,) for t in range(9))
 _FREE = (0.0,) * 9 + (1.0,)
-# squares that would complete a line of a 9-bit mask: a threat where one of them is still empty
-_COMPLETERS = tuple(sum(1 << p for p in range(9) if not mask >> p & 1 and IS_LINE[mask | 1 << p]) for mask in range(512))
 
 
 def position_features(pos: tuple) -> list[float]:
@@ -59,7 +57,7 @@ def position_features(pos: tuple) -> list[float]:
     features += bits[macro1]
     features += bits[decided & ~(macro0 | macro1)]
     features += _TARGET[target] if target >= 0 else _FREE
-    completers = _COMPLETERS
+    completers = COMPLETING  # a threat where one of them is still empty
     threats0 = threats1 = 0
     for k in range(9):
         if not decided >> k & 1:

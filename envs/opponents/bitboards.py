@@ -20,6 +20,19 @@ FULL = 0b111111111
 
 LINE_MASKS = tuple(sum(1 << i for i in line) for line in LINES_3X3)
 IS_LINE = tuple(any(mask & line == line for line in LINE_MASKS) for mask in range(512))
+
+
+def _completing(mask: int) -> int:
+    squares = 0
+    for line in LINE_MASKS:
+        if bin(line & mask).count("1") == 2:
+            squares |= line & ~mask
+    return squares
+
+
+# the third square of each line holding two of a 9-bit mask: a threat where it is still empty (a mask with a line
+# already keeps only these, as the env's threat planes do)
+COMPLETING = tuple(_completing(mask) for mask in range(512))
 FREE_SQUARES = tuple(tuple(p for p in range(9) if not mask >> p & 1) for mask in range(512))
 SQUARES_OF_MASK = tuple(FREE_SQUARES[FULL ^ mask] for mask in range(512))  # 9-bit set -> its squares
 N_FREE = tuple(len(squares) for squares in FREE_SQUARES)
