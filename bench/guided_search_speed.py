@@ -81,5 +81,6 @@ def main() -> None:
         print(f"{reads + ' reads':<16} {budget:>11} {seconds:>15.3f} {budget / seconds:>11.0f} "
               f"{'yes' if seconds <= BUDGET_SECONDS else 'no':>10}", flush=True)
 
+
 if __name__ == "__main__":
     main()
