@@ -17,24 +17,19 @@ from envs.opponents.bitboards import CELL_OF, COMPLETING, FULL, SQUARES_OF_MASK
 from envs.opponents.lines import OPEN, completing_cells, subgrid_owners, subgrid_taking_cells
 
 
-def threat_planes(board: torch.Tensor, owners: torch.Tensor | None) -> torch.Tensor:
+def threat_planes(board: torch.Tensor, owners: torch.Tensor | None = None) -> torch.Tensor:
     """(B, cells) board codes (+ (B, 9) Ultimate subgrid owners) -> (B, n) float32 planes (module doc).
 
-    The line arithmetic is the rule opponents' (``envs.opponents.lines``): one gather of each cell's line partners."""
+    Owners not given (a board whose owners are not tracked) are read from the board
+    (``envs.opponents.lines.subgrid_owners``; exact under ``open_subgrids``). The line arithmetic is the rule
+    opponents' (``envs.opponents.lines``): one gather of each cell's line partners."""
     if board.shape[1] == 9:
         planes = [completing_cells(board, p) for p in (ROBOT, HUMAN)]
     else:
+        owners = subgrid_owners(board) if owners is None else owners
         planes = [subgrid_taking_cells(board, p, owners) for p in (ROBOT, HUMAN)]
         planes += [completing_cells(owners, p, blocked=OPEN) for p in (ROBOT, HUMAN)]  # drawn subgrids: nobody's
     return torch.cat(planes, dim=1).float()
-
-
-def threat_planes_of_board(board: torch.Tensor, owners: torch.Tensor | None = None) -> torch.Tensor:
-    """``threat_planes`` of (B, cells) boards whose subgrid owners are not tracked: read from the board
-    (``envs.opponents.lines.subgrid_owners``; exact under ``open_subgrids``)."""
-    if board.shape[1] == 81 and owners is None:
-        owners = subgrid_owners(board)
-    return threat_planes(board, owners)
 
 
 def position_threat_indices(pos: tuple, cells: int) -> list[int]:

@@ -31,7 +31,7 @@ from envs.core import HUMAN, ROBOT
 from envs.opponents.base import Opponent
 from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
 from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
-from envs.threat_features import position_threat_indices, threat_planes_of_board
+from envs.threat_features import position_threat_indices, threat_planes
 from modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 from modules.qnet import ACTION_VALUE_KEY, MLPReader
@@ -119,7 +119,7 @@ class TurnFeatures:
             features[:, self.time_plane:self.time_plane + self.cells] = times
         if self.threat_plane is not None:  # the side to move as the robot (code 1), the other as the human
             seen = torch.where(boards == player, ROBOT, torch.where(boards != 0, HUMAN, 0)).to(torch.int8)
-            features[:, self.threat_plane:] = threat_planes_of_board(seen)
+            features[:, self.threat_plane:] = threat_planes(seen)
         return features
 
 
