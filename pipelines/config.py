@@ -146,7 +146,8 @@ class BufferConfig(Section):
     # prioritised replay (Schaul et al. 2016; pipelines/prioritized_sampler.py, TorchRL's PrioritizedSampler
     # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
-    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session).
+    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session); on 3x3 it cuts
+    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md, tenth session).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4

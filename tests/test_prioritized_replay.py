@@ -108,3 +108,29 @@ def test_a_real_prioritised_run_is_reproducible_and_differs_from_uniform(tmp_pat
     assert first["first"] == again["first"] and first["second"] == again["second"]
     assert all(torch.equal(a, b) for a, b in zip(weights("a"), weights("b")))
     assert not all(torch.equal(a, b) for a, b in zip(weights("a"), weights("u")))
+
+
+def test_exact_curve_bench_reads_every_snapshot_of_a_run(tmp_path: Path) -> None:
+    """bench/exact_curve.py (how prioritised replay was chosen for default.yaml): one exact row per kept snapshot,
+    the same losses as `ncbot eval --exhaustive` of that snapshot, a PNG, and exit 2 for a folder without snapshots."""
+    import subprocess
+    import sys
+
+    from pipelines.exact_eval import exact_checkpoint
+
+    config = load_config(write_tiny_config(tmp_path), ["buffer.prioritized=true", "checkpoint.keep=10"])
+    train(config, tmp_path / "run")
+    snapshots = sorted((tmp_path / "run" / "checkpoints").glob("step-*.pt"))
+    assert len(snapshots) == 2  # 512 frames, a snapshot every 256
+    bench = Path(__file__).resolve().parents[1] / "bench" / "exact_curve.py"
+    done = subprocess.run([sys.executable, str(bench), str(tmp_path / "run"), "--dialogue-seeds", "1",
+                           "--png", str(tmp_path / "curves.png")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [line.split() for line in done.stdout.splitlines() if line.startswith("run ")]
+    assert [int(row[1]) for row in rows] == [256, 512]
+    first, second = exact_checkpoint(str(snapshots[-1]), dialogue_seeds=1)
+    assert (float(rows[-1][5]), float(rows[-1][7])) == pytest.approx((first.loss, second.loss), abs=1e-4)
+    assert "| run |" in done.stdout and (tmp_path / "curves.png").stat().st_size > 0
+    (tmp_path / "empty").mkdir()
+    refused = subprocess.run([sys.executable, str(bench), str(tmp_path / "empty")], capture_output=True, text=True)
+    assert refused.returncode == 2 and "no checkpoints" in refused.stderr and "Traceback" not in refused.stderr
