@@ -175,6 +175,35 @@ def test_time_to_quality_trains_and_evaluates_openspiel_dqn(tmp_path) -> None:
     assert bench.first_time(points[:2], 0.995) is None
 
 
+def test_time_to_quality_exact_dqn_score_equals_an_enumeration_with_our_rules() -> None:
+    """`--exact`: the DQN's exact task success per seat, checked on a network that always takes its lowest legal
+    cell (zero weights, biases falling with the action) against the same game tree walked with our own rules."""
+    pytest.importorskip("tree")
+    from open_spiel.python.pytorch.dqn import MLP
+
+    from envs.rules import Standard
+
+    network = MLP(27, [32, 32], 9)
+    with torch.no_grad():
+        for parameter in network.parameters():
+            parameter.zero_()
+        [*network.parameters()][-1].copy_(-torch.arange(9, dtype=torch.float32))
+    rules = Standard()
+
+    def loss(state, mark: str) -> float:
+        outcome = rules.outcome(state)
+        if outcome is not None:
+            return 1.0 if outcome not in (mark, "draw") else 0.0
+        moves = [min(rules.legal(state))] if rules.to_move(state) == mark else rules.legal(state)
+        return sum(loss(rules.play(state, move), mark) for move in moves) / len(moves)
+
+    meta = {"state_size": 27, "num_actions": 9, "settings": {"hidden_layers_sizes": [32, 32]}}
+    success = _bench().exact_dqn({"q": [network.state_dict()] * 2}, meta)
+    expected = {"first": 1 - loss(rules.new(), "x"), "second": 1 - loss(rules.new(), "o")}
+    assert success == pytest.approx(expected, abs=1e-12)
+    assert 0.3 < expected["second"] < 0.99  # a weak fixed policy: the comparison is not trivially 1 == 1
+
+
 def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
     """`ncbot ladder --opponents openspiel-mcts:N`: a real (untrained) Ultimate checkpoint of the open_subgrids rule."""
     from envs import make_env
