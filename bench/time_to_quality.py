@@ -265,28 +265,39 @@ def train_dqn(game: str, out: Path, cap: float, clock: str, every: float, oppone
     return {**run, "data": torch.load(out, map_location="cpu", weights_only=True)}
 
 
+def dqn_network(q_state: dict, meta: dict[str, Any]):
+    """One seat's Q-network of a DQN snapshot, as OpenSpiel's DQN builds it (``meta``: the snapshots file's sizes)."""
+    from open_spiel.python.pytorch.dqn import MLP
+
+    network = MLP(meta["state_size"], meta["settings"]["hidden_layers_sizes"], meta["num_actions"])
+    network.load_state_dict(q_state)
+    return network.eval()
+
+
+def dqn_greedy_move(network, state) -> int:
+    """The DQN's move in an OpenSpiel state: greedy Q over the legal actions, as DQN.step(is_evaluation=True)."""
+    import torch
+
+    legal = state.legal_actions()
+    with torch.no_grad():
+        q = network(torch.tensor(state.observation_tensor(state.current_player())).unsqueeze(0))[0]
+    return legal[int(torch.argmax(q[legal]))]
+
+
 class DQNPlayer:
-    """A DQN snapshot as a batched opponent: greedy Q over OpenSpiel's legal actions, as DQN.step(is_evaluation)."""
+    """A DQN snapshot's seat as a batched opponent (``dqn_greedy_move`` in every game)."""
 
     @staticmethod
-    def build(q_state: dict, size: int, actions: int, hidden: list[int], game: str, free_move: str, seed: int):
-        import torch
-        from open_spiel.python.pytorch.dqn import MLP
-
+    def build(q_state: dict, meta: dict[str, Any], game: str, free_move: str, seed: int):
         from envs.opponents.openspiel import OpenSpielOpponent
 
-        network = MLP(size, hidden, actions)
-        network.load_state_dict(q_state)
-        network.eval()
+        network = dqn_network(q_state, meta)
 
         class _Player(OpenSpielOpponent):
             name = "openspiel-dqn"
 
             def decide(self, state, seed):
-                legal = state.legal_actions()
-                with torch.no_grad():
-                    q = network(torch.tensor(state.observation_tensor(state.current_player())).unsqueeze(0))[0]
-                return legal[int(torch.argmax(q[legal]))]
+                return dqn_greedy_move(network, state)
 
         return _Player(game, free_move, seed)
 
@@ -296,9 +307,7 @@ def evaluate_dqn(snapshot: dict[str, Any], meta: dict[str, Any], game: str, game
     from envs.opponents.arena import play_match
 
     free_move = "open_subgrids" if game == "ultimate" else "anywhere"
-    hidden = meta["settings"]["hidden_layers_sizes"]
-    players = [DQNPlayer.build(snapshot["q"][p], meta["state_size"], meta["num_actions"], hidden, game, free_move, seed)
-               for p in range(2)]
+    players = [DQNPlayer.build(snapshot["q"][p], meta, game, free_move, seed) for p in range(2)]
     rand = make_opponent("random", game=game, free_move=free_move, seed=seed)
     first = play_match(players[0], rand, games, seed=seed, free_move=free_move)
     second = play_match(rand, players[1], games, seed=seed + 1, free_move=free_move)
@@ -309,17 +318,12 @@ def exact_dqn(snapshot: dict[str, Any], meta: dict[str, Any]) -> dict[str, float
     """Exact task success of a 3x3 DQN snapshot from each seat: the game tree of OpenSpiel's tic_tac_toe with the
     DQN's greedy move at its turns and every move of the uniform random player at the other's (probabilities
     averaged), positions memoised (the greedy move depends on the board only)."""
-    import torch
-    from open_spiel.python.pytorch.dqn import MLP
-
     from envs.opponents.openspiel import import_pyspiel
 
     pyspiel = import_pyspiel()
     success = {}
     for player, seat in enumerate(("first", "second")):
-        network = MLP(meta["state_size"], meta["settings"]["hidden_layers_sizes"], meta["num_actions"])
-        network.load_state_dict(snapshot["q"][player])
-        network.eval()
+        network = dqn_network(snapshot["q"][player], meta)
         memo: dict[str, float] = {}
 
         def loss(state) -> float:
@@ -327,13 +331,8 @@ def exact_dqn(snapshot: dict[str, Any], meta: dict[str, Any]) -> dict[str, float
                 return 1.0 if state.returns()[player] < 0 else 0.0
             key = str(state)
             if key not in memo:
-                legal = state.legal_actions()
-                if state.current_player() == player:
-                    with torch.no_grad():
-                        q = network(torch.tensor(state.observation_tensor(player)).unsqueeze(0))[0]
-                    moves = [legal[int(torch.argmax(q[legal]))]]
-                else:
-                    moves = legal
+                mine = state.current_player() == player
+                moves = [dqn_greedy_move(network, state)] if mine else state.legal_actions()
                 memo[key] = sum(loss(state.child(move)) for move in moves) / len(moves)
             return memo[key]
 
