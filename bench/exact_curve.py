@@ -34,13 +34,12 @@ LOSS_LIMIT = 0.005  # task success 0.995
 
 def run_curve(run_dir: Path, dialogue_seeds: int) -> list[tuple[int, float, float, float]]:
     """(frames, wall seconds, exact loss first, exact loss second) of every snapshot under run_dir/checkpoints."""
-    import torch
-
+    from pipelines.checkpoint import load_checkpoint
     from pipelines.exact_eval import exact_checkpoint
 
     rows = []
     for path in sorted((run_dir / "checkpoints").glob("step-*.pt")):
-        saved = torch.load(path, weights_only=True, map_location="cpu")
+        saved = load_checkpoint(path)  # one-line ValueError for a corrupt or foreign file
         first, second = exact_checkpoint(str(path), dialogue_seeds=dialogue_seeds)
         rows.append((int(saved["frames"]), float(saved["wall_time"]), first.loss, second.loss))
         print(f"{run_dir.name} {rows[-1][0]:>8d} {rows[-1][1]:7.2f} s  first {first.loss:.4f}  second {second.loss:.4f}",
@@ -95,7 +94,7 @@ def main() -> int:
             return 2
     try:
         curves = {run.name: run_curve(run, args.dialogue_seeds) for run in args.runs}
-    except ValueError as error:  # an Ultimate run, --dialogue-seeds 0: exact_checkpoint names what is wrong
+    except ValueError as error:  # a corrupt snapshot, an Ultimate run, --dialogue-seeds 0: one line naming it
         print(f"error: {error}", file=sys.stderr)
         return 2
     print("| run | first snapshot with both seats >= 0.995 (frames, wall s) | settled from (frames, wall s) |\n|---|---|---|")

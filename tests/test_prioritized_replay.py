@@ -134,3 +134,8 @@ def test_exact_curve_bench_reads_every_snapshot_of_a_run(tmp_path: Path) -> None
     (tmp_path / "empty").mkdir()
     refused = subprocess.run([sys.executable, str(bench), str(tmp_path / "empty")], capture_output=True, text=True)
     assert refused.returncode == 2 and "no checkpoints" in refused.stderr and "Traceback" not in refused.stderr
+    (tmp_path / "corrupt" / "checkpoints").mkdir(parents=True)
+    (tmp_path / "corrupt" / "checkpoints" / "step-000000256.pt").write_bytes(b"not a checkpoint")
+    corrupt = subprocess.run([sys.executable, str(bench), str(tmp_path / "corrupt")], capture_output=True, text=True)
+    assert corrupt.returncode == 2 and "corrupt" in corrupt.stderr and "Traceback" not in corrupt.stderr
+    assert len(corrupt.stderr.strip().splitlines()) == 1
