@@ -67,7 +67,7 @@ class Ours:
         from pipelines.config import load_config
         from pipelines.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train import frames_per_batch, make_collector
+        from pipelines.train.run import frames_per_batch, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)

@@ -118,7 +118,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
     for repeat in range(repeats):
         for variant in ("off", "on"):
             out = Path(tempfile.mkdtemp(prefix=f"mcap_train_{variant}_"))
-            command = [sys.executable, "-m", "pipelines.cli", "train", config, f"collector.total_frames={frames}",
+            command = [sys.executable, "-m", "pipelines.cli.app", "train", config, f"collector.total_frames={frames}",
                        "--out", str(out), "--no-progress", "--seed", str(repeat)]
             if variant == "off":
                 command.append("--no-mcap")
@@ -146,7 +146,7 @@ def bench_train_share(config: str, frames: int, repeats: int) -> None:
     Immune to the between-run noise of a shared machine: both times come from one run. The logger's
     calls (record_steps, which also compresses and writes chunks, and close) are wrapped with a timer."""
     from logs import EpisodeLogger
-    from pipelines.train import resolve_run, train
+    from pipelines.train.run import resolve_run, train
 
     spent = {"seconds": 0.0, "calls": 0}
     original_record, original_close = EpisodeLogger.record_steps, EpisodeLogger.close

@@ -118,7 +118,7 @@ def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: 
 
     shutil.rmtree(out, ignore_errors=True)  # snapshots of an earlier run must not count
 
-    command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
+    command = [sys.executable, "-m", "pipelines.cli.app", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
                "--seed", str(seed), f"train.eval_every_frames={NEVER_EVALUATE}",
                f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=1000", "checkpoint.save_buffer=false",
                "eval.games=10", "eval.periodic_games=10", *(overrides or [])]
@@ -144,7 +144,7 @@ def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int |
     Q-guided search of ``search`` simulations (``value``: a value network scores the leaves), as ``ncbot eval
     --search N --value V`` plays it."""
     from pipelines.agents import load_agent, load_guided_agent
-    from pipelines.evaluate import evaluate_agent
+    from pipelines.evaluate.games import evaluate_agent
 
     config, policy = load_guided_agent(snapshot["path"], search, seed, value) if search else load_agent(snapshot["path"])
     return {seat: evaluate_agent(config, policy, games=games, seat=seat, seed=seed).task_success
@@ -154,7 +154,7 @@ def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int |
 def exact_ours(snapshot: dict[str, Any]) -> dict[str, float]:
     """Exact task success of a 3x3 snapshot from each seat: every branch of the uniform random user, 8 dialogue
     draws (``ncbot eval --exhaustive``): no evaluation noise, which near 0.995 is most of a 1000-game figure."""
-    from pipelines.exact_eval import exact_checkpoint
+    from pipelines.evaluate.exact import exact_checkpoint
 
     return {result.seat: result.task_success for result in exact_checkpoint(snapshot["path"])}
 

@@ -247,7 +247,7 @@ class CheckpointConfig(Section):
 
 
 class SelfPlayConfig(Section):
-    """Self-play option of a run (section ``selfplay``; pipelines/selfplay.py): the user's moves by frozen snapshots."""
+    """Self-play option of a run (section ``selfplay``; pipelines/train/selfplay.py): the user's moves by frozen snapshots."""
 
     enabled: bool = False
     pool_size: Annotated[int, Field(gt=0, le=1_000)] = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives

@@ -57,7 +57,7 @@ def test_training_applies_the_option(tmp_path) -> None:
     """Same seed, the two bootstraps: the trained weights differ, so train.py really routes loss.bootstrap."""
     from pipelines.checkpoint import load_checkpoint
     from pipelines.config import load_config
-    from pipelines.train import train
+    from pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     weights = {}

@@ -79,7 +79,7 @@ def test_override_without_equals_is_rejected() -> None:
 
 
 def _ncbot(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "pipelines.cli.app", *args], capture_output=True, text=True, cwd=cwd)
 
 
 def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path) -> None:

@@ -165,8 +165,8 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
     """`agent.lookahead: k3` passes config validation, trains through the Collector and reloads for eval."""
     from pipelines.config import load_config
     from pipelines.agents import load_agent
-    from pipelines.evaluate import evaluate_agent
-    from pipelines.train import train
+    from pipelines.evaluate.games import evaluate_agent
+    from pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     config = load_config(write_tiny_config(tmp_path), ["agent.lookahead=k3", "collector.total_frames=128"])

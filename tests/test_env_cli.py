@@ -6,11 +6,11 @@ import sys
 
 from typer.testing import CliRunner
 
-from pipelines.cli import app
+from pipelines.cli.app import app
 
 
 def run(*args: str):
-    """In-process run (fast); the exit-code path through pipelines.cli.main is checked by a subprocess below."""
+    """In-process run (fast); the exit-code path through pipelines.cli.app.main is checked by a subprocess below."""
     return CliRunner().invoke(app, ["env", *args])
 
 
@@ -30,6 +30,6 @@ def test_describe_ultimate_without_temporal() -> None:
 
 
 def test_bad_game_is_one_line_exit_2() -> None:
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "env", "describe", "--game", "chess"], capture_output=True, text=True)
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "env", "describe", "--game", "chess"], capture_output=True, text=True)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == ["ncbot: error: game must be one of standard, ultimate; got 'chess'"]

@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from pipelines.config import load_config
-from pipelines.evaluate import evaluate_checkpoint, summarise, wilson_interval
-from pipelines.train import train
+from pipelines.evaluate.games import evaluate_checkpoint, summarise, wilson_interval
+from pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)

@@ -17,8 +17,8 @@ import torch
 from modules.policy import make_policies
 from modules.qnet import make_qnet
 from pipelines.config import load_config
-from pipelines.exact_eval import BranchUser, branch_digits, exact_seat
-from pipelines.train import train
+from pipelines.evaluate.exact import BranchUser, branch_digits, exact_seat
+from pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)

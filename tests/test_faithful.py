@@ -16,7 +16,7 @@ import yaml
 import envs.dialogue as dlg
 from envs import make_env
 from pipelines.config import load_config
-from pipelines.train import train
+from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

@@ -11,10 +11,10 @@ from envs.opponents import make_opponent
 from envs.opponents.arena import play_match
 from modules.guided_mcts import parse_qmcts
 from pipelines.config import load_config
-from pipelines.evaluate import evaluate_agent
+from pipelines.evaluate.games import evaluate_agent
 from modules.guided_mcts import GuidedMCTSPolicy
 from pipelines.agents import guided_search, load_agent, load_guided_agent, register_agent_opponent
-from pipelines.train import train
+from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

@@ -8,7 +8,7 @@ import sys
 import pytest
 import torch
 
-from pipelines.ladder import check_goals, run_ladder
+from pipelines.evaluate.ladder import check_goals, run_ladder
 
 
 def _checkpoint(tmp_path, game: str = "standard"):
@@ -114,7 +114,7 @@ def test_a_stopped_ladder_stops_its_workers(tmp_path) -> None:
     import time
 
     checkpoint = _checkpoint(tmp_path)
-    ladder = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--opponents",
+    ladder = subprocess.Popen([sys.executable, "-m", "pipelines.cli.app", "ladder", str(checkpoint), "--opponents",
                                "random", "--games", "100000", "--workers", "2", "--out", str(tmp_path / "l")],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -157,7 +157,7 @@ def test_cli_errors_are_one_line(tmp_path) -> None:
                           ([str(checkpoint), "--opponents", "chess"], "unknown opponent 'chess'"),
                           ([str(checkpoint), "--games", "0"], "--games must be a positive"),
                           ([str(checkpoint), "--workers", "0"], "--workers must be a positive")):
-        done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", *args], capture_output=True, text=True)
+        done = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "ladder", *args], capture_output=True, text=True)
         assert done.returncode == 2, done.stderr
         assert message in done.stderr and "Traceback" not in done.stderr
 
@@ -201,7 +201,7 @@ def test_baseline_rows_play_the_masks_alone(tmp_path) -> None:
 
 
 def test_match_command_plays_two_opponents() -> None:
-    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "match", "random", "minimax", "--games", "30",
+    done = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "match", "random", "minimax", "--games", "30",
                            "--seed", "2"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     row = [line for line in done.stdout.splitlines() if line.startswith("| random | minimax |")][0]
@@ -227,7 +227,7 @@ def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
     assert resolve_lookahead("k3", "open_subgrids") == "k3_open" and resolve_lookahead("k3", "anywhere") == "k3"
     with pytest.raises(ValueError, match="--lookahead must be one of"):
         resolve_lookahead("k9", "anywhere")
-    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--lookahead", "deep"],
+    done = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "ladder", str(checkpoint), "--lookahead", "deep"],
                           capture_output=True, text=True)
     assert done.returncode == 2 and "--lookahead must be one of" in done.stderr and "Traceback" not in done.stderr
 

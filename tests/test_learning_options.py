@@ -10,7 +10,7 @@ import torch
 from pipelines.checkpoint import latest_training_state
 from pipelines.config import load_config
 from pipelines.learner import scheduled_lr
-from pipelines.train import train
+from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

@@ -71,7 +71,7 @@ def test_one_step_needs_no_transform_and_bad_arguments_are_one_line_errors() -> 
 def test_training_with_n_step_returns(tmp_path) -> None:
     """A real (tiny) run with loss.n_step=3 trains and differs from the one-step run."""
     from pipelines.config import load_config
-    from pipelines.train import train
+    from pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     results = {}

@@ -128,7 +128,7 @@ def test_openspiel_errors_are_one_line() -> None:
         make_opponent("openspiel-mcts:10", game="ultimate", free_move="anywhere")
     with pytest.raises(ValueError, match="positive simulation count"):
         make_opponent("openspiel-mcts:zero")
-    run = subprocess.run([sys.executable, "-m", "pipelines.cli", "match", "openspiel-mcts:10", "random", "--game",
+    run = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "match", "openspiel-mcts:10", "random", "--game",
                           "ultimate", "--games", "2"], capture_output=True, text=True)
     assert run.returncode == 2 and "Traceback" not in run.stderr
     assert "uses the 'open_subgrids' rule, not 'anywhere'" in run.stderr.strip().splitlines()[-1]
@@ -210,7 +210,7 @@ def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
     from modules.qnet import make_qnet
     from pipelines.checkpoint import FORMAT, atomic_save
     from pipelines.config import RunConfig
-    from pipelines.ladder import check_goals, run_ladder
+    from pipelines.evaluate.ladder import check_goals, run_ladder
 
     config = RunConfig()
     config.env.game, config.env.free_move = "ultimate", "open_subgrids"

@@ -14,7 +14,7 @@ ROW = re.compile(r"^(\d)\s+(\S.*)?$")
 
 
 def _spawn(tmp_path, *args: str) -> pexpect.spawn:
-    child = pexpect.spawn(sys.executable, ["-m", "pipelines.cli", "play", *args], cwd=str(tmp_path.parent),
+    child = pexpect.spawn(sys.executable, ["-m", "pipelines.cli.app", "play", *args], cwd=str(tmp_path.parent),
                           encoding="utf-8", timeout=60, env={"PYTHONUNBUFFERED": "1", "PATH": "/usr/bin:/bin",
                                                              "COLUMNS": "120", **_pythonpath()})
     return child

@@ -41,7 +41,7 @@ def tmpfs(folder: Path, size: str, read_only: bool = False):
 
 
 def start_training(config: Path, run: Path, *extra: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "pipelines.cli", "train", str(config), "--out", str(run), *extra],
+    return subprocess.Popen([sys.executable, "-m", "pipelines.cli.app", "train", str(config), "--out", str(run), *extra],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 

@@ -1,7 +1,7 @@
 """Property-based fuzzing of the CLI's error boundary (issue 18): generated bad files, values and paths given to the
 subcommands must end in exit code 2, ONE line on stderr, no traceback and no file left behind.
 
-Runs in-process through `pipelines.cli.main` (no interpreter start per example) so a few hundred inputs take
+Runs in-process through `pipelines.cli.app.main` (no interpreter start per example) so a few hundred inputs take
 seconds. Examples per property: NCBOT_FUZZ_EXAMPLES (default 6, for CI; `NCBOT_FUZZ_EXAMPLES=200` for a deep run).
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pipelines.checkpoint import FORMAT, atomic_save
-from pipelines.cli import main
+from pipelines.cli.app import main
 from pipelines.config import RunConfig
 from tests.learning_helpers import TINY
 

@@ -140,7 +140,7 @@ def test_render_command_shows_a_preset(tmp_path, sapien_render_system):
     import cv2
 
     output = tmp_path / "atrium.png"
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "--conditions", "atrium",
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "robot", "render", "--conditions", "atrium",
                              "--seed", "3", "-o", str(output), "--width", "160", "--height", "120", "--frames", "1"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -151,7 +151,7 @@ def test_render_command_shows_a_preset(tmp_path, sapien_render_system):
 def test_unknown_conditions_are_one_line(monkeypatch, capsys):
     import sys
 
-    from pipelines.cli import main
+    from pipelines.cli.app import main
 
     monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", "--conditions", "moon"])
     with pytest.raises(SystemExit) as exit_info:

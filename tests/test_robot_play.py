@@ -106,7 +106,7 @@ def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_
 def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys):
     import sys
 
-    from pipelines.cli import main
+    from pipelines.cli.app import main
 
     for args, needle in ((["--rrd"], "--rrd needs --out"), (["--checkpoint", str(tmp_path / "missing.pt")], "does not exist"),
                          (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder"),
@@ -167,7 +167,7 @@ def test_render_command_writes_the_mouth_camera_view(tmp_path):
     import cv2
 
     output = tmp_path / "mouth.png"
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(output),
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "robot", "render", "-o", str(output),
                              "--width", "160", "--height", "120", "--marks", "x4,o0", "--frames", "2"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -183,7 +183,7 @@ def test_no_vulkan_device_is_one_line_with_the_recipe(tmp_path):
     import sys
 
     env = dict(os.environ, VK_ICD_FILENAMES=str(tmp_path / "no_such_icd.json"))
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(tmp_path / "x.png")],
+    result = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "robot", "render", "-o", str(tmp_path / "x.png")],
                             capture_output=True, text=True, timeout=300, env=env)
     assert result.returncode == 2
     assert "scripts/setup.sh" in result.stderr and "Traceback" not in result.stderr

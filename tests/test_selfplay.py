@@ -10,8 +10,8 @@ import torch
 from envs import make_env
 from modules.qnet import make_qnet, seeded_init
 from pipelines.config import load_config
-from pipelines.selfplay import SelfPlayConfig, SnapshotPool
-from pipelines.train import train
+from pipelines.train.selfplay import SelfPlayConfig, SnapshotPool
+from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

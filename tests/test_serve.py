@@ -145,7 +145,7 @@ def test_several_sessions_at_once_and_idle_sessions_are_closed_with_their_log(tm
     episodes = [m.data["extra"] for folder in out.iterdir() for m in LogReader(folder).messages(["/episode"])]
     assert len(episodes) == 3 and {e["conditions"]["preset"] for e in episodes} == {"office"}  # --conditions reached the scenes
     assert study["misrecognised_moves"] == 0 and study["seconds_per_person_turn"]["median"] > 0
-    printed = subprocess.run([sys.executable, "-m", "pipelines.cli", "logs", "inspect", str(out)],
+    printed = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "logs", "inspect", str(out)],
                              capture_output=True, text=True, check=True).stdout
     assert "sessions 3  games 3" in printed
 
@@ -155,7 +155,7 @@ def test_serve_cli_rejects_bad_input_with_one_line(tmp_path):
     bad_yaml.write_text("base: office\nlight_intensity: [0.3, 0.5]\nglitter: 3\n")
     for args in (["--checkpoint", str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
                  ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"]):
-        result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "serve", *args],
+        result = subprocess.run([sys.executable, "-m", "pipelines.cli.app", "robot", "serve", *args],
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 2, result.stderr
         assert result.stderr.strip().startswith("ncbot: error:") and len(result.stderr.strip().splitlines()) == 1

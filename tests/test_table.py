@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from pipelines.claims import TOO_FEW, evaluate_claims, welch_greater
-from pipelines.table import t_interval, write_report
+from pipelines.reproduce.claims import TOO_FEW, evaluate_claims, welch_greater
+from pipelines.reproduce.table import t_interval, write_report
 from tests.learning_helpers import ncbot
 
 ORIGINAL, VARIANT = "dqn_original-notemporal", "dqn_variant-notemporal"

@@ -16,8 +16,8 @@ from modules.symmetry import square_symmetries
 from modules.value_net import N_FEATURES, ValueNetEvaluator, feature_symmetries, load_value_net, position_features
 from pipelines.agents import load_agent
 from pipelines.config import load_config
-from pipelines.train import train
-from pipelines.value_training import train_value
+from pipelines.train.run import train
+from pipelines.train.value_training import train_value
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)

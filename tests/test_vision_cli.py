@@ -12,7 +12,7 @@ from vision.data.frames import make_frame
 
 
 def _ncbot(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", "vision", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "pipelines.cli.app", "vision", *args], capture_output=True, text=True)
 
 
 def test_read_json_contract_and_exit_codes(tmp_path) -> None:

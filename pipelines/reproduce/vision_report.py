@@ -1,7 +1,7 @@
 """What the vision budget's runs show: per-N records, the markdown of data_budget.md's vision section and of
 results/vision_experiments.md (the paper's three numbers and its confusion matrix beside ours), and their PNGs.
 
-Kept apart from pipelines/reproduce_vision.py (which runs the trainings) so each file has one job.
+Kept apart from pipelines/reproduce/vision.py (which runs the trainings) so each file has one job.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ TARGET = 0.98  # issue 14: >= 98 % of held-out cells at the paper's budget of 31
 # ---- what the runs show -----------------------------------------------------------------------------------------
 
 def _interval(values: list[float]) -> list[float] | None:
-    from pipelines.table import t_interval
+    from pipelines.reproduce.table import t_interval
 
     found = t_interval(values)
     return None if found.low is None else [found.low, found.high]
@@ -184,7 +184,7 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
     loo_note = "exact, 109 trainings" if folds == 109 else f"first {folds} of 109 folds only"
     train_cmd = f"`ncbot vision train --budget {PAPER_IMAGES} --seed S --out W.pt` then `ncbot vision eval --what cells,reading --frames {vb.photos} --weights W.pt`"
     lines = ["# Vision: the paper's experiments beside ours", "", f"> {vb.label}", "",
-             f"Made by `{command}` (vision part, `pipelines/reproduce_vision.py`). Our data are generated (no photos of "
+             f"Made by `{command}` (vision part, `pipelines/reproduce/vision.py`). Our data are generated (no photos of "
              "real handwriting exist here): the paper's clean / noisy sets are `vision/data/cells.py`'s clean and noisy "
              "cells of the training style (seeds 109,000 / 201,000); held-out handwriting = the \"sketch\" and "
              "\"hershey\" stroke models, never trained on. Figures: `vision_experiments.png` (confusion matrices), "

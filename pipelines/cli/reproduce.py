@@ -1,4 +1,4 @@
-"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce.py)."""
+"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce/grid.py)."""
 from __future__ import annotations
 
 import json
@@ -24,7 +24,7 @@ def reproduce_command(
     import shlex
     import sys
 
-    from pipelines.reproduce import reproduce
+    from pipelines.reproduce.grid import reproduce
 
     command = "ncbot " + shlex.join(sys.argv[1:])
     result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from fileio import atomic_write_text
-from pipelines.evaluate import wilson_interval
+from pipelines.evaluate.games import wilson_interval
 
 DEFAULT_LADDERS = {
     "standard": ["random", "rule", "minimax"],
@@ -130,7 +130,7 @@ def play_ladder_match(config, chooser, who: str, opponent: str, seat: str, match
 
     The chooser's own random stream (the search's per-move seeds, the baseline's choice) restarts from
     ``match_seed``, so a match's games do not depend on which matches ran before it in the same process."""
-    from pipelines.evaluate import evaluate_agent
+    from pipelines.evaluate.games import evaluate_agent
 
     generator = getattr(chooser, "generator", None)
     if generator is not None:

@@ -30,8 +30,8 @@ class PlannedRun:
 
     def command(self) -> list[str]:
         if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
-            return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
-        return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
+            return [sys.executable, "-m", "pipelines.cli.app", "train", "--resume", str(self.run_dir), "--no-progress"]
+        return [sys.executable, "-m", "pipelines.cli.app", "train", str(self.config), *self.overrides,
                 "--out", str(self.run_dir), "--no-progress", "--overwrite"]  # no checkpoint yet: start it again
 
     @property
@@ -168,7 +168,7 @@ def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str,
 
 def check_backend(backend: str, workers: int, address: str | None = None) -> None:
     """One-line ValueError for a backend, worker count or address that cannot run (before anything is planned)."""
-    from pipelines.ray_backend import ray_available
+    from pipelines.train.ray_backend import ray_available
 
     if backend not in ("local", "ray"):
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
@@ -184,11 +184,11 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
                  runs_dir: str | Path | None = None, desc: str = "ablate") -> list[str]:
     """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names.
 
-    Ray (pipelines/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
+    Ray (pipelines/train/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
     every node must see ``runs_dir`` at the same absolute path (checked before any run starts).
     """
     from pipelines.progress import progress_bar
-    from pipelines.ray_backend import run_on_ray
+    from pipelines.train.ray_backend import run_on_ray
 
     check_backend(backend, workers, address)
     failed: list[str] = []

@@ -25,7 +25,7 @@ def play_command(
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None and game not in ("standard", "ultimate"):
         raise ValueError(f"--game must be standard or ultimate, got {game!r}")
-    from pipelines.cli_first import resolve_first
+    from pipelines.cli.first import resolve_first
 
     first = resolve_first(first, seat, allowed=("robot", "human"), default="robot", seat_is_robot=False)
     seat = "first" if first == "human" else "second"  # play_dialogue takes the person's seat
@@ -33,7 +33,7 @@ def play_command(
         raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
     if not no_log:
         check_writable_dir(log_dir, "--log-dir")
-    from pipelines.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
+    from pipelines.evaluate.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
 
     try:
         summary = play_dialogue(game=game, checkpoint=checkpoint, seat=seat, free_move=free_move, seed=seed,
@@ -83,7 +83,7 @@ def ladder_command(
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
     if out is not None:
         check_writable_dir(out, "--out")
-    from pipelines.ladder import run_ladder  # torch and the env load only now: errors above stay fast
+    from pipelines.evaluate.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents is not None else None
     if names is not None and not names:

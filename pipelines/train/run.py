@@ -124,7 +124,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     from modules.qnet import make_qnet, seeded_init
     from modules.symmetry import make_symmetries
     from modules.transitions import make_multistep, prepare_transitions
-    from pipelines.evaluate import evaluate_agent
+    from pipelines.evaluate.games import evaluate_agent
     from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
     from pipelines.progress import progress_bar
@@ -143,8 +143,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     # --- env and agent -------------------------------------------------------------------------------------------
     frames_done = state["frames"] if state else 0
     selfplay_pool = None
-    if config.selfplay.enabled:  # the user's moves come from frozen snapshots of this agent (pipelines/selfplay.py)
-        from pipelines.selfplay import make_selfplay_pool
+    if config.selfplay.enabled:  # the user's moves come from frozen snapshots of this agent (pipelines/train/selfplay.py)
+        from pipelines.train.selfplay import make_selfplay_pool
 
         selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
     env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
@@ -306,7 +306,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             report["search_targets"] = {"searched": teacher.searched, "labels": teacher.kept,
                                         "search_cpu_s": round(teacher.cpu_seconds, 2)}
         if selfplay_pool is not None:
-            from pipelines.selfplay import pool_summary
+            from pipelines.train.selfplay import pool_summary
 
             report["selfplay"] = pool_summary(selfplay_pool)
         report["history"] = history

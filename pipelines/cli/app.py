@@ -1,6 +1,6 @@
 """The `ncbot` command line: one root Typer app; each area registers its own commands.
 
-Every area module (`cli_env`, `cli_learn`, `cli_logs`, `cli_vision`, `cli_robot`, `cli_play`) exposes
+Every area module (`env`, `learn`, `logs`, `vision`, `robot`, `play`, `reproduce`) exposes
 `register(app)` and imports its heavy dependencies (torch, sapien, cv2) inside the commands, so that
 `ncbot --help` stays fast. Bad input raises `ValueError`/`FileNotFoundError` with a clear message; `main`
 turns it into one line on stderr and exit code 2 (set NCBOT_DEBUG=1 to see the traceback).
@@ -15,7 +15,13 @@ import warnings
 
 import typer
 
-from pipelines import cli_env, cli_learn, cli_logs, cli_play, cli_reproduce, cli_robot, cli_vision
+import pipelines.cli.env as cli_env
+import pipelines.cli.learn as cli_learn
+import pipelines.cli.logs as cli_logs
+import pipelines.cli.play as cli_play
+import pipelines.cli.reproduce as cli_reproduce
+import pipelines.cli.robot as cli_robot
+import pipelines.cli.vision as cli_vision
 from pipelines.errors import Terminated, one_line, squeeze  # light: no torch
 
 app = typer.Typer(

@@ -1,6 +1,6 @@
 """`ncbot table`: the paper-style results table (mean and 95 % t-interval over seeds, the paper's numbers beside
 ours, whether the paper's task success lies inside our interval), the paper's claims tested over seeds
-(`pipelines.claims`) and learning-curve PNGs per agent, read from the run folders of `ncbot ablate`.
+(`pipelines.reproduce.claims`) and learning-curve PNGs per agent, read from the run folders of `ncbot ablate`.
 
 Runs are found as RUNS_DIR/<suite>/<game row>/<agent cell>/seed<N>/eval.json. The table reports the robot-first
 seat (the paper's set-up) and adds the robot-second task success. Seeds are the repetitions: each seed's
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from fileio import atomic_write_text
-from pipelines.claims import CELL_LABELS, GAME_LABELS, Claim, evaluate_claims, mean_and_variance, render_claims
+from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, Claim, evaluate_claims, mean_and_variance, render_claims
 
 # Paper (Cuayahuitl 2019) table: (avg reward per action, task success, dialogue length); paper-notes section 5.
 PAPER = {

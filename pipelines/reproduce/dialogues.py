@@ -55,9 +55,9 @@ def dialogue_budget(games: tuple[str, ...]) -> list[dict[str, Any]]:
 def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
     """The dialogue budget's training runs: Proposed + temporal on 3x3 (paper config, env.dialogues: paper) learnt
     from k example dialogues, k in ``budget.dialogue_points``, ``budget.dialogue_subsets`` subsets each; subset s
-    also trains with seed s; ``config``: the 3x3 paper config (`pipelines.reproduce.row_config`). Runs go to RUNS_DIR/kNN/seedS
+    also trains with seed s; ``config``: the 3x3 paper config (`pipelines.reproduce.grid.row_config`). Runs go to RUNS_DIR/kNN/seedS
     (resumable like the table's)."""
-    from pipelines.ablate import PlannedRun
+    from pipelines.train.ablate import PlannedRun
     from pipelines.config import load_config
 
     config = Path(config).resolve()
@@ -77,7 +77,7 @@ def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
 def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: int, backend: str = "local",
                         address: str | None = None) -> dict[str, Any]:
     """Train the unfinished dialogue-budget runs through `ncbot ablate`'s runner (local processes or Ray)."""
-    from pipelines.ablate import execute_runs
+    from pipelines.train.ablate import execute_runs
 
     planned = plan_dialogue_runs(budget, Path(runs_dir), config)
     todo = [run for run in planned if not run.finished]
@@ -88,8 +88,8 @@ def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: i
 
 def agent_budget(runs_dir: Path | None) -> dict[int, dict[str, Any]]:
     """Per k: robot-first task success and dialogue length of the finished dialogue-budget runs, mean and 95 %
-    t-interval over the subsets (pipelines.table.t_interval; the unit is a subset with its training seed)."""
-    from pipelines.table import read_eval, t_interval
+    t-interval over the subsets (pipelines.reproduce.table.t_interval; the unit is a subset with its training seed)."""
+    from pipelines.reproduce.table import read_eval, t_interval
 
     by_k: dict[int, list[dict[str, Any]]] = defaultdict(list)
     for path in sorted(Path(runs_dir).glob("k*/seed*/eval.json")) if runs_dir is not None else []:

@@ -4,9 +4,9 @@ Why here: the title's claim ("a few hundred images") is a curve, not one model: 
 labelled cells (vision/budget.py), N from 10 to 1,000, several seeds, each scored on the held-out handwriting.
 Every training is a folder `RUNS/vision/n<N>_seed<S>/` with `weights.pt` and `result.json`; a finished one is
 skipped, a killed one retrained (a training is 1-3 CPU minutes), so `full` is resumable like the table's runs.
-Outputs (drawn by pipelines/reproduce_vision_report.py): `OUT/data_budget_vision.png` (the curve, the paper's 310 marked), `OUT/vision_experiments.md` + `.png`
+Outputs (drawn by pipelines/reproduce/vision_report.py): `OUT/data_budget_vision.png` (the curve, the paper's 310 marked), `OUT/vision_experiments.md` + `.png`
 (the paper's three numbers and confusion matrix beside ours), and the vision section of `OUT/data_budget.md`
-(`pipelines.reproduce_budget` renders it with `vision_section`).
+(`pipelines.reproduce.budget` renders it with `vision_section`).
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import numpy as np
 
 from fileio import atomic_path, atomic_write_text
 
-from pipelines.reproduce_vision_report import plot_confusions, plot_curve, records, render_experiments, vision_section
+from pipelines.reproduce.vision_report import plot_confusions, plot_curve, records, render_experiments, vision_section
 
 
 @dataclass(frozen=True)
@@ -186,7 +186,7 @@ def paper_experiments(vb: VisionBudget, root: Path, progress: Any = None) -> lis
     return found
 
 
-# ---- entry points (pipelines/reproduce.py, pipelines/reproduce_budget.py) ----------------------------------------
+# ---- entry points (pipelines/reproduce/grid.py, pipelines/reproduce/budget.py) ----------------------------------------
 
 def vision_root(runs_dir: Path) -> Path:
     return Path(runs_dir) / "vision"

@@ -1,6 +1,6 @@
 """Dialogue length, task success and reward per act of the untrained look-ahead agents under each reading.
 
-Run: python -m pipelines.reproduce_lengths [--games 400] [--game standard,ultimate]
+Run: python -m pipelines.reproduce.lengths [--games 400] [--game standard,ultimate]
 Why: the faithful options (env.offer_taken_cells, env.dialogues) are meant to bring our dialogues to the paper's
 shape (3x3 13.9-15.3 acts, Ultimate 52-71); this measures it without training, with each agent's own look-ahead
 masks and a seeded uniform choice inside them (modules.masks.LookaheadOnlyPolicy), robot first (the paper's

@@ -2,12 +2,12 @@
 
 Why one command: the paper's findings need dozens of runs with the faithful options on (pipelines/configs/paper/)
 and a fixed protocol (seeds, games, test games). `table` writes an ablation grid for the budget and runs it
-through the same runner as `ncbot ablate` (pipelines/ablate.py: parallel processes, finished runs skipped, a
-killed run resumed from its checkpoint), then `pipelines.table.write_report` writes the table and the claims.
+through the same runner as `ncbot ablate` (pipelines/train/ablate.py: parallel processes, finished runs skipped, a
+killed run resumed from its checkpoint), then `pipelines.reproduce.table.write_report` writes the table and the claims.
 `budget` reads the data budgets off those runs and the example dialogues, and trains the dialogue-budget agents
-(pipelines/reproduce_budget.py). `vision` trains the cell classifier on N labelled cells and runs the paper's
-vision experiments (pipelines/reproduce_vision.py); it needs no RL runs. `--backend ray [--address HOST:PORT]`
-runs every run as a Ray task (pipelines/ray_backend.py: the runs folder must be shared by every node, checked
+(pipelines/reproduce/budget.py). `vision` trains the cell classifier on N labelled cells and runs the paper's
+vision experiments (pipelines/reproduce/vision.py); it needs no RL runs. `--backend ray [--address HOST:PORT]`
+runs every run as a Ray task (pipelines/train/ray_backend.py: the runs folder must be shared by every node, checked
 before any run starts).
 
 Budgets: `full` is the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games, every game row);
@@ -23,7 +23,7 @@ import yaml
 
 from fileio import atomic_write_text
 
-PAPER_CONFIGS = Path(__file__).with_name("configs") / "paper"
+PAPER_CONFIGS = Path(__file__).parents[1] / "configs" / "paper"
 PARTS = ("table", "vision", "budget", "all")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
 
@@ -41,7 +41,7 @@ class Budget:
     game_points: tuple[int, ...]  # training games at which the games-budget curve is read
     label: str  # one line every output of this budget starts with
     extra_overrides: tuple[str, ...] = field(default_factory=tuple)
-    # the dialogue data budget's agents (pipelines/reproduce_budget.py): Proposed + temporal on 3x3 per k example
+    # the dialogue data budget's agents (pipelines/reproduce/budget.py): Proposed + temporal on 3x3 per k example
     # dialogues, this many subsets (each its own training seed) per k, capped at this many training games
     dialogue_subsets: int = 2
     dialogue_games: int = 1_000
@@ -131,16 +131,16 @@ def runs_progress(budget: Budget, runs_dir: Path) -> tuple[int, int]:
 def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
              configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
     """Run the budget's grid through `ncbot ablate`'s runner: finished runs skipped, killed ones resumed."""
-    from pipelines.ablate import run_ablation
+    from pipelines.train.ablate import run_ablation
 
     grid = write_grid(budget, runs_dir, configs)
     return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir, address=address)
 
 
 def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
-    """out/paper_table.md and out/paper_claims.md (pipelines.table.write_report), each labelled with the budget,
+    """out/paper_table.md and out/paper_claims.md (pipelines.reproduce.table.write_report), each labelled with the budget,
     and marked PARTIAL (with how many runs are finished) while the budget's runs are not all done."""
-    from pipelines.table import write_report
+    from pipelines.reproduce.table import write_report
 
     out.mkdir(parents=True, exist_ok=True)
     table, claims = out / "paper_table.md", out / "paper_claims.md"
@@ -179,13 +179,13 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
                 "table": write_table_report(budget, runs_dir=runs_dir, out=Path(out), command=command)}
     if workers <= 0:
         raise ValueError(f"--workers must be positive, got {workers}")
-    from pipelines.ablate import check_backend
+    from pipelines.train.ablate import check_backend
 
     check_backend(backend, workers, address)  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
     result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command}
     if part in ("vision", "budget", "all"):  # the vision trainings in parallel; the vision files (vision, all)
-        from pipelines.reproduce_vision import run_vision_part
+        from pipelines.reproduce.vision import run_vision_part
 
         result.update(run_vision_part(part, budget, runs_dir=runs_dir, out=out, command=command, workers=workers))
         if part == "vision":
@@ -195,8 +195,8 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
     if part in ("table", "all"):
         result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
     if part in ("budget", "all"):
-        from pipelines.reproduce_budget import write_budget_report
-        from pipelines.reproduce_dialogues import run_dialogue_agents
+        from pipelines.reproduce.budget import write_budget_report
+        from pipelines.reproduce.dialogues import run_dialogue_agents
 
         dialogue_runs = Path(runs) / f"dialogues-{budget.name}"
         result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs,

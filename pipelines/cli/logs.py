@@ -1,7 +1,7 @@
 """`ncbot logs ...`: look into the MCAP episode logs of a run (logic in `logs/`; this file only parses options).
 
 Bad input (missing path, empty or non-MCAP file, an MCAP without ncbot channels, an unknown episode) raises
-ValueError/FileNotFoundError, which `pipelines.cli.main` prints as one line with exit code 2.
+ValueError/FileNotFoundError, which `pipelines.cli.app.main` prints as one line with exit code 2.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """`ncbot train`, `ncbot eval`, `ncbot ablate`, `ncbot table`: the learning area's commands.
 
 Heavy imports (torch, torchrl) happen inside the commands so `ncbot --help` stays fast. Library errors
-(ValueError / FileNotFoundError) become one line and exit code 2 in `pipelines.cli.main`.
+(ValueError / FileNotFoundError) become one line and exit code 2 in `pipelines.cli.app.main`.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def train_command(
                                    "log, eval.json); without it such a folder is refused."),
 ) -> None:
     """Train an agent (competitive DQN or a baseline) and write checkpoint, eval.json, curve PNG and MCAP log."""
-    from pipelines.train import resolve_run, train
+    from pipelines.train.run import resolve_run, train
 
     config_path, extra = config, list(overrides or [])
     if resume and config_path and "=" in config_path:  # `ncbot train --resume DIR key=value`
@@ -77,7 +77,7 @@ def eval_command(
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
-    from pipelines.cli_first import ROBOT_SEAT, resolve_first
+    from pipelines.cli.first import ROBOT_SEAT, resolve_first
 
     seat = ROBOT_SEAT[resolve_first(first, seat, allowed=("robot", "human", "alternate"), default="alternate")]
     check_value_option(value, search)
@@ -85,7 +85,7 @@ def eval_command(
         check_writable_dir(mcap, "--mcap")
     import torch
 
-    from pipelines.evaluate import evaluate_checkpoint
+    from pipelines.evaluate.games import evaluate_checkpoint
     from pipelines.agents import register_agent_opponent
 
     torch.set_num_threads(1)
@@ -104,7 +104,7 @@ def eval_command(
 
 def _exhaustive_eval(checkpoint: str, seat: str, seed: int, dialogue_seeds: int, as_json: bool) -> None:
     """`ncbot eval --exhaustive`: exact win/draw/loss per seat and the lost games, if any."""
-    from pipelines.exact_eval import exact_checkpoint
+    from pipelines.evaluate.exact import exact_checkpoint
 
     results = exact_checkpoint(checkpoint, seat=seat, seed=seed, dialogue_seeds=dialogue_seeds)
     if as_json:
@@ -135,7 +135,7 @@ def ablate_command(
                                           "(default: a local instance); every node must see the runs folder."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
-    from pipelines.ablate import run_ablation
+    from pipelines.train.ablate import run_ablation
 
     if out is not None:
         check_writable_dir(out, "--out")
@@ -158,7 +158,7 @@ def table_command(
     import shlex
     import sys
 
-    from pipelines.table import write_report
+    from pipelines.reproduce.table import write_report
 
     for path, option in ((out, "--out"), (claims, "--claims")):
         if path is not None:
@@ -186,7 +186,7 @@ def train_value_command(
     check_writable_dir(out, "OUT")
     import torch
 
-    from pipelines.value_training import train_value
+    from pipelines.train.value_training import train_value
 
     torch.set_num_threads(1)
     report = train_value(out, free_move=free_move, positions=positions, simulations=simulations, hidden=sizes,

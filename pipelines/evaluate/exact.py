@@ -22,7 +22,7 @@ from typing import Any
 
 import torch
 
-from pipelines.evaluate import OUTCOME_DRAW, OUTCOME_ROBOT_WON, play_games
+from pipelines.evaluate.games import OUTCOME_DRAW, OUTCOME_ROBOT_WON, play_games
 
 USER_MARK = 2
 CELLS = 9

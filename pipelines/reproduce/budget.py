@@ -1,13 +1,13 @@
 """`ncbot reproduce budget`: the title's data-efficiency claim as curves (how much data each part needs).
 
-- dialogues (pipelines/reproduce_dialogues.py): the act filter learnt from k of the paper set's example dialogues
+- dialogues (pipelines/reproduce/dialogues.py): the act filter learnt from k of the paper set's example dialogues
   (k in 1, 2, 4, 8, 12, 24; 13-24 are ours, authored) against the filter of all of them, and the 3x3 agent trained
   in the env learnt from k dialogues (`env.dialogue_subset`): its task success and dialogue length per k.
 - games: task success against training games, read off the `table` runs' periodic greedy evaluations (the first
   one at or after each point): a run capped at N games is the same run stopped there, because every schedule
   (epsilon, target updates) counts frames, not games.
 - vision: the cell classifier trained on N labelled cells, scored on held-out handwriting
-  (pipelines/reproduce_vision.py; its section and `data_budget_vision.png` come from there).
+  (pipelines/reproduce/vision.py; its section and `data_budget_vision.png` come from there).
 """
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from fileio import atomic_write_text
-from pipelines.claims import CELL_LABELS, GAME_LABELS
-from pipelines.reproduce_dialogues import dialogue_records, dialogue_section, plot_dialogues
+from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS
+from pipelines.reproduce.dialogues import dialogue_records, dialogue_section, plot_dialogues
 
 
 
@@ -90,9 +90,9 @@ def render_budget(data: dict[str, Any], command: str, label: str, budget: Any) -
 def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str,
                         dialogue_runs: Path | None = None) -> dict[str, Any]:
     """Write out/data_budget.md and its PNGs; return the `--json` object {vision, dialogues, games} (+ label).
-    ``dialogue_runs``: the dialogue-budget agents' runs folder (pipelines/reproduce_dialogues.py)."""
+    ``dialogue_runs``: the dialogue-budget agents' runs folder (pipelines/reproduce/dialogues.py)."""
     games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
-    from pipelines.reproduce_vision import vision_budget_part
+    from pipelines.reproduce.vision import vision_budget_part
 
     data = {"label": budget.label, "command": command,
             **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out, command=command),
