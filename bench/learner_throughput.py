@@ -65,9 +65,9 @@ class Ours:
         from modules.symmetry import make_symmetries
         from modules.transitions import make_multistep, prepare_transitions
         from pipelines.config import load_config
-        from pipelines.learner import Learner, make_replay_buffer
+        from modules.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train.run import frames_per_batch, make_collector
+        from pipelines.train.run import frames_per_batch, learner_settings, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -79,7 +79,7 @@ class Ours:
             seeded_init(qnet, 0)
             learner_config = load_config(config_path, [f"optim.precision={precision}"])
             symmetries = make_symmetries(config.buffer.augment, self.env, 0)  # buffer.augment: as training runs it
-            self.learners[precision] = Learner.from_config(qnet, learner_config, symmetries)
+            self.learners[precision] = Learner.build(qnet, learner_settings(learner_config), symmetries)
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)

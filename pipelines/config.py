@@ -143,7 +143,7 @@ class BufferConfig(Section):
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
-    # prioritised replay (Schaul et al. 2016; pipelines/prioritized_sampler.py, TorchRL's PrioritizedSampler
+    # prioritised replay (Schaul et al. 2016; modules/prioritized_sampler.py, TorchRL's PrioritizedSampler
     # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
     # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session); on 3x3 it cuts

@@ -9,7 +9,7 @@ import torch
 
 from pipelines.checkpoint import latest_training_state
 from pipelines.config import load_config
-from pipelines.learner import scheduled_lr
+from modules.learner import scheduled_lr
 from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
@@ -17,15 +17,19 @@ torch.set_num_threads(1)
 CONFIGS = Path(__file__).resolve().parents[1] / "pipelines" / "configs"
 
 
+def _lr(config, frames: int) -> float:
+    return scheduled_lr(frames, config.optim.lr, config.schedule.lr_end, config.collector.total_frames)
+
+
 def test_schedule_is_linear_from_lr_to_lr_end_and_constant_without_it() -> None:
     config = load_config(CONFIGS / "default.yaml", ["optim.lr=0.001", "schedule.lr_end=0.0001",
                                                     "collector.total_frames=1000"])
-    assert scheduled_lr(config, 0) == pytest.approx(0.001)
-    assert scheduled_lr(config, 500) == pytest.approx(0.00055)
-    assert scheduled_lr(config, 1000) == pytest.approx(0.0001)
-    assert scheduled_lr(config, 5000) == pytest.approx(0.0001)  # past the end: stays at lr_end
+    assert _lr(config, 0) == pytest.approx(0.001)
+    assert _lr(config, 500) == pytest.approx(0.00055)
+    assert _lr(config, 1000) == pytest.approx(0.0001)
+    assert _lr(config, 5000) == pytest.approx(0.0001)  # past the end: stays at lr_end
     constant = load_config(CONFIGS / "default.yaml", ["optim.lr=0.001", "schedule.lr_end=null"])
-    assert scheduled_lr(constant, 10**6) == pytest.approx(0.001)
+    assert _lr(constant, 10**6) == pytest.approx(0.001)
 
 
 @pytest.mark.parametrize("value", ["0", "-0.1", "0.5"])
@@ -41,7 +45,7 @@ def test_a_real_run_ends_with_the_decayed_learning_rate(tmp_path: Path) -> None:
     assert state["frames"] == config.collector.total_frames
     last = latest_training_state(tmp_path / "run")
     lrs = [group["lr"] for group in last["learner"]["optimizer"]["param_groups"]]
-    assert lrs == pytest.approx([scheduled_lr(config, last["frames"])] * len(lrs))
+    assert lrs == pytest.approx([_lr(config, last["frames"])] * len(lrs))
     assert lrs == pytest.approx([0.0002] * len(lrs))  # the last periodic checkpoint is at the end of training
 
 

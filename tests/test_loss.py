@@ -178,15 +178,12 @@ def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDic
 
 
 def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
+    from modules.learner import make_loss
     from modules.qnet import seeded_init
-    from modules.transitions import LOSS_KEYS
 
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
-    loss = CompetitiveDQNLoss(qnet, double_dqn=double_dqn, precision=precision)
-    loss.set_keys(**LOSS_KEYS)
-    loss.make_value_estimator(gamma=0.9)
-    return loss
+    return make_loss(qnet, double_dqn=double_dqn, precision=precision, gamma=0.9)
 
 
 def _expected_target(loss: CompetitiveDQNLoss, td: TensorDict, gamma: float = 0.9) -> torch.Tensor:
@@ -248,7 +245,7 @@ def test_unknown_precision_is_a_clear_error() -> None:
 
 
 def _filled_buffer(size: int = 300, batch: int = 48):
-    from pipelines.learner import make_replay_buffer
+    from modules.learner import make_replay_buffer
 
     buffer = make_replay_buffer(size, batch)
     for seed in range(3):  # 3 x 128 rows into 300 slots: the ring wraps
@@ -258,8 +255,9 @@ def _filled_buffer(size: int = 300, batch: int = 48):
 
 def _learner(batch_size: int | None = None, **loss_settings):
     from modules.qnet import seeded_init
+    from modules.learner import Learner
     from pipelines.config import RunConfig
-    from pipelines.learner import Learner
+    from pipelines.train.run import learner_settings
 
     config = RunConfig()
     if batch_size is not None:
@@ -268,7 +266,7 @@ def _learner(batch_size: int | None = None, **loss_settings):
         setattr(config.loss, key, value)
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
-    return Learner.from_config(qnet, config)
+    return Learner.build(qnet, learner_settings(config))
 
 
 @pytest.mark.parametrize("target_update", ["hard", "soft"])

@@ -11,8 +11,8 @@ import torch
 from tensordict import TensorDict
 
 from pipelines.config import load_config
-from pipelines.learner import make_replay_buffer
-from pipelines.prioritized_sampler import ProportionalSampler
+from modules.learner import make_replay_buffer
+from modules.prioritized_sampler import ProportionalSampler
 from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 from tests.test_loss import _learner, mlp_loss, mlp_transitions

@@ -77,6 +77,17 @@ def checkpoint_bytes(config: RunConfig) -> int:
     return 4 * 4 * params + buffer + 2**20
 
 
+def learner_settings(config: RunConfig):
+    """The learner's `modules.learner.LearnerSettings` from the run's loss and optim sections."""
+    from modules.learner import LearnerSettings
+
+    loss, optim = config.loss, config.optim
+    return LearnerSettings(loss_function=loss.loss_function, double_dqn=loss.double_dqn, precision=optim.precision,
+                           gamma=loss.gamma, target_update=loss.target_update, target_period=loss.target_period,
+                           tau=loss.tau, lr=optim.lr, weight_decay=optim.weight_decay,
+                           max_grad_norm=optim.max_grad_norm)
+
+
 def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False):
     """TorchRL's Collector as the training loop uses it (and bench/learner_throughput.py measures it).
 
@@ -125,7 +136,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     from modules.symmetry import make_symmetries
     from modules.transitions import make_multistep, prepare_transitions
     from pipelines.evaluate.games import evaluate_agent
-    from pipelines.learner import Learner, make_replay_buffer, scheduled_lr
+    from modules.learner import Learner, make_replay_buffer, scheduled_lr
     from pipelines.plots import plot_learning_curve
     from pipelines.progress import progress_bar
     from pipelines.scalars import eval_scalars, open_scalar_log
@@ -158,7 +169,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     symmetries = make_symmetries(config.buffer.augment, env, seed)
-    learner = Learner.from_config(qnet, config, symmetries)
+    learner = Learner.build(qnet, learner_settings(config), symmetries)
     teacher = _make_teacher(config, agent.greedy, seed)  # search_targets: labels of the Q-guided search, or None
     learner.teacher = teacher
     if teacher is not None:
@@ -249,7 +260,8 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             # --- learning: several updates per collected batch once the burn-in is in the buffer ----------------
             if len(buffer) >= config.collector.init_random_frames:
                 if config.schedule.lr_end is not None:
-                    learner.set_lr(scheduled_lr(config, counters["frames"]))
+                    learner.set_lr(scheduled_lr(counters["frames"], config.optim.lr, config.schedule.lr_end,
+                                                config.collector.total_frames))
                 step_losses = learner.update_many(buffer, config.optim.updates_per_batch)
                 counters["updates"] += len(step_losses)
                 losses.append(float(torch.stack(step_losses).mean()))

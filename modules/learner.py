@@ -1,8 +1,8 @@
-"""The learner of a run: replay buffer, competitive DQN loss, target updater and optimiser, built from the config
-in one place.
+"""The learner of a run: replay buffer, competitive DQN loss, target updater and optimiser, built in one place
+from `LearnerSettings` (plain values; the pipelines fill them from the run's config).
 
-`train.py` and `bench/learner_throughput.py` both step this object, so the benchmark measures exactly the
-update the training loop runs. Speed figures: docs/learner-speed.md.
+The training loop (`pipelines.train`) and `bench/learner_throughput.py` both step this object, so the benchmark
+measures exactly the update the training loop runs. Speed figures: docs/learner-speed.md.
 """
 from __future__ import annotations
 
@@ -17,23 +17,48 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
 from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from modules.symmetry import BoardSymmetries
+from modules.prioritized_sampler import ProportionalSampler
 from modules.transitions import LOSS_KEYS
-from pipelines.config import RunConfig
-from pipelines.prioritized_sampler import ProportionalSampler
 
 
-def scheduled_lr(config: RunConfig, frames: int) -> float:
-    """Linear decay from optim.lr to schedule.lr_end over collector.total_frames (constant lr when lr_end is None)."""
-    if config.schedule.lr_end is None:
-        return config.optim.lr
-    progress = min(1.0, max(0.0, frames / max(1, config.collector.total_frames)))
-    return config.optim.lr + progress * (config.schedule.lr_end - config.optim.lr)
+@dataclass(frozen=True)
+class LearnerSettings:
+    """What the learner is built from (the run config's loss and optim sections)."""
+
+    loss_function: str
+    double_dqn: bool
+    precision: str
+    gamma: float
+    target_update: str
+    target_period: int
+    tau: float
+    lr: float
+    weight_decay: float
+    max_grad_norm: float
+
+
+def scheduled_lr(frames: int, lr: float, lr_end: float | None, total_frames: int) -> float:
+    """Linear decay from `lr` to `lr_end` over `total_frames` (constant `lr` when `lr_end` is None)."""
+    if lr_end is None:
+        return lr
+    progress = min(1.0, max(0.0, frames / max(1, total_frames)))
+    return lr + progress * (lr_end - lr)
+
+
+def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: bool = False,
+              precision: str = "fp32", gamma: float = 0.99) -> CompetitiveDQNLoss:
+    """The competitive DQN loss reading the transitions `modules.transitions.prepare_transitions` stores (its
+    learning reward and bootstrap mask: `LOSS_KEYS`), with its TD(0) value estimator."""
+    loss_module = CompetitiveDQNLoss(qnet, loss_function=loss_function, double_dqn=double_dqn, precision=precision)
+    loss_module.set_keys(**LOSS_KEYS)
+    loss_module.make_value_estimator(gamma=gamma)
+    return loss_module
 
 
 def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
                        beta: float = 0.4) -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
-    RandomSampler or, `prioritized`, a proportional one (`pipelines.prioritized_sampler`: rows drawn by the loss's
+    RandomSampler or, `prioritized`, a proportional one (`modules.prioritized_sampler`: rows drawn by the loss's
     |TD error|, each with its importance weight `priority_weight`)."""
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
     return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
@@ -67,17 +92,15 @@ class Learner:
         self._parameters = list(self.loss_module.parameters())
 
     @classmethod
-    def from_config(cls, qnet: TensorDictModule, config: RunConfig,
-                    symmetries: BoardSymmetries | None = None) -> "Learner":
-        loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn,
-                                         precision=config.optim.precision)
-        loss_module.set_keys(**LOSS_KEYS)  # the learning reward and bootstrap mask of modules/transitions.py
-        loss_module.make_value_estimator(gamma=config.loss.gamma)
-        updater = make_target_updater(loss_module, config.loss.target_update, config.loss.target_period, config.loss.tau)
+    def build(cls, qnet: TensorDictModule, settings: LearnerSettings,
+              symmetries: BoardSymmetries | None = None) -> "Learner":
+        loss_module = make_loss(qnet, loss_function=settings.loss_function, double_dqn=settings.double_dqn,
+                                precision=settings.precision, gamma=settings.gamma)
+        updater = make_target_updater(loss_module, settings.target_update, settings.target_period, settings.tau)
         # fused Adam: one kernel for all parameters instead of a loop of small ops (CPU supports it in torch >= 2.4)
-        optimizer = torch.optim.Adam(loss_module.parameters(), lr=config.optim.lr,
-                                     weight_decay=config.optim.weight_decay, fused=True)
-        return cls(loss_module, updater, optimizer, config.optim.max_grad_norm, symmetries)
+        optimizer = torch.optim.Adam(loss_module.parameters(), lr=settings.lr, weight_decay=settings.weight_decay,
+                                     fused=True)
+        return cls(loss_module, updater, optimizer, settings.max_grad_norm, symmetries)
 
     def set_lr(self, lr: float) -> None:
         """Schedule hook: the train loop decays the step size so Q stops jittering between near-tied moves."""
