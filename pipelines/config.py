@@ -116,9 +116,11 @@ class EnvConfig(Section):
 
 
 class AgentConfig(Section):
-    """Which learner: the paper's three agents, each with its own look-ahead masks."""
+    """Which learner: the paper's three agents, each with its own look-ahead masks, or `uniform`: no learning, a
+    uniform choice inside the greedy mask of `lookahead` (default Proposed's one-step masks), the baseline that
+    shows what learning adds (pipelines/train/uniform.py)."""
 
-    name: Literal["dqn_original", "dqn_variant", "proposed"] = "proposed"
+    name: Literal["dqn_original", "dqn_variant", "proposed", "uniform"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \

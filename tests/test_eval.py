@@ -8,12 +8,13 @@ import pytest
 import torch
 
 from pipelines.config import load_config
-from pipelines.evaluate.games import evaluate_checkpoint, summarise, wilson_interval
+from pipelines.evaluate.games import GameRecords, all_moves_negative, evaluate_checkpoint, summarise, wilson_interval
 from pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)
-KEYS = {"games", "win", "draw", "loss", "task_success", "task_success_ci95", "avg_reward", "avg_return", "avg_length"}
+KEYS = {"games", "win", "draw", "loss", "truncated", "all_negative", "task_success", "task_success_ci95", "avg_reward",
+        "avg_return", "avg_length"}
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def test_eval_json_has_exactly_the_documented_keys(checkpoint: Path) -> None:
     data = json.loads(result.stdout)
     assert set(data) == KEYS
     assert data["games"] == 40
-    assert abs(data["win"] + data["draw"] + data["loss"] - 1) < 1e-9
+    assert abs(data["win"] + data["draw"] + data["loss"] + data["truncated"] - 1) < 1e-9
     assert data["task_success"] == pytest.approx(data["win"] + data["draw"])
     low, high = data["task_success_ci95"]
     assert 0 <= low <= data["task_success"] <= high <= 1
@@ -47,11 +48,14 @@ def test_seats_are_respected_and_seeded(checkpoint: Path) -> None:
 
 
 def test_metrics_from_known_games() -> None:
-    outcomes = torch.tensor([1, 1, 3, 2, 0])  # win, win, draw, loss, unfinished (counts as a loss)
+    outcomes = torch.tensor([1, 1, 3, 2, 0])  # win, win, draw, loss, unfinished at the act cap
     returns = torch.tensor([10.0, 5.0, 1.0, -5.0, -20.0])
     lengths = torch.tensor([10, 10, 12, 8, 100])
-    result = summarise(outcomes, returns, lengths)
-    assert (result.win, result.draw, result.loss, result.task_success) == (0.4, 0.2, 0.4, 0.6)
+    truncated = torch.tensor([False, False, False, False, True])
+    negative = torch.tensor([False, True, False, True, True])
+    result = summarise(GameRecords(outcomes, returns, lengths, truncated, negative))
+    assert (result.win, result.draw, result.loss, result.truncated, result.task_success) == (0.4, 0.2, 0.2, 0.2, 0.6)
+    assert result.all_negative == pytest.approx(0.6)
     assert result.avg_reward == pytest.approx(-9.0 / 140)  # per action, as the paper
     assert result.avg_return == pytest.approx(-1.8) and result.avg_length == pytest.approx(28.0)
     assert wilson_interval(3000, 3000)[0] == pytest.approx(0.99872, abs=1e-4)
@@ -82,3 +86,23 @@ def test_first_is_the_new_name_of_seat(checkpoint: Path) -> None:
     assert both.returncode == 2 and both.stderr.strip() == "ncbot: error: give --first only (--seat is its old spelling)"
     bad = ncbot("eval", str(checkpoint), "--first", "pepper")
     assert bad.returncode == 2 and "--first must be one of robot, human, alternate" in bad.stderr
+
+
+def test_games_cut_at_the_act_cap_are_truncated_not_lost(checkpoint: Path) -> None:
+    from pipelines.agents import load_agent
+    from pipelines.evaluate.games import evaluate_agent
+
+    config, policy = load_agent(checkpoint)
+    config.env.max_steps = 5  # greeting, name, play request and two moves: no game can end
+    result = evaluate_agent(config, policy, games=20, seat="alternate", seed=0)
+    assert (result.truncated, result.loss, result.task_success) == (1.0, 0.0, 0.0)
+    assert set(result.seats) == {"robot_first", "robot_second"}
+    assert [result.seats[s]["games"] for s in ("robot_first", "robot_second")] == [10, 10]
+    assert all(result.seats[s]["truncated"] == 1.0 for s in result.seats)
+
+
+def test_all_moves_negative_needs_an_offered_move_and_no_other() -> None:
+    mask = torch.tensor([[True, True, False, True], [True, False, False, True], [False, False, False, True]])
+    reward = torch.tensor([[-5.0, 0.0, 5.0, 0.0], [-5.0, 5.0, 0.0, 0.0], [-5.0, -5.0, -5.0, 0.0]])
+    # 3 cells + 1 dialogue act: row 0 has a quiet move, row 1 only a -5 move, row 2 no move offered
+    assert all_moves_negative(mask, reward, cells=3).tolist() == [False, True, False]

@@ -17,8 +17,8 @@ torch.set_num_threads(1)
 
 
 def _numbers(report: dict) -> dict:
-    """Everything in eval.json except wall-clock times."""
-    drop = {"wall_time", "train_wall_time_s", "time_to_0995_s"}
+    """Everything in eval.json except wall-clock times and the run's identity."""
+    drop = {"wall_time", "train_wall_time_s", "time_to_0995_s", "run_id"}
     clean = {k: v for k, v in report.items() if k not in drop and k != "history"}
     clean["history"] = [{k: v for k, v in h.items() if k not in drop} for h in report["history"]]
     return clean

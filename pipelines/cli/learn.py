@@ -44,21 +44,26 @@ def train_command(
     typer.echo(_results_header())
     for seat in ("first", "second"):
         typer.echo(_results_row(report[seat], seat))
+    if report["frames"] == 0:
+        typer.echo(f"no learning: a uniform choice inside the {report['lookahead']} masks "
+                   f"({report['train_wall_time_s']:.1f} s of test games)")
+        return
     reached = report["time_to_0995_s"]
     typer.echo(f"frames {report['frames']}, updates {report['updates']}, games {report['episodes']}, "
-               f"train wall time {report['train_wall_time_s']:.1f} s, "
-               f"task success >= 0.995 at {'%.1f s' % reached if reached is not None else 'never'}")
+               f"train wall time {report['train_wall_time_s']:.1f} s, " + (
+                   f"periodic task success first reached 0.995 at {reached:.1f} s" if reached is not None
+                   else "periodic task success never reached 0.995"))
 
 
 def _results_header() -> str:
-    return "| seat | games | win | draw | loss | task success (95% CI) | avg reward | avg return | avg length |\n" \
-           "|---|---|---|---|---|---|---|---|---|"
+    return "| seat | games | win | draw | loss | truncated | task success (95% CI) | avg reward | avg return | avg length |\n" \
+           "|---|---|---|---|---|---|---|---|---|---|"
 
 
 def _results_row(result: dict, seat: str) -> str:
     low, high = result["task_success_ci95"]
     return (f"| {seat} | {result['games']} | {result['win']:.4f} | {result['draw']:.4f} | {result['loss']:.4f} | "
-            f"{result['task_success']:.4f} [{low:.4f}, {high:.4f}] | {result['avg_reward']:.4f} | "
+            f"{result['truncated']:.4f} | {result['task_success']:.4f} [{low:.4f}, {high:.4f}] | {result['avg_reward']:.4f} | "
             f"{result['avg_return']:.3f} | {result['avg_length']:.2f} |")
 
 

@@ -139,7 +139,8 @@ def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactRes
         def make_env(batch_size: int, seed: int = seed, user: BranchUser = user):
             return make_run_env(config.env, batch_size=batch_size, seed=seed, first=seat_to_first(seat), opponent=user)
 
-        outcomes, _, length = play_games(make_env, policy, user.branches, logger=recorder)
+        records = play_games(make_env, policy, user.branches, logger=recorder)
+        outcomes, length = records.outcomes, records.lengths
         lost_games = (outcomes != OUTCOME_ROBOT_WON) & (outcomes != OUTCOME_DRAW)  # unfinished games count as lost
         wins.append(float((outcomes == OUTCOME_ROBOT_WON).double().mean()))
         draws.append(float((outcomes == OUTCOME_DRAW).double().mean()))

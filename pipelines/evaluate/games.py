@@ -7,7 +7,7 @@ in the MCAP log as eval episodes).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, astuple, dataclass
 from typing import Any
 
 import torch
@@ -15,16 +15,23 @@ import torch
 from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
 
 MAX_EVAL_BATCH = 4096
+SEAT_NAMES = {"robot": "robot_first", "human": "robot_second"}  # env.first -> the seat's name in results
 
 
 @dataclass
 class EvalResult:
-    """What `ncbot eval --json` prints. win/draw/loss are rates; loss also counts unfinished (truncated) games."""
+    """What `ncbot eval --json` prints. win/draw/loss/truncated are rates that add up to 1: truncated games ended
+    at the act cap (`env.max_actions`) with the game unfinished, loss counts every other game not won or drawn.
+    all_negative: the share of games that reached a state where every game move the robot was offered had a
+    negative look-ahead reward (where the masks' fallback decides; docs/reproduction.md). `seats`, for games
+    from both seats, holds the same metrics per seat ("robot_first", "robot_second")."""
 
     games: int
     win: float
     draw: float
     loss: float
+    truncated: float
+    all_negative: float
     task_success: float
     task_success_ci95: list[float]
     avg_reward: float  # per action, as the paper
@@ -32,6 +39,7 @@ class EvalResult:
     avg_length: float  # actions per game
     search_decisions: int | None = None  # with --search: robot game moves chosen by the search
     search_cpu_s_per_decision: float | None = None  # their process CPU seconds per move
+    seats: dict[str, dict[str, Any]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The metrics; the search's cost only when a search played."""
@@ -48,17 +56,43 @@ def wilson_interval(successes: int, trials: int, z: float = 1.96) -> list[float]
     return [max(0.0, centre - half), min(1.0, centre + half)]
 
 
-def summarise(outcomes: torch.Tensor, returns: torch.Tensor, lengths: torch.Tensor) -> EvalResult:
-    """Paper metrics from per-game outcome codes, returns and lengths."""
+@dataclass
+class GameRecords:
+    """Per-game results of test games (one entry per counted game)."""
+
+    outcomes: torch.Tensor  # outcome code (envs.core OUTCOME_*), 0 = no result
+    returns: torch.Tensor
+    lengths: torch.Tensor  # actions
+    truncated: torch.Tensor  # bool: ended at the act cap
+    all_negative: torch.Tensor  # bool: reached a state where every offered game move had a negative look-ahead
+
+    @classmethod
+    def cat(cls, parts: list["GameRecords"]) -> "GameRecords":
+        return cls(*(torch.cat(column) for column in zip(*(astuple(part) for part in parts))))
+
+
+def all_moves_negative(action_mask: torch.Tensor, lookahead_reward: torch.Tensor, cells: int) -> torch.Tensor:
+    """(B,) bool: the robot is offered at least one game move (the first ``cells`` actions) and every one of them
+    has a negative one-step look-ahead reward, the state where a mask rule falls back to what it excluded."""
+    moves = action_mask[..., :cells]
+    return moves.any(-1) & ~(moves & (lookahead_reward[..., :cells] >= 0)).any(-1)
+
+
+def summarise(records: GameRecords) -> EvalResult:
+    """Paper metrics, with the outcome broken down, from per-game records."""
+    outcomes, returns, lengths = records.outcomes, records.returns, records.lengths
     games = int(outcomes.numel())
     wins = int((outcomes == OUTCOME_ROBOT_WON).sum())
     draws = int((outcomes == OUTCOME_DRAW).sum())
+    truncated = int((records.truncated & (outcomes == 0)).sum())
     total_actions = float(lengths.sum())
     return EvalResult(
         games=games,
         win=wins / games,
         draw=draws / games,
-        loss=(games - wins - draws) / games,
+        loss=(games - wins - draws - truncated) / games,
+        truncated=truncated / games,
+        all_negative=int(records.all_negative.sum()) / games,
         task_success=(wins + draws) / games,
         task_success_ci95=wilson_interval(wins + draws, games),
         avg_reward=float(returns.sum()) / max(total_actions, 1.0),
@@ -68,17 +102,13 @@ def summarise(outcomes: torch.Tensor, returns: torch.Tensor, lengths: torch.Tens
 
 
 @torch.no_grad()
-def play_games(make_env, policy, games: int, *, logger=None,
-               log_kwargs: dict[str, Any] | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game.
-
-    Returns per-game (outcome codes, returns, lengths).
-    """
+def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None) -> GameRecords:
+    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game."""
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
-    outcomes, returns, lengths = [], [], []
+    parts: list[GameRecords] = []
     remaining = games
     while remaining > 0:
         batch = min(remaining, MAX_EVAL_BATCH)
@@ -86,12 +116,15 @@ def play_games(make_env, policy, games: int, *, logger=None,
         slot_outcome = torch.zeros(batch, dtype=torch.int64)
         slot_return = torch.zeros(batch)
         slot_length = torch.zeros(batch, dtype=torch.int64)
+        slot_truncated = torch.zeros(batch, dtype=torch.bool)
+        slot_negative = torch.zeros(batch, dtype=torch.bool)
         counting = torch.ones(batch, dtype=torch.bool)
         td = env.reset()
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             while counting.any():
                 if hasattr(policy, "searching"):  # a searching policy spends no search on uncounted games
                     policy.searching = counting
+                slot_negative |= counting & all_moves_negative(td.get("action_mask"), td.get("lookahead_reward"), env.cells)
                 td = policy(td)
                 td, next_root = env.step_and_maybe_reset(td)
                 if logger is not None:
@@ -102,16 +135,15 @@ def play_games(make_env, policy, games: int, *, logger=None,
                 slot_length += counting.long()
                 ended = counting & done
                 slot_outcome[ended] = td.get(("next", "outcome")).reshape(batch)[ended].long()
+                slot_truncated |= ended & td.get(("next", "truncated")).reshape(batch)
                 counting &= ~done
                 td = next_root
         env.close()
         if hasattr(policy, "searching"):
             policy.searching = None
-        outcomes.append(slot_outcome)
-        returns.append(slot_return)
-        lengths.append(slot_length)
+        parts.append(GameRecords(slot_outcome, slot_return, slot_length, slot_truncated, slot_negative))
         remaining -= batch
-    return torch.cat(outcomes), torch.cat(returns), torch.cat(lengths)
+    return GameRecords.cat(parts)
 
 
 def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent: str | None = None,
@@ -127,7 +159,7 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
         raise ValueError(f"games must be a positive number of test games, got {games}")
     split = {"first": [("robot", games)], "second": [("human", games)],
              "alternate": [("robot", (games + 1) // 2), ("human", games // 2)]}[seat]
-    per_game = []
+    per_seat: dict[str, GameRecords] = {}
     for offset, (first, count) in enumerate(split):
         if count == 0:
             continue
@@ -137,8 +169,11 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
                                 opponent=opponent or config.eval.opponent)
 
         log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
-        per_game.append(play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs))
-    return summarise(*(torch.cat(parts) for parts in zip(*per_game)))
+        per_seat[SEAT_NAMES[first]] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
+    result = summarise(GameRecords.cat(list(per_seat.values())))
+    if len(per_seat) > 1:
+        result.seats = {name: summarise(records).to_dict() for name, records in per_seat.items()}
+    return result
 
 
 def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", seat: str = "alternate",

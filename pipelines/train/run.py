@@ -124,6 +124,10 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
     try:
         for note in run.notes:
             print(f"ncbot: note: {note}", file=sys.stderr)
+        if config.agent.name == "uniform":
+            from pipelines.train.uniform import evaluate_uniform
+
+            return evaluate_uniform(config, run)
         return _train(config, run)
     finally:
         run.release()
@@ -307,6 +311,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
         atomic_save(final, out_dir / FINAL_NAME)
         report: dict[str, Any] = {
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+            "seed": seed, "run_id": run.run_id,
             "train_wall_time_s": round(counters["wall_offset"] + time.monotonic() - started, 2),
             "time_to_0995_s": time_to_success(history),
         }
