@@ -22,9 +22,9 @@ def write_run(root: Path, cell: str, seed: int, success: float, length: float = 
     folder = root / suite / game / cell / f"seed{seed}"
     folder.mkdir(parents=True)
     (folder / "eval.json").write_text(json.dumps({
-        "frames": 400000, "train_wall_time_s": 100.0 + seed,
-        "first": {"avg_reward": 0.5, "task_success": success, "avg_length": length},
-        "second": {"task_success": success - 0.1},
+        "frames": 400000, "train_wall_time_s": 100.0 + seed, "run_id": f"{suite}-{game}-{cell}-{seed}",
+        "first": {"games": 3000, "avg_reward": 0.5, "task_success": success, "avg_length": length, "truncated": 0.0},
+        "second": {"games": 3000, "task_success": success - 0.1},
         "history": [{"frames": 1000, "task_success": 0.5, "avg_reward": 0.1}],
     }))
 
@@ -53,10 +53,19 @@ def test_one_seed_has_no_interval_and_identical_seeds_a_zero_width_one() -> None
         t_interval([])
 
 
+def _logit_interval(values: list[float], games: int, predict: bool) -> tuple[float, float]:
+    """The interval by hand: Student t over the empirical logits, mapped back."""
+    logits = [math.log((v * games + 0.5) / (games - v * games + 0.5)) for v in values]
+    n, mean = len(logits), sum(logits) / len(logits)
+    s = math.sqrt(sum((x - mean) ** 2 for x in logits) / (n - 1))
+    half = stats.t.ppf(0.975, n - 1) * s * (math.sqrt(1 + 1 / n) if predict else 1 / math.sqrt(n))
+    return 1 / (1 + math.exp(-(mean - half))), 1 / (1 + math.exp(-(mean + half)))
+
+
 def test_table_rows_intervals_and_paper_inside(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
-    write_cell(runs, TEMPORAL, [0.9960, 0.9980, 1.0000])  # paper 0.9980: inside
-    write_cell(runs, VARIANT, [0.99, 0.99])  # paper 0.9720, zero-width interval at 0.99: outside
+    write_cell(runs, TEMPORAL, [0.9960, 0.9980, 1.0000])  # paper 0.9980: inside the prediction interval
+    write_cell(runs, VARIANT, [0.99, 0.99])  # paper 0.9720; a constant pair: zero spread, outside
     write_cell(runs, ORIGINAL, [0.80])  # one seed: not tested
     write_cell(runs, "proposed-temporal-k2", [0.99, 0.98])  # no paper number
     report = write_report(runs, tmp_path / "out" / "table.md")
@@ -64,23 +73,53 @@ def test_table_rows_intervals_and_paper_inside(tmp_path: Path) -> None:
     assert [row.cell for row in report.rows] == [ORIGINAL, VARIANT, TEMPORAL, "proposed-temporal-k2"]
     assert {cell: row.paper_inside for cell, row in by_cell.items()} == {
         TEMPORAL: "yes", VARIANT: "no", ORIGINAL: "n<2", "proposed-temporal-k2": None}
-    half = stats.t.ppf(0.975, 2) * 0.002 / math.sqrt(3)
-    assert (by_cell[TEMPORAL].stats["task_success"].low, by_cell[TEMPORAL].stats["task_success"].high) == \
-        pytest.approx((0.998 - half, 0.998 + half))
+    success = by_cell[TEMPORAL].stats["task_success"]
+    assert success.mean == pytest.approx(0.998)
+    assert (success.low, success.high) == pytest.approx(_logit_interval([0.996, 0.998, 1.0], 3000, predict=False))
+    assert (success.predict_low, success.predict_high) == \
+        pytest.approx(_logit_interval([0.996, 0.998, 1.0], 3000, predict=True))
+    assert 0 < success.predict_low < success.low < success.high < success.predict_high < 1  # never past 1
+    length = by_cell[TEMPORAL].stats["avg_length"]  # not a rate: plain Student t on the raw scale
+    assert (length.low, length.high) == (10.0, 10.0)
     assert by_cell[TEMPORAL].stats["task_success_second"].mean == pytest.approx(0.898)
     assert by_cell[TEMPORAL].stats["train_wall_time_s"].mean == pytest.approx(101.0)
 
     table = (tmp_path / "out" / "table.md").read_text()
-    assert f"Made by `ncbot table {runs}" in table and "Student t-interval" in table
+    assert f"Made by `ncbot table {runs}" in table and "prediction interval" in table
     temporal_line = next(line for line in table.splitlines() if "| Proposed + temporal | paper |" in line)
     cells = [cell.strip() for cell in temporal_line.split("|")[1:-1]]
-    assert cells[3:8] == ["3", "400000", "0.5000 [0.5000, 0.5000]",
-                          f"0.9980 [{0.998 - half:.4f}, {0.998 + half:.4f}]", "yes"]
-    assert cells[-3:] == ["0.6300", "0.9980", "14.06"]
-    assert "| DQN-Original | paper | 1 | 400000 | 0.5000 [n<2] | 0.8000 [n<2] | n<2 |" in table
+    low, high = _logit_interval([0.996, 0.998, 1.0], 3000, predict=False)
+    assert cells[3:11] == ["3", "400000/400000/400000", "0.5000 [0.5000, 0.5000]", f"0.9980 [{low:.4f}, {high:.4f}]",
+                           success.prediction_text(4), "0.9980", "yes", "0.0000 [0.0000, 0.0000]"]
+    assert cells[11] == "–"  # all-negative: these eval.json files do not have it
+    assert cells[-2:] == ["0.6300", "14.06"]
+    assert "| DQN-Original | paper | 1 | 400000 | 0.5000 [n<2] | 0.8000 [n<2] | n<2 | 0.8258 | n<2 |" in table
     claims = (tmp_path / "out" / "paper_claims.md").read_text()
     assert "Made by `ncbot table" in claims and "one-sided Welch's t-test" in claims
     assert (tmp_path / "out" / "curves_paper_standard.png").stat().st_size > 0
+    seeds = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
+    assert seeds[0].startswith("suite,game,agent,seed,run_id,frames") and len(seeds) == 1 + 3 + 2 + 1 + 2
+    assert "paper,standard,proposed-temporal,2,paper-standard-proposed-temporal-2,400000" in seeds[-3]
+
+
+def test_a_copied_seed_folder_is_refused(tmp_path: Path) -> None:
+    import shutil
+
+    write_cell(tmp_path, TEMPORAL, [0.99, 0.98])
+    shutil.copytree(tmp_path / "paper" / "standard" / TEMPORAL / "seed1", tmp_path / "paper" / "standard" / TEMPORAL / "seed2")
+    with pytest.raises(ValueError, match="seed1 and .*seed2 hold the same run"):
+        write_report(tmp_path, tmp_path / "t.md")
+
+
+def test_rates_stay_inside_zero_and_one_with_few_seeds() -> None:
+    from pipelines.reproduce.seed_stats import proportion_interval, t_interval
+
+    values = [0.7700, 0.9067, 0.8758]  # a raw t-interval of these reaches past 1
+    assert t_interval(values).high > 1
+    rate = proportion_interval(values, 600)
+    assert 0 < rate.predict_low < rate.low < rate.mean < rate.high < rate.predict_high < 1
+    perfect = proportion_interval([1.0] * 5, 3000)
+    assert (perfect.low, perfect.high) == (1.0, 1.0)  # no spread between seeds, as a t-interval
 
 
 def test_welch_matches_scipy_and_handles_constant_sides() -> None:
@@ -194,3 +233,22 @@ def test_table_and_claims_cannot_share_a_file(tmp_path: Path) -> None:
     write_cell(tmp_path, TEMPORAL, [0.99])
     with pytest.raises(ValueError, match="both be written"):
         write_report(tmp_path, tmp_path / "paper_claims.md")
+
+
+def test_claim_ii_with_too_little_power_is_untested_and_p_values_are_holm_adjusted(tmp_path: Path) -> None:
+    from pipelines.reproduce.seed_stats import power_of
+
+    spread = [0.0, 0.03, -0.03, 0.015, -0.015]  # seeds that differ by more than the paper's 3x3 gain of 0.0112
+    write_cell(tmp_path, NOTEMPORAL, [0.96 + j for j in spread])
+    write_cell(tmp_path, TEMPORAL, [0.96 + j for j in reversed(spread)])
+    write_cell(tmp_path, VARIANT, [0.90 + j for j in spread])
+    write_cell(tmp_path, ORIGINAL, [0.80 + j for j in spread])
+    claims = {claim.claim: claim for claim in write_report(tmp_path, tmp_path / "t.md").claims}
+    ii = claims["ii"]
+    s = float(stats.tstd([0.96 + j for j in spread]))
+    assert ii.power == pytest.approx(power_of(0.9980 - 0.9868, s, 5)) and ii.power < 0.8
+    assert ii.verdict.startswith("not reproduced; power") and ii.verdict.endswith("untested")
+    ps = sorted(claim.p for claim in claims.values())
+    assert sorted(claim.holm_p for claim in claims.values()) == pytest.approx(
+        [min(1.0, 3 * ps[0]), max(min(1.0, 3 * ps[0]), min(1.0, 2 * ps[1])), max(min(1.0, 3 * ps[0]), min(1.0, 2 * ps[1]), ps[2])])
+    assert "Holm" in (tmp_path / "paper_claims.md").read_text()

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 ALPHA = 0.05
+POWER = 0.8  # the power below which a claim that is not reproduced counts as untested
 MIN_SEEDS = 5
 TOO_FEW = f"too few seeds (need >= {MIN_SEEDS})"
 
@@ -29,9 +30,25 @@ TOO_FEW = f"too few seeds (need >= {MIN_SEEDS})"
 GAME_LABELS = {"standard": "3x3 (100)", "ultimate100": "Ultimate (100)", "ultimate150": "Ultimate (150)"}
 ORIGINAL, VARIANT = "dqn_original-notemporal", "dqn_variant-notemporal"
 PROPOSED_NOTEMPORAL, PROPOSED = "proposed-notemporal", "proposed-temporal"
-CELL_LABELS = {ORIGINAL: "DQN-Original", VARIANT: "DQN-Variant", PROPOSED_NOTEMPORAL: "Proposed, no temporal",
-               PROPOSED: "Proposed + temporal"}
+UNIFORM = "uniform-notemporal"
+CELL_LABELS = {UNIFORM: "Uniform in the masks (no learning)", ORIGINAL: "DQN-Original", VARIANT: "DQN-Variant",
+               PROPOSED_NOTEMPORAL: "Proposed, no temporal", PROPOSED: "Proposed + temporal"}
 
+# Paper (Cuayahuitl 2019) table: (avg reward per action, task success, dialogue length); paper-notes section 5.
+PAPER = {
+    ("standard", ORIGINAL): (0.0658, 0.8258, 13.93),
+    ("standard", VARIANT): (0.5530, 0.9720, 13.99),
+    ("standard", PROPOSED_NOTEMPORAL): (0.4710, 0.9868, 15.31),
+    ("standard", PROPOSED): (0.6300, 0.9980, 14.06),
+    ("ultimate100", ORIGINAL): (-0.6900, 0.7873, 63.54),
+    ("ultimate100", VARIANT): (0.0177, 0.9074, 64.82),
+    ("ultimate100", PROPOSED_NOTEMPORAL): (0.0693, 0.9377, 63.62),
+    ("ultimate100", PROPOSED): (0.1440, 0.9753, 52.03),
+    ("ultimate150", ORIGINAL): (-0.1120, 0.7290, 65.49),
+    ("ultimate150", VARIANT): (-0.0310, 0.8663, 70.57),
+    ("ultimate150", PROPOSED_NOTEMPORAL): (0.0997, 0.9473, 59.69),
+    ("ultimate150", PROPOSED): (0.1640, 0.9846, 52.09),
+}
 # claim id -> (statement, [(metric, cell claimed larger, cell claimed smaller)]).
 CLAIMS: dict[str, tuple[str, list[tuple[str, str, str]]]] = {
     "i": ("task success: Proposed + temporal > DQN-Variant > DQN-Original",
@@ -99,6 +116,10 @@ class Claim:
     game: str
     statement: str
     tests: tuple[Welch, ...]
+    # the power of these seeds to detect the paper's own difference at our spread (None: no paper difference, or
+    # fewer than 2 seeds a side); a claim not reproduced with low power is untested rather than refuted
+    power: float | None = None
+    holm_p: float | None = None  # p adjusted over every claim of the report (Holm), for a family-wise reading
 
     @property
     def p(self) -> float | None:
@@ -110,12 +131,17 @@ class Claim:
     def verdict(self) -> str:
         if not all(test.decided for test in self.tests):
             return TOO_FEW
-        return "reproduced" if self.p < ALPHA else "not reproduced"
+        if self.p < ALPHA:
+            return "reproduced"
+        if self.power is not None and self.power < POWER:
+            return f"not reproduced; power {self.power:.2f} < {POWER} to detect the paper's difference: untested"
+        return "not reproduced"
 
     def to_dict(self) -> dict[str, Any]:
         return {"claim": self.claim, "suite": self.suite, "game": self.game, "statement": self.statement,
                 "test": "one-sided Welch's t-test over seeds", "alpha": ALPHA, "min_seeds": MIN_SEEDS,
-                "p": self.p, "verdict": self.verdict, "tests": [asdict(test) for test in self.tests]}
+                "p": self.p, "holm_p": self.holm_p, "power_at_paper_difference": self.power,
+                "verdict": self.verdict, "tests": [asdict(test) for test in self.tests]}
 
 
 def evaluate_claims(samples: dict[tuple[str, str, str], dict[str, list[float]]]) -> list[Claim]:
@@ -133,8 +159,42 @@ def evaluate_claims(samples: dict[tuple[str, str, str], dict[str, list[float]]])
                 t, df, p = welch_greater(a, b)
                 tests.append(Welch(metric, larger, smaller, (len(a), len(b)),
                                    (statistics.fmean(a), statistics.fmean(b)), t, df, p))
-            claims.append(Claim(claim, suite, game, statement, tuple(tests)))
-    return claims
+            claims.append(Claim(claim, suite, game, statement, tuple(tests),
+                                power=_power(samples, suite, game, comparisons)))
+    return _with_holm(claims)
+
+
+def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: str, game: str,
+           comparisons: list[tuple[str, str, str]]) -> float | None:
+    """The smallest power over the claim's comparisons to detect the paper's own difference (its table's two
+    numbers) with our seeds and our pooled spread; None where the paper gives no number or a side has < 2 seeds."""
+    from pipelines.reproduce.seed_stats import power_of
+
+    powers = []
+    for metric, larger, smaller in comparisons:
+        column = {"task_success": 1, "avg_length": 2}.get(metric)
+        if column is None or (game, larger) not in PAPER or (game, smaller) not in PAPER:
+            return None
+        difference = PAPER[(game, larger)][column] - PAPER[(game, smaller)][column]
+        a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
+        if min(len(a), len(b)) < 2 or difference <= 0:
+            return None
+        spread = math.sqrt((statistics.variance(a) + statistics.variance(b)) / 2)
+        powers.append(power_of(difference, spread, min(len(a), len(b)), ALPHA))
+    return min(powers) if powers else None
+
+
+def _with_holm(claims: list[Claim]) -> list[Claim]:
+    """Holm's step-down adjustment of the claims' p-values over the whole report (claims without p keep None)."""
+    from dataclasses import replace
+
+    ranked = sorted((claim.p, i) for i, claim in enumerate(claims) if claim.p is not None)
+    adjusted: dict[int, float] = {}
+    running = 0.0
+    for rank, (p, i) in enumerate(ranked):
+        running = max(running, min(1.0, (len(ranked) - rank) * p))
+        adjusted[i] = running
+    return [replace(claim, holm_p=adjusted.get(i)) for i, claim in enumerate(claims)]
 
 
 def _row_order(row: tuple[str, str]) -> tuple:
@@ -159,15 +219,19 @@ def render_claims(claims: list[Claim], command: str) -> str:
         f"when every one is significant (intersection-union test; its p-value is the largest). A claim needs >= "
         f"{MIN_SEEDS} seeds on every side, else it is \"{TOO_FEW}\" and its p-values (shown when each side has >= 2 "
         "seeds) are for information only. Both sides constant across seeds: p = 0 if the claimed side is larger, "
-        "else 1. No correction across claims or rows.",
+        f"else 1. Multiplicity: each verdict is at alpha {ALPHA} on its own; the Holm-adjusted p-value over every "
+        "claim in this file is given beside it for a family-wise reading. Power: the probability that these seeds, "
+        "at our spread between seeds, detect the difference the paper itself reports (noncentral t); a claim that is "
+        f"not reproduced with power below {POWER} is untested, not refuted.",
         "",
-        "| claim | game (units) | settings | statement | comparisons (one-sided Welch's t-test) | p-value | verdict |",
-        "|---|---|---|---|---|---|---|",
+        "| claim | game (units) | settings | statement | comparisons (one-sided Welch's t-test) | p-value | Holm p "
+        "| power at the paper's difference | verdict |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for claim in claims:
         lines.append(f"| ({claim.claim}) | {GAME_LABELS.get(claim.game, claim.game)} | {claim.suite} | "
                      f"{claim.statement} | {'<br>'.join(test.text() for test in claim.tests)} | {_p(claim.p)} | "
-                     f"{claim.verdict} |")
+                     f"{_p(claim.holm_p)} | {'–' if claim.power is None else f'{claim.power:.2f}'} | {claim.verdict} |")
     if not claims:
-        lines.append("| – | – | – | no game row has runs of every agent a claim compares | – | – | – |")
+        lines.append("| – | – | – | no game row has runs of every agent a claim compares | – | – | – | – | – |")
     return "\n".join(lines) + "\n"

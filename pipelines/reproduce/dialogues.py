@@ -88,15 +88,18 @@ def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: i
 
 def agent_budget(runs_dir: Path | None) -> dict[int, dict[str, Any]]:
     """Per k: robot-first task success and dialogue length of the finished dialogue-budget runs, mean and 95 %
-    t-interval over the subsets (pipelines.reproduce.table.t_interval; the unit is a subset with its training seed)."""
-    from pipelines.reproduce.table import read_eval, t_interval
+    interval over the subsets (the unit is a subset with its training seed; task success on the logit scale, so it
+    stays inside [0, 1]: pipelines.reproduce.seed_stats)."""
+    from pipelines.reproduce.seed_stats import proportion_interval, t_interval
+    from pipelines.reproduce.table import DEFAULT_GAMES, read_eval
 
     by_k: dict[int, list[dict[str, Any]]] = defaultdict(list)
     for path in sorted(Path(runs_dir).glob("k*/seed*/eval.json")) if runs_dir is not None else []:
         by_k[int(path.parts[-3][1:])].append(read_eval(path))
     result = {}
     for k, runs in by_k.items():
-        success = t_interval([r["first"]["task_success"] for r in runs])
+        games = min(int(r["first"].get("games", DEFAULT_GAMES)) for r in runs)
+        success = proportion_interval([r["first"]["task_success"] for r in runs], games)
         length = t_interval([r["first"]["avg_length"] for r in runs])
         result[k] = {"runs": len(runs), "task_success": success.mean, "task_success_ci95": _bounds(success),
                      "avg_length": length.mean, "avg_length_ci95": _bounds(length),
@@ -137,7 +140,7 @@ def dialogue_section(records: list[dict[str, Any]], budget: Any) -> list[str]:
              "reference's: all 24, and the dozen. Agent (3x3 only): Proposed + temporal, paper config, trained and "
              f"tested in the env learnt from k dialogues, {budget.dialogue_subsets} subsets per k (subset s = training "
              f"seed s), {budget.dialogue_games} training games (or 400K steps), robot-first test games; mean [95 % "
-             "t-interval over subsets]. The paper's 3x3 Proposed + temporal, after 20K games: task success "
+             "interval over subsets: Student t, of the per-subset logits for task success]. The paper's 3x3 Proposed + temporal, after 20K games: task success "
              f"{PAPER_PROPOSED_3X3[0]}, length {PAPER_PROPOSED_3X3[1]}.", "",
              "| game | dialogues | filter subsets | filter agreement (all 24) | (the dozen) | agent runs | task success | "
              "dialogue length |", "|---|---|---|---|---|---|---|---|"]
@@ -175,7 +178,7 @@ def plot_dialogues(records: list[dict[str, Any]], path: Path, label: str) -> Pat
         ax.set_ylabel(name)
     axes[0].set_ylabel("act filter agreement")
     axes[0].set_ylim(0, 1.02)
-    axes[1].set_ylim(0, 1.05)  # the view only: a t-interval from few subsets may reach past [0, 1] (the table keeps it)
+    axes[1].set_ylim(0, 1.05)
     axes[2].set_ylim(bottom=0)
     for ax in axes:
         ax.axvline(PAPER_DIALOGUES, color="grey", linestyle="--", label="paper: a dozen")

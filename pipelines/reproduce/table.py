@@ -1,10 +1,13 @@
-"""`ncbot table`: the paper-style results table (mean and 95 % t-interval over seeds, the paper's numbers beside
-ours, whether the paper's task success lies inside our interval), the paper's claims tested over seeds
+"""`ncbot table`: the paper-style results table (mean over seeds with a 95 % confidence interval, the prediction
+interval of one new run, the paper's numbers beside ours and whether the paper's single run lies inside that
+prediction interval), every seed's values as CSV beside it, the paper's claims tested over seeds
 (`pipelines.reproduce.claims`) and learning-curve PNGs per agent, read from the run folders of `ncbot ablate`.
 
 Runs are found as RUNS_DIR/<suite>/<game row>/<agent cell>/seed<N>/eval.json. The table reports the robot-first
-seat (the paper's set-up) and adds the robot-second task success. Seeds are the repetitions: each seed's
-evaluation mean is one sample, so the intervals describe how much a result moves between training runs.
+seat (the paper's set-up), the outcome broken down (truncated games, games that reached an all-negative state) and
+the robot-second task success. Seeds are the repetitions: each seed's evaluation mean is one sample, so the
+intervals describe how much a result moves between training runs (`pipelines.reproduce.seed_stats`). Two seed
+folders holding the same run (a copied folder) are refused, since they would count one run twice.
 """
 from __future__ import annotations
 
@@ -16,26 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from fileio import atomic_write_text
-from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, Claim, evaluate_claims, mean_and_variance, render_claims
+from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims
+from pipelines.reproduce.seed_stats import CONFIDENCE, Interval, proportion_interval, t_interval
 
-# Paper (Cuayahuitl 2019) table: (avg reward per action, task success, dialogue length); paper-notes section 5.
-PAPER = {
-    ("standard", "dqn_original-notemporal"): (0.0658, 0.8258, 13.93),
-    ("standard", "dqn_variant-notemporal"): (0.5530, 0.9720, 13.99),
-    ("standard", "proposed-notemporal"): (0.4710, 0.9868, 15.31),
-    ("standard", "proposed-temporal"): (0.6300, 0.9980, 14.06),
-    ("ultimate100", "dqn_original-notemporal"): (-0.6900, 0.7873, 63.54),
-    ("ultimate100", "dqn_variant-notemporal"): (0.0177, 0.9074, 64.82),
-    ("ultimate100", "proposed-notemporal"): (0.0693, 0.9377, 63.62),
-    ("ultimate100", "proposed-temporal"): (0.1440, 0.9753, 52.03),
-    ("ultimate150", "dqn_original-notemporal"): (-0.1120, 0.7290, 65.49),
-    ("ultimate150", "dqn_variant-notemporal"): (-0.0310, 0.8663, 70.57),
-    ("ultimate150", "proposed-notemporal"): (0.0997, 0.9473, 59.69),
-    ("ultimate150", "proposed-temporal"): (0.1640, 0.9846, 52.09),
-}
 GAME_ORDER = list(GAME_LABELS)
 CELL_ORDER = list(CELL_LABELS)
-CONFIDENCE = 0.95
 
 # metric name -> where it sits in eval.json; the first three are the paper's columns, robot first.
 METRICS = {
@@ -43,43 +31,17 @@ METRICS = {
     "avg_length": ("first", "avg_length"), "task_success_second": ("second", "task_success"),
     "train_wall_time_s": ("train_wall_time_s",),
 }
+# rates measured over test games: their intervals are computed on the logit scale (they stay inside [0, 1])
+RATES = {"task_success": "first", "task_success_second": "second", "truncated": "first", "all_negative": "first"}
+# metrics an older eval.json may lack (shown as "–")
+OPTIONAL = {"truncated": ("first", "truncated"), "all_negative": ("first", "all_negative")}
+CSV_COLUMNS = ("suite", "game", "agent", "seed", "run_id", "frames", "episodes", "train_wall_time_s",
+               *(f"{seat}.{key}" for seat in ("first", "second") for key in
+                 ("games", "win", "draw", "loss", "truncated", "all_negative", "task_success", "avg_reward",
+                  "avg_length")))
+DEFAULT_GAMES = 3000  # test games per seat when an eval.json does not say
 EXPECTED = ("expected the JSON object `ncbot train` writes, with numbers 'frames', 'train_wall_time_s', "
             "'first.avg_reward', 'first.task_success', 'first.avg_length' and 'second.task_success'")
-
-
-@dataclass(frozen=True)
-class Interval:
-    """Mean over seeds and its two-sided Student t-interval (low/high None with a single seed)."""
-
-    mean: float
-    low: float | None
-    high: float | None
-    n: int
-
-    def holds(self, value: float) -> str:
-        """"yes"/"no": is ``value`` inside the interval; "n<2" when there is no interval."""
-        if self.low is None:
-            return "n<2"
-        return "yes" if self.low <= value <= self.high else "no"
-
-    def text(self, digits: int) -> str:
-        if self.low is None:
-            return f"{self.mean:.{digits}f} [n<2]"
-        return f"{self.mean:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
-
-
-def t_interval(values: list[float], confidence: float = CONFIDENCE) -> Interval:
-    """mean ± t(1 - (1 - confidence) / 2, n - 1) * s / sqrt(n), s the sample std over seeds; identical values give
-    a zero-width interval at that value (no NaN); a single value has no interval."""
-    from scipy.stats import t as student_t
-
-    if not values:
-        raise ValueError("t_interval needs at least one value")
-    mean, variance = mean_and_variance(values)
-    if len(values) < 2:
-        return Interval(mean, None, None, 1)
-    half = float(student_t.ppf(1 - (1 - confidence) / 2, len(values) - 1)) * math.sqrt(variance / len(values))
-    return Interval(mean, mean - half, mean + half, len(values))
 
 
 @dataclass(frozen=True)
@@ -89,7 +51,7 @@ class Row:
     suite: str
     game: str
     cell: str
-    frames: tuple[int, ...]
+    frames: tuple[int, ...]  # one per seed, in seed order
     stats: dict[str, Interval]
 
     @property
@@ -98,7 +60,8 @@ class Row:
 
     @property
     def paper_inside(self) -> str | None:
-        """Whether the paper's task success lies inside our task-success interval (None: no paper number)."""
+        """Whether the paper's single run lies inside the prediction interval of one new run of ours (None: no
+        paper number)."""
         return None if self.paper is None else self.stats["task_success"].holds(self.paper[1])
 
     def to_dict(self) -> dict[str, Any]:
@@ -137,29 +100,66 @@ def read_eval(path: Path) -> dict[str, Any]:
     return data
 
 
+def _seed_of(path: Path) -> int:
+    folder = path.parent.name
+    try:
+        return int(folder.removeprefix("seed"))
+    except ValueError:
+        raise ValueError(f"{path}: run folder {folder!r} is not seed<N> (the layout ncbot ablate writes)") from None
+
+
+def _identity(run: dict[str, Any]) -> str:
+    """What makes two runs the same run: the run id `ncbot train` writes, else the whole evaluation."""
+    return run.get("run_id") or json.dumps({k: run.get(k) for k in ("frames", "first", "second", "history")},
+                                           sort_keys=True)
+
+
 def collect_runs(runs_dir: str | Path) -> dict[tuple[str, str, str], list[dict[str, Any]]]:
-    """(suite, game row, agent cell) -> finished runs' eval.json contents, seeds in order."""
+    """(suite, game row, agent cell) -> finished runs' eval.json contents (with their "seed"), seeds in order.
+
+    Two seed folders of a cell that hold the same run are one ValueError naming both."""
     runs_dir = Path(runs_dir)
     if not runs_dir.is_dir():
         raise FileNotFoundError(f"runs folder {str(runs_dir)!r} not found (expected the folder ncbot ablate wrote)")
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = defaultdict(list)
-    for path in sorted(runs_dir.glob("*/*/*/seed*/eval.json")):
-        suite, game, cell = path.relative_to(runs_dir).parts[:3]
-        groups[(suite, game, cell)].append(read_eval(path))
+    seen: dict[tuple[tuple[str, str, str], str], Path] = {}
+    paths = sorted(runs_dir.glob("*/*/*/seed*/eval.json"), key=lambda path: (path.parts[:-2], _seed_of(path)))
+    for path in paths:
+        key = tuple(path.relative_to(runs_dir).parts[:3])
+        run = {**read_eval(path), "seed": _seed_of(path)}
+        twin = seen.setdefault((key, _identity(run)), path)
+        if twin != path:
+            raise ValueError(f"{twin.parent} and {path.parent} hold the same run (same run id or identical results): "
+                             "a copied seed folder; keep one and re-run the other seed")
+        groups[key].append(run)
     if not groups:
         raise FileNotFoundError(f"no finished runs (*/*/*/seed*/eval.json) under {str(runs_dir)!r}")
     return dict(groups)
 
 
-def seed_samples(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> dict[tuple[str, str, str], dict[str, list[float]]]:
-    """(suite, game, cell) -> metric name -> one value per seed."""
-    def value(run: dict[str, Any], where: tuple[str, ...]) -> float:
-        for key in where:
-            run = run[key]
-        return run
+def _value(run: dict[str, Any], where: tuple[str, ...]) -> float | None:
+    for key in where:
+        if not isinstance(run, dict) or key not in run:
+            return None
+        run = run[key]
+    return run
 
-    return {key: {name: [value(run, where) for run in runs] for name, where in METRICS.items()}
-            for key, runs in groups.items()}
+
+def seed_samples(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> dict[tuple[str, str, str], dict[str, list[float]]]:
+    """(suite, game, cell) -> metric name -> one value per seed (an optional metric only where every seed has it)."""
+    samples = {}
+    for key, runs in groups.items():
+        values = {name: [_value(run, where) for run in runs] for name, where in {**METRICS, **OPTIONAL}.items()}
+        samples[key] = {name: found for name, found in values.items() if None not in found}
+    return samples
+
+
+def _interval(name: str, values: list[float], runs: list[dict[str, Any]]) -> Interval:
+    """A rate over test games gets the logit-scale interval (stays inside [0, 1]); the rest Student t."""
+    if name not in RATES:
+        return t_interval(values)
+    games = min(int(_value(run, (RATES[name], "games")) or DEFAULT_GAMES) for run in runs)
+    return proportion_interval(values, games)
 
 
 def _order(key: tuple[str, str, str]) -> tuple:
@@ -170,39 +170,68 @@ def _order(key: tuple[str, str, str]) -> tuple:
 
 def table_rows(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> list[Row]:
     samples = seed_samples(groups)
-    return [Row(*key, frames=tuple(sorted({run["frames"] for run in groups[key]})),
-                stats={name: t_interval(values) for name, values in samples[key].items()})
+    return [Row(*key, frames=tuple(run["frames"] for run in groups[key]),
+                stats={name: _interval(name, values, groups[key]) for name, values in samples[key].items()})
             for key in sorted(groups, key=_order)]
 
 
-def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims.md") -> str:
+def seeds_csv(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> str:
+    """Every seed's numbers, one row per run, in table order (CSV_COLUMNS; empty where a run lacks a value)."""
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for key in sorted(groups, key=_order):
+        for run in groups[key]:
+            found = [_value(run, tuple(column.split("."))) for column in CSV_COLUMNS[3:]]
+            writer.writerow([*key, *("" if value is None else value for value in found)])
+    return buffer.getvalue()
+
+
+def _optional(stats: dict[str, Interval], name: str, digits: int) -> str:
+    return stats[name].text(digits) if name in stats else "–"
+
+
+def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims.md", seeds_name: str = "table_seeds.csv") -> str:
     """Markdown: how the statistics were computed, then one row per (game, agent, suite), the paper's beside."""
     pct = f"{CONFIDENCE:.0%}"
     lines = [
         "# Our results beside the paper's table",
         "",
-        f"Made by `{command}`; the paper's claims tested over seeds are in `{claims_name}`.",
+        f"Made by `{command}`; every seed's values are in `{seeds_name}`; the paper's claims tested over seeds are in "
+        f"`{claims_name}`.",
         "",
-        f"Each of our cells: mean over seeds [{pct} Student t-interval over seeds: mean ± t(0.975, n-1)·s/√n, "
-        "s = sample std of the per-seed evaluation means]; \"[n<2]\" = a single seed, no interval. Metrics are "
-        "robot-first (the paper's set-up) except \"task success, robot second\"; train time is the mean wall time "
-        "over seeds. \"paper inside ours?\" = whether the paper's task success lies inside our task-success "
-        f"interval (\"n<2\": one seed, not tested; \"–\": no paper number). Paper columns: Cuayáhuitl 2019.",
+        f"Each of our cells: mean over seeds [{pct} confidence interval of that mean]. Rates over test games (task "
+        "success, truncated, all-negative) get a Student t-interval of the per-seed logits, mapped back (so it stays "
+        "inside [0, 1]; each seed's rate is taken as (p·N + 0.5) / (N + 1) for N test games); the other metrics a "
+        "Student t-interval, mean ± t(0.975, n-1)·s/√n. \"one new run\" is the prediction interval of a single "
+        "further run of ours (±t·s·√(1 + 1/n), on the logit scale), the interval the paper's single run is held "
+        "against in \"paper inside?\" (\"n<2\": one seed, not tested; \"–\": no paper number). \"[n<2]\" = a "
+        "single seed, no interval. Metrics are robot-first (the paper's set-up) except \"task success, robot second\". "
+        "Truncated: games cut at the act cap with the game unfinished (counted as not won or drawn). All-negative: "
+        "games that reached a state where every offered game move had a negative look-ahead reward, where the "
+        "masks fall back. Frames: per seed, in seed order. Train time: mean wall time over seeds. Paper columns: "
+        "Cuayáhuitl 2019.",
         "",
-        "| game (units) | agent | settings | seeds | frames | avg reward | task success | paper inside ours? "
-        "| dialogue length | task success, robot second | train time (s) | paper avg reward | paper task success "
-        "| paper length |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| game (units) | agent | settings | seeds | frames | avg reward | task success | one new run "
+        "| paper task success | paper inside? | truncated | all-negative | dialogue length "
+        "| task success, robot second | train time (s) | paper avg reward | paper length |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
-        paper = ([f"{row.paper[0]:.4f}", f"{row.paper[1]:.4f}", f"{row.paper[2]:.2f}"] if row.paper else ["–"] * 3)
         stats = row.stats
+        paper = row.paper
         lines.append(" | ".join([
             f"| {GAME_LABELS.get(row.game, row.game)}", CELL_LABELS.get(row.cell, row.cell), row.suite,
             str(stats["task_success"].n), "/".join(str(f) for f in row.frames),
-            stats["avg_reward"].text(4), stats["task_success"].text(4), row.paper_inside or "–",
+            stats["avg_reward"].text(4), stats["task_success"].text(4), stats["task_success"].prediction_text(4),
+            f"{paper[1]:.4f}" if paper else "–", row.paper_inside or "–",
+            _optional(stats, "truncated", 4), _optional(stats, "all_negative", 4),
             stats["avg_length"].text(2), stats["task_success_second"].text(4),
-            f"{stats['train_wall_time_s'].mean:.0f}", *paper,
+            f"{stats['train_wall_time_s'].mean:.0f}",
+            f"{paper[0]:.4f}" if paper else "–", f"{paper[2]:.2f}" if paper else "–",
         ]) + " |")
     return "\n".join(lines) + "\n"
 
@@ -216,7 +245,8 @@ class Report:
     claims_text: str
 
     def to_dict(self) -> dict[str, Any]:
-        return {"command": self.command, "confidence": CONFIDENCE, "interval": "Student t over seeds",
+        return {"command": self.command, "confidence": CONFIDENCE,
+                "interval": "Student t over seeds (rates: on the logit scale); prediction interval of one new run",
                 "rows": [row.to_dict() for row in self.rows], "claims": [claim.to_dict() for claim in self.claims]}
 
 
@@ -233,17 +263,26 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
         raise ValueError(f"the table and the claims would both be written to {str(out)!r}; pass --claims FILE")
     command = command or f"ncbot table {runs_dir} --out {out} --claims {claims_out}"
     groups = collect_runs(runs_dir)
+    seeds_out = out.with_name(f"{out.stem}_seeds.csv")
     rows, claims = table_rows(groups), evaluate_claims(seed_samples(groups))
-    report = Report(command, rows, claims, render_table(rows, command, claims_out.name), render_claims(claims, command))
-    for path, text in ((out, report.table), (claims_out, report.claims_text)):
+    report = Report(command, rows, claims, render_table(rows, command, claims_out.name, seeds_out.name),
+                    render_claims(claims, command))
+    for path, text in ((out, report.table), (claims_out, report.claims_text), (seeds_out, seeds_csv(groups))):
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(text, path)
     by_plot: dict[tuple[str, str], dict[str, list]] = defaultdict(dict)
+    levels: dict[tuple[str, str], dict[str, tuple[float, float]]] = defaultdict(dict)
     for (suite, game, cell), runs in groups.items():
-        by_plot[(suite, game)][CELL_LABELS.get(cell, cell)] = [r.get("history", []) for r in runs]
-    for (suite, game), curves in by_plot.items():
-        plot_agent_curves(curves, out.parent / f"curves_{suite}_{game}.png",
-                          title=f"{GAME_LABELS.get(game, game)}, {suite} settings: mean over seeds, band min..max")
+        label = CELL_LABELS.get(cell, cell)
+        if all(run["frames"] == 0 for run in runs):  # no learning: a level, not a curve
+            levels[(suite, game)][label] = tuple(
+                sum(run[seat]["task_success"] for run in runs) / len(runs) for seat in ("first", "second"))
+        else:
+            by_plot[(suite, game)][label] = [r.get("history", []) for r in runs]
+    for (suite, game) in sorted(set(by_plot) | set(levels)):
+        plot_agent_curves(by_plot.get((suite, game), {}), out.parent / f"curves_{suite}_{game}.png",
+                          title=f"{GAME_LABELS.get(game, game)}, {suite} settings: mean over seeds, band min..max",
+                          levels=levels.get((suite, game)))
     return report
 
 
