@@ -257,7 +257,7 @@ def _learner(batch_size: int | None = None, **loss_settings):
     from modules.qnet import seeded_init
     from modules.learner import Learner
     from pipelines.config import RunConfig
-    from pipelines.train.run import learner_settings
+    from pipelines.train.build import learner_settings
 
     config = RunConfig()
     if batch_size is not None:

@@ -15,7 +15,8 @@ from modules.qnet import make_qnet, seeded_init
 from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from pipelines.config import load_config
 from pipelines.run_env import make_run_env
-from pipelines.train.run import make_collector, train
+from pipelines.train.build import make_collector
+from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

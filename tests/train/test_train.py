@@ -96,7 +96,7 @@ def test_anneal_epsilon_is_torchrl_step_bit_for_bit(eps_init: float, eps_end: fl
     from torchrl.data import Categorical
     from torchrl.modules import EGreedyModule
 
-    from pipelines.train.run import anneal_epsilon
+    from pipelines.train.loop import anneal_epsilon
 
     torchrl_steps, ours = (EGreedyModule(Categorical(4), eps_init=eps_init, eps_end=eps_end, annealing_num_steps=steps)
                            for _ in range(2))
