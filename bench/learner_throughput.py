@@ -67,7 +67,7 @@ class Ours:
         from pipelines.config import load_config
         from modules.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train.run import frames_per_batch, learner_settings, make_collector
+        from pipelines.train.build import frames_per_batch, learner_settings, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -88,7 +88,10 @@ class Ours:
         batches = iter(self.collector)
 
         def collect() -> None:  # what the training loop does with a collected batch before the updates
-            self.buffer.extend(prepare_transitions(next(batches), config, multistep))
+            self.buffer.extend(prepare_transitions(next(batches), reward=config.loss.reward,
+                                                   loss_reward=config.loss.loss_reward,
+                                                   bootstrap=config.loss.bootstrap, lookahead=config.lookahead,
+                                                   multistep=multistep))
 
         self.collect = collect
         while len(self.buffer) < config.buffer.size:  # a full buffer, as for most of a training run
@@ -165,9 +168,11 @@ def levers(config_path: str, seconds: float, rounds: int, compile_too: bool) -> 
     from torch import nn
 
     from pipelines.config import load_config
+    from pipelines.train.build import env_sizes
 
     config = load_config(config_path)
-    batch, hidden, features, actions = config.buffer.batch_size, config.agent.hidden, 73, 18
+    features, actions = env_sizes(config)  # the config's env: its observation features and actions
+    batch, hidden = config.buffer.batch_size, config.agent.hidden
     torch.manual_seed(0)
     widths = [features, *hidden]
     layers: list[nn.Module] = []

@@ -118,7 +118,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
     for repeat in range(repeats):
         for variant in ("off", "on"):
             out = Path(tempfile.mkdtemp(prefix=f"mcap_train_{variant}_"))
-            command = [sys.executable, "-m", "pipelines.cli.app", "train", config, f"collector.total_frames={frames}",
+            command = [sys.executable, "-m", "pipelines.cli", "train", config, f"collector.total_frames={frames}",
                        "--out", str(out), "--no-progress", "--seed", str(repeat)]
             if variant == "off":
                 command.append("--no-mcap")

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pipelines.checkpoint import FORMAT, atomic_save  # noqa: E402
 from pipelines.cli.app import main  # noqa: E402
 from tests.learning_helpers import TINY  # noqa: E402
-from tests.test_reliability_fuzz import GOOD_GRID, _valid_agent  # noqa: E402
+from tests.cli.test_reliability_fuzz import GOOD_GRID, _valid_agent  # noqa: E402
 
 
 class Hang(BaseException):

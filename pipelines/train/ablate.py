@@ -30,8 +30,8 @@ class PlannedRun:
 
     def command(self) -> list[str]:
         if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
-            return [sys.executable, "-m", "pipelines.cli.app", "train", "--resume", str(self.run_dir), "--no-progress"]
-        return [sys.executable, "-m", "pipelines.cli.app", "train", str(self.config), *self.overrides,
+            return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
+        return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
                 "--out", str(self.run_dir), "--no-progress", "--overwrite"]  # no checkpoint yet: start it again
 
     @property

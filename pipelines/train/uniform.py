@@ -12,7 +12,7 @@ from typing import Any
 
 from fileio import atomic_write_text
 from pipelines.config import RunConfig
-from pipelines.train.run import EVAL_SEED_OFFSET
+from pipelines.train.loop import EVAL_SEED_OFFSET
 
 
 def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
