@@ -153,7 +153,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     agent = make_policies(
         qnet, env.action_spec_unbatched, config.lookahead,
         eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
-        annealing_frames=config.collector.annealing_frames,
+        annealing_frames=config.collector.annealing_frames, all_negative=config.agent.all_negative,
     )
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
