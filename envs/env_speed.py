@@ -77,7 +77,9 @@ class DialogueState:
     user_utterance: torch.Tensor  # (B, 1) id of the user's utterance in the last step (-1 none)
     words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
     mask: torch.Tensor  # (B, A) action_mask: what is offered
-    legal: torch.Tensor  # (B, A) what the step accepts: ``mask`` itself unless offer_taken_cells adds taken squares
+    legal: torch.Tensor  # (B, A) what the step accepts: ``mask`` itself unless taken_squares is refused / misread
+    true_lookahead: torch.Tensor  # (B, A) taken_squares="misread": the one-step reward on the true board (paid)
+    misread: torch.Tensor  # (B,) bool taken_squares="misread": the last step's user move was misread
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
     observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)

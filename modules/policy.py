@@ -38,6 +38,7 @@ def make_policies(
     eps_init: float = 1.0,
     eps_end: float = 0.005,
     annealing_frames: int = 10_000,
+    all_negative: str = "available",
 ) -> AgentPolicies:
     """Chain the Q-network with the look-ahead masks, a masked argmax and an epsilon-greedy layer.
 
@@ -45,7 +46,7 @@ def make_policies(
     """
     greedy = TensorDictSequential(
         QValues(qnet),  # the same network and parameters, without TensorDictModule's per-call overhead
-        LookaheadMasks(lookahead),
+        LookaheadMasks(lookahead, all_negative),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
     )
     egreedy = EGreedyModule(

@@ -33,7 +33,7 @@ def load_agent(checkpoint_path):
     qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead)
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative)
     return config, policies.greedy
 
 
@@ -73,7 +73,7 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
 
         qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
         n_actions = qnet.module[-1].out_features  # its last Linear has one output per action (modules.qnet.make_qnet)
-        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead).greedy
+        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead, all_negative=config.agent.all_negative).greedy
     description = f"greedy Q, masks {config.lookahead}"
     if not search:
         return config, greedy, description

@@ -74,10 +74,18 @@ class EnvConfig(Section):
     first: Literal["robot", "human", "alternate", "random"] = "alternate"  # who opens the training games
     opponent: str = "random"  # envs.opponents name of the simulated user's move policy
     max_steps: Annotated[int, Field(gt=0, le=10_000)] = 100  # actions per dialogue before truncation (paper: 100)
-    # The paper's readings (docs/reproduction.md), on in pipelines/configs/paper/: the robot is offered its taken
-    # squares (choosing one earns -5, the board and the dialogue stay, the user does not move, the robot chooses
-    # again); off = only legal squares are offered (our reading of "not taken yet", faster to learn)
-    offer_taken_cells: bool = False
+    # The paper's ambiguous readings (envs.core, docs/env.md "Readings"; pipelines/configs/paper/ set the ones
+    # closest to the text). taken_squares: "moves ... allowed from the subset of those not taken yet (to the robot's
+    # knowledge)" vs "-5 ... a repeated (already taken) action": never (only untaken squares offered) | refused
+    # (taken squares offered too, refused at -5 with nothing changed) | misread (the robot misreads a user move
+    # with probability misread_rate; a square really taken is refused at -5 and the sheet is read again)
+    taken_squares: Literal["never", "refused", "misread"] = "never"
+    misread_rate: Annotated[Number, Field(gt=0.0, lt=1.0)] | None = None  # required with misread, else unset
+    # what winning_actions (Algorithm 2's set A) holds: every +5 move | only "action(s) leading to win ... the game"
+    win_set: Literal["wins_and_threats", "wins"] = "wins_and_threats"
+    # "+5 win or about to win": about to win paid on every move after which a winning square stands | only on the
+    # move that creates it
+    about_to: Literal["standing", "created"] = "standing"
     # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
@@ -109,6 +117,9 @@ class EnvConfig(Section):
         if self.dialogues == "compact" and self.subset is not None and self.subset[0] > 12:
             raise ValueError(f"env.dialogue_subset.k must be <= 12 with env.dialogues: compact (a dozen example "
                              f"dialogues per game; 13-24 exist for dialogues: paper), got {self.subset[0]}")
+        if (self.taken_squares == "misread") != (self.misread_rate is not None):
+            raise ValueError(f"env.misread_rate must be set (a number in (0, 1)) with env.taken_squares: misread and "
+                             f"unset otherwise; got taken_squares {self.taken_squares!r}, misread_rate {self.misread_rate!r}")
         if self.asr_channel is not None and not Path(self.asr_channel).is_file():
             raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m speech.fit)")
         return self
@@ -121,6 +132,10 @@ class AgentConfig(Section):
 
     name: Literal["dqn_original", "dqn_variant", "proposed", "uniform"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
+    # where the greedy mask falls back when every action of set A has a negative look-ahead reward (the paper leaves
+    # it open; modules.mask_rules): available = set A | untaken = set A without the squares taken to the robot's
+    # knowledge ("moves ... allowed from the subset of those not taken yet (to the robot's knowledge)")
+    all_negative: Literal["available", "untaken"] = "available"
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
         Field(default_factory=lambda: [100, 100, 100])

@@ -13,6 +13,7 @@ from typing import Any
 import torch
 
 from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
+from modules.mask_rules import all_moves_negative
 
 MAX_EVAL_BATCH = 4096
 SEAT_NAMES = {"robot": "robot_first", "human": "robot_second"}  # env.first -> the seat's name in results
@@ -69,13 +70,6 @@ class GameRecords:
     @classmethod
     def cat(cls, parts: list["GameRecords"]) -> "GameRecords":
         return cls(*(torch.cat(column) for column in zip(*(astuple(part) for part in parts))))
-
-
-def all_moves_negative(action_mask: torch.Tensor, lookahead_reward: torch.Tensor, cells: int) -> torch.Tensor:
-    """(B,) bool: the robot is offered at least one game move (the first ``cells`` actions) and every one of them
-    has a negative one-step look-ahead reward, the state where a mask rule falls back to what it excluded."""
-    moves = action_mask[..., :cells]
-    return moves.any(-1) & ~(moves & (lookahead_reward[..., :cells] >= 0)).any(-1)
 
 
 def summarise(records: GameRecords) -> EvalResult:

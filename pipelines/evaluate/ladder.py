@@ -120,7 +120,7 @@ def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None
     config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed, value=value)
     choosers = {"agent": policy}
     if baseline:
-        choosers["look-ahead only"] = LookaheadOnlyPolicy(seed, config.lookahead)
+        choosers["look-ahead only"] = LookaheadOnlyPolicy(seed, config.lookahead, config.agent.all_negative)
     return config, robot, choosers
 
 

@@ -1,7 +1,7 @@
 """Dialogue length, task success and reward per act of the untrained look-ahead agents under each reading.
 
 Run: python -m pipelines.reproduce.lengths [--games 400] [--game standard,ultimate]
-Why: the faithful options (env.offer_taken_cells, env.dialogues) are meant to bring our dialogues to the paper's
+Why: the faithful options (env.taken_squares, env.dialogues) are meant to bring our dialogues to the paper's
 shape (3x3 13.9-15.3 acts, Ultimate 52-71); this measures it without training, with each agent's own look-ahead
 masks and a seeded uniform choice inside them (modules.masks.LookaheadOnlyPolicy), robot first (the paper's
 set-up). A trained agent plays shorter games than its untrained masks (it wins sooner and, with taken squares
@@ -14,15 +14,18 @@ import argparse
 import torch
 
 RULES = {"DQN-Original": "none", "DQN-Variant": "variant", "Proposed": "one_step"}
+MISREAD_RATE = 0.10  # the paper configs' env.misread_rate
 
 
 @torch.no_grad()
-def rollout(game: str, dialogues: str, offer: bool, rule: str, games: int, seed: int = 0) -> dict[str, float]:
+def rollout(game: str, dialogues: str, taken_squares: str, rule: str, games: int, seed: int = 0) -> dict[str, float]:
     """The first dialogue of each of ``games`` env slots, played to its end (closing or the 100-action cap)."""
     from envs import make_env
     from modules.masks import LookaheadOnlyPolicy
 
-    env = make_env(game, batch_size=(games,), seed=seed, first="robot", offer_taken_cells=offer, dialogues=dialogues)
+    rate = MISREAD_RATE if taken_squares == "misread" else None
+    env = make_env(game, batch_size=(games,), seed=seed, first="robot", taken_squares=taken_squares, misread_rate=rate,
+                   dialogues=dialogues)
     policy = LookaheadOnlyPolicy(seed=seed + 1, lookahead=rule)
     td = env.reset()
     done = torch.zeros(games, dtype=torch.bool)
@@ -46,14 +49,14 @@ def main() -> None:
     parser.add_argument("--game", default="standard,ultimate")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    print("| game | dialogues | taken cells offered | agent's masks | dialogue length | task success | avg reward / act |")
+    print("| game | dialogues | taken squares | agent's masks | dialogue length | task success | avg reward / act |")
     print("|---|---|---|---|---|---|---|")
     for game in args.game.split(","):
         for dialogues in ("compact", "paper"):
-            for offer in (False, True):
+            for taken in ("never", "refused", "misread"):
                 for agent, rule in RULES.items():
-                    r = rollout(game, dialogues, offer, rule, args.games)
-                    print(f"| {game} | {dialogues} | {'yes' if offer else 'no'} | {agent} | {r['avg_length']:.2f} | "
+                    r = rollout(game, dialogues, taken, rule, args.games)
+                    print(f"| {game} | {dialogues} | {taken} | {agent} | {r['avg_length']:.2f} | "
                           f"{r['task_success']:.3f} | {r['avg_reward']:.4f} |", flush=True)
 
 

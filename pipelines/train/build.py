@@ -107,7 +107,7 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
     agent = make_policies(
         qnet, env.action_spec_unbatched, config.lookahead,
         eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
-        annealing_frames=config.collector.annealing_frames,
+        annealing_frames=config.collector.annealing_frames, all_negative=config.agent.all_negative,
     )
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------

@@ -22,7 +22,7 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
 
     started = time.monotonic()
     seed = config.train.seed
-    policy = LookaheadOnlyPolicy(seed=seed, lookahead=config.lookahead)
+    policy = LookaheadOnlyPolicy(seed=seed, lookahead=config.lookahead, all_negative=config.agent.all_negative)
     report: dict[str, Any] = {"frames": 0, "updates": 0, "episodes": 0, "seed": seed, "run_id": run.run_id,
                               "time_to_0995_s": None,
                               "lookahead": config.lookahead}

@@ -19,7 +19,7 @@ from pipelines.config import load_config
 
 torch.set_num_threads(1)
 ROOT = Path(__file__).resolve().parents[2]
-PAPER = {"game": "standard", "first": "alternate", "dialogues": "paper", "offer_taken_cells": True}
+PAPER = {"game": "standard", "first": "alternate", "dialogues": "paper", "taken_squares": "refused"}
 
 
 def _fingerprint(**kwargs) -> str:

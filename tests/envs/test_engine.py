@@ -97,7 +97,9 @@ def _threat(rules, s, p) -> bool:
     return False
 
 
-def brute_force_reward(rules, s, cell) -> float:
+def brute_force_reward(rules, s, cell, about_to: str = "standing") -> float:
+    """The reward definitions read literally; ``about_to="created"``: "about to win" pays only when the mover had
+    no winning square before its move (same definition of a winning square, before and after)."""
     p = rules.mark_to_move(s)
     after = rules.play(s, cell)
     result = rules.outcome(after)
@@ -109,18 +111,20 @@ def brute_force_reward(rules, s, cell) -> float:
         return -5.0
     if _dead(_meta(rules, after)) and not _dead(_meta(rules, s)):
         return 1.0
-    if _threat(rules, after, p):
+    if _threat(rules, after, p) and not (about_to == "created" and _threat(rules, s, p)):
         return 5.0
     return 0.0
 
 
+@pytest.mark.parametrize("about_to", ["standing", "created"])
 @pytest.mark.parametrize("game,free_move", VARIANTS)
-def test_move_rewards_match_brute_force(game: str, free_move: str) -> None:
+def test_move_rewards_match_brute_force(game: str, free_move: str, about_to: str) -> None:
     n_games, every = (300, 1) if game == "standard" else (24, 3)
-    compared = 0
+    compared = kept_threats = 0
     for ply, (engine, rules, state, states, legal) in enumerate(random_games(game, free_move, n_games, seed=3)):
         if ply % every:
             continue
+        engine = make_engine(game, free_move, about_to=about_to)  # same state, the reading under test
         player = 1 + state.n_marks % 2
         for p in (1, 2):
             rows = (player == p) & legal.any(1)
@@ -128,10 +132,51 @@ def test_move_rewards_match_brute_force(game: str, free_move: str) -> None:
                 continue
             rewards = engine.move_rewards(state, p)
             for i in rows.nonzero().flatten().tolist():
+                had = _threat(rules, states[i], p)
                 for cell in legal[i].nonzero().flatten().tolist():
-                    assert float(rewards[i, cell]) == brute_force_reward(rules, states[i], cell), (i, cell, rules.render(states[i]))
+                    expected = brute_force_reward(rules, states[i], cell, about_to)
+                    assert float(rewards[i, cell]) == expected, (i, cell, about_to, rules.render(states[i]))
                     compared += 1
+                    kept_threats += had and expected == 0.0 and brute_force_reward(rules, states[i], cell) == 5.0
     assert compared > 1000
+    assert (kept_threats > 0) == (about_to == "created")  # the readings differ on these positions
+
+
+def _wins_now(rules, s, cell) -> bool:
+    after = rules.play(s, cell)
+    return rules.outcome(after) == ("x" if rules.mark_to_move(s) == 1 else "o")
+
+
+@pytest.mark.parametrize("game,free_move", VARIANTS)
+def test_win_set_wins_holds_exactly_the_moves_that_win_now(game: str, free_move: str) -> None:
+    """win_set="wins": Algorithm 2's "action(s) leading to win (legally) the game"; wins_and_threats: every +5."""
+    n_games = 300 if game == "standard" else 40
+    wins_seen = threats_seen = 0
+    for engine, rules, state, states, legal in random_games(game, free_move, n_games, seed=5):
+        player = 1 + state.n_marks % 2
+        for p in (1, 2):
+            rows = (player == p) & legal.any(1)
+            if not bool(rows.any()):
+                continue
+            sets = {}
+            for win_set in ("wins", "wins_and_threats"):
+                reading = make_engine(game, free_move, win_set=win_set)
+                if game == "standard":
+                    sets[win_set] = reading.winning_rows_by_code(p).index_select(0, state.codes[:, 0]) & legal
+                else:
+                    rewards = torch.full((legal.shape[0], 81), -5.0)
+                    wins = torch.zeros(legal.shape[0], 81, dtype=torch.bool)
+                    reading.write_move_rewards(rewards, state, p, rows, wins)
+                    sets[win_set] = wins & legal
+            plus5 = engine.move_rewards(state, p) == 5.0
+            for i in rows.nonzero().flatten().tolist():
+                cells = legal[i].nonzero().flatten().tolist()
+                expected = {c for c in cells if _wins_now(rules, states[i], c)}
+                assert set(sets["wins"][i].nonzero().flatten().tolist()) == expected, (i, rules.render(states[i]))
+                assert torch.equal(sets["wins_and_threats"][i], plus5[i] & legal[i])
+                wins_seen += len(expected)
+                threats_seen += int(sets["wins_and_threats"][i].sum()) - len(expected)
+    assert wins_seen > 50 and threats_seen > wins_seen  # threats outnumber wins: the readings differ
 
 
 def test_engine_rejects_unknown_game_and_variant() -> None:
@@ -139,6 +184,10 @@ def test_engine_rejects_unknown_game_and_variant() -> None:
         make_engine("chess")
     with pytest.raises(ValueError, match="free_move must be one of anywhere, open_subgrids"):
         make_engine("ultimate", "sometimes")
+    with pytest.raises(ValueError, match="win_set must be one of wins_and_threats, wins; got 'all'"):
+        make_engine("standard", win_set="all")
+    with pytest.raises(ValueError, match="about_to must be one of standing, created; got 'once'"):
+        make_engine("ultimate", about_to="once")
 
 
 def test_from_boards_reads_hand_made_3x3_positions() -> None:

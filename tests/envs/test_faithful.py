@@ -1,4 +1,4 @@
-"""The paper's readings as options (issue 14): offered taken squares, paper-shaped dialogues, a games cap.
+"""The paper's readings as options: offered taken squares, paper-shaped dialogues, a games cap.
 
 Real env and a real tiny training run; the option-off env must stay bit-identical to docs/env.md's fingerprints.
 """
@@ -33,7 +33,7 @@ def test_options_off_keep_the_recorded_env_fingerprint(name: str) -> None:
     kwargs, policy = next((k, p) for n, k, p in CONFIGS if n == name)
     expected = _recorded_hashes()[name]
     assert fingerprint(kwargs, policy, 2000, 64) == expected
-    explicit = dict(kwargs, offer_taken_cells=False, dialogues="compact")
+    explicit = dict(kwargs, taken_squares="never", win_set="wins_and_threats", about_to="standing", dialogues="compact")
     assert fingerprint(explicit, policy, 300, 64) == fingerprint(kwargs, policy, 300, 64)
 
 
@@ -49,7 +49,7 @@ def _to_robot_move(env, td):
 
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_a_taken_cell_is_offered_and_refused_with_minus_five(game: str) -> None:
-    env = make_env(game, batch_size=(1,), seed=4, first="robot", offer_taken_cells=True, dialogues="paper")
+    env = make_env(game, batch_size=(1,), seed=4, first="robot", taken_squares="refused", dialogues="paper")
     td = _to_robot_move(env, env.reset())
     first_cell = int(td["action_mask"][0, : env.cells].nonzero()[0])
     td["action"] = torch.tensor([first_cell])
@@ -69,7 +69,7 @@ def test_a_taken_cell_is_offered_and_refused_with_minus_five(game: str) -> None:
 
 def test_taken_cells_are_offered_only_with_the_option_and_only_on_the_robots_turn() -> None:
     for offer in (False, True):
-        env = make_env("standard", batch_size=(64,), seed=1, first="alternate", offer_taken_cells=offer)
+        env = make_env("standard", batch_size=(64,), seed=1, first="alternate", taken_squares="refused" if offer else "never")
         td = env.reset()
         offered_taken = 0
         for _ in range(200):
@@ -126,8 +126,12 @@ def test_paper_env_user_moves_only_after_your_turn() -> None:
 def test_bad_option_values_are_one_clear_error() -> None:
     with pytest.raises(ValueError, match="dialogues must be one of compact, paper"):
         make_env("standard", dialogues="long")
-    with pytest.raises(ValueError, match="offer_taken_cells must be true or false"):
-        make_env("standard", offer_taken_cells="yes")
+    with pytest.raises(ValueError, match="taken_squares must be one of never, refused, misread"):
+        make_env("standard", taken_squares="yes")
+    with pytest.raises(ValueError, match="unknown option 'offer_taken_cells'"):
+        make_env("standard", offer_taken_cells=True)
+    with pytest.raises(ValueError, match="offer_taken_cells"):
+        load_config(ROOT / "pipelines" / "configs" / "default.yaml", ["env.offer_taken_cells=true"])
     with pytest.raises(ValueError, match="env.dialogues"):
         load_config(ROOT / "pipelines" / "configs" / "default.yaml", ["env.dialogues=long"])
 
@@ -135,15 +139,21 @@ def test_bad_option_values_are_one_clear_error() -> None:
 def test_paper_configs_turn_every_option_on_and_fast_configs_leave_them_off() -> None:
     for path in sorted((ROOT / "pipelines" / "configs" / "paper").glob("*.yaml")):
         config = load_config(path)
-        assert config.env.offer_taken_cells and config.env.dialogues == "paper" and config.train.max_games == 20000, path
+        assert config.env.taken_squares == "misread" and config.env.misread_rate == 0.10, path
+        assert config.env.win_set == "wins" and config.env.about_to == "standing", path
+        assert config.agent.all_negative == "untaken", path
+        assert config.env.dialogues == "paper" and config.train.max_games == 20000, path
     for name in ("default", "ultimate", "selfplay"):
         config = load_config(ROOT / "pipelines" / "configs" / f"{name}.yaml")
-        assert not config.env.offer_taken_cells and config.env.dialogues == "compact" and config.train.max_games is None
+        assert config.env.taken_squares == "never" and config.env.misread_rate is None, name
+        assert config.env.win_set == "wins_and_threats" and config.env.about_to == "standing", name
+        assert config.agent.all_negative == "available", name
+        assert config.env.dialogues == "compact" and config.train.max_games is None
 
 
 def test_max_games_stops_training_before_the_frames(tmp_path: Path) -> None:
     config = load_config(write_tiny_config(tmp_path), ["train.max_games=20", "collector.total_frames=5000",
-                                                       "env.offer_taken_cells=true", "env.dialogues=paper"])
+                                                       "env.taken_squares=refused", "env.dialogues=paper"])
     report = train(config, tmp_path / "run")
     assert 20 <= report["episodes"] < 20 + 64  # stopped within the collector batch that passed 20 games
     assert report["frames"] < 5000

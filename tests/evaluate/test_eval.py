@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from pipelines.config import load_config
-from pipelines.evaluate.games import GameRecords, all_moves_negative, evaluate_checkpoint, summarise, wilson_interval
+from modules.mask_rules import all_moves_negative
+from pipelines.evaluate.games import GameRecords, evaluate_checkpoint, summarise, wilson_interval
 from pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
