@@ -5,8 +5,8 @@ then times each look-ahead rule's masks on those TensorDicts. Prints, per game /
 wall and CPU milliseconds per robot decision, the worst batch, and how often the rule removed a move the
 one-step rule kept. The machine is shared: CPU time (time.process_time) is what an idle core would see.
 
-    python bench/lookahead_cost.py                    # standard + both ultimate variants, k1 k3 k5
-    python bench/lookahead_cost.py --games ultimate --rules k3 --steps 200 --png lookahead_cost.png
+    python bench/studies/lookahead_cost.py                    # standard + both ultimate variants, k1 k3 k5
+    python bench/studies/lookahead_cost.py --games ultimate --rules k3 --steps 200 --png lookahead_cost.png
 """
 from __future__ import annotations
 
