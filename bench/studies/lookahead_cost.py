@@ -1,4 +1,4 @@
-"""Cost per decision of the k-step look-ahead rules (issue 6), on positions of real dialogues.
+"""Cost per decision of the k-step look-ahead rules, on positions of real dialogues.
 
 Plays random dialogues in the real env (batch of games), keeps every TensorDict in which some robot may move,
 then times each look-ahead rule's masks on those TensorDicts. Prints, per game / rule variant and rule: mean

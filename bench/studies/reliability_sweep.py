@@ -1,4 +1,4 @@
-"""Re-run the bad inputs of issue 18 against every subcommand and count how each ends (docs/reliability.md).
+"""Run the bad inputs of the reliability tests against every subcommand and count how each ends (docs/reliability.md).
 
     python bench/studies/reliability_sweep.py [--list]
 

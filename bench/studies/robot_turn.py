@@ -1,6 +1,6 @@
 """Wall time of the simulated robot: render, sheet texture update, IK, vision, and whole robot turns.
 
-Target (issue 7): <= 2 s wall per robot turn (policy + speech + drive + draw + return home, with the camera
+Target: <= 2 s wall per robot turn (policy + speech + drive + draw + return home, with the camera
 frames rendered and logged, and the robot's own look at its mark) on this 2-core CPU machine with lavapipe.
 
     python bench/studies/robot_turn.py [--games 3] [--game standard] [--width 640 --height 480] [--conditions atrium]

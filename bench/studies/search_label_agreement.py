@@ -1,7 +1,7 @@
 """How often the Q-guided search's pick agrees with the greedy move on the robot's own moves (search-target labels).
 
 Why: `search_targets` trains Q towards the search's picks with a margin; where the two disagree on near-tied moves
-the margin teaches tie-breaks (docs/ultimate.md, eighth session). Plays `--frames` greedy frames of an agent
+the margin teaches tie-breaks (docs/ultimate.md). Plays `--frames` greedy frames of an agent
 against the random user, labels up to `--moves` robot moves with a choice (robot-second games unless `--seat both`)
 with each teacher, prints the share that agrees with the greedy move and the CPU per label.
 

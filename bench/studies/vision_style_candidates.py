@@ -1,4 +1,4 @@
-"""Training candidates for the cell classifier, judged on the TUNING-STYLE split (docs/vision.md, issue 15).
+"""Training candidates for the cell classifier, judged on the TUNING-STYLE split (docs/vision.md).
 
     python bench/studies/vision_style_candidates.py crops DIR [N9] [N3]     cut every scored set's reader crops once
     python bench/studies/vision_style_candidates.py base DIR                cache the shipped recipe's generated + photo cells

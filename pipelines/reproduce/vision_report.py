@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-TARGET = 0.98  # issue 14: >= 98 % of held-out cells at the paper's budget of 310 images
+TARGET = 0.98  # >= 98 % of held-out cells at the paper's budget of 310 images
 
 # ---- what the runs show -----------------------------------------------------------------------------------------
 

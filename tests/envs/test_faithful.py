@@ -1,4 +1,4 @@
-"""The paper's readings as options (issue 14): offered taken squares, paper-shaped dialogues, a games cap.
+"""The paper's readings as options: offered taken squares, paper-shaped dialogues, a games cap.
 
 Real env and a real tiny training run; the option-off env must stay bit-identical to docs/env.md's fingerprints.
 """
