@@ -180,7 +180,7 @@ def register_agent_opponent() -> None:
     register_qmcts_opponent()
 
 
-# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
+# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT
 def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""

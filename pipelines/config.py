@@ -162,8 +162,8 @@ class BufferConfig(Section):
     # prioritised replay (Schaul et al. 2016; modules/prioritized_sampler.py, TorchRL's PrioritizedSampler
     # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
-    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session); on 3x3 it cuts
-    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md, tenth session).
+    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md); on 3x3 it cuts
+    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
@@ -278,9 +278,9 @@ class SearchTargetsConfig(Section):
     After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
     Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
     update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above the moves
-    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: the issue names
-    it (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
-    with every teacher tried (docs/ultimate.md, eighth session)."""
+    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: search distilled into the
+    network (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
+    with every teacher tried (docs/ultimate.md)."""
 
     enabled: bool = False
     simulations: Annotated[int, Field(gt=0, le=100_000)] = 32

@@ -1,14 +1,14 @@
-"""`ncbot ladder`: how good is a trained agent against more than a random player (issues 6 and 17)?
+"""`ncbot ladder`: how good is a trained agent against more than a random player?
 
 The agent plays its full dialogues in the real env, greedy with its own look-ahead masks, while the simulated
 user's game moves come from each opponent of the ladder (``envs.opponents``), from both seats. Scores count a
-win 1 and a draw 0.5. The goals of the issue are checked and printed with the table: on 3x3 never lose to
-``minimax`` or ``random``; on Ultimate score at least 0.5 against ``mcts:100`` (issue 6), 0.75 against
-``mcts:1000``, 0.5 against ``mcts:10000`` and against OpenSpiel's ``openspiel-mcts:1000`` (issue 17) when played.
+win 1 and a draw 0.5. The project's goals are checked and printed with the table: on 3x3 never lose to
+``minimax`` or ``random``; on Ultimate score at least 0.5 against ``mcts:100``, 0.75 against
+``mcts:1000``, 0.5 against ``mcts:10000`` and against OpenSpiel's ``openspiel-mcts:1000`` when played.
 Each score carries a 95 % Wilson interval (draws as half points, so approximate), and a goal is "met" or "missed"
 only when that interval lies on one side of the target; otherwise the games played do not decide it. With
-``--search`` the robot's CPU seconds per searched move are measured per row and checked against issue 17's
-0.2 s budget.
+``--search`` the robot's CPU seconds per searched move are measured per row and checked against the
+robot's 0.2 s budget.
 """
 from __future__ import annotations
 
@@ -24,9 +24,9 @@ DEFAULT_LADDERS = {
     "ultimate": ["random", "rule", "mcts:10", "mcts:100", "mcts:300"],
 }
 SEATS = ("first", "second")
-# Ultimate score targets: issue 6 (mcts:100), issue 17 (strong search; openspiel-mcts needs free_move open_subgrids)
+# Ultimate score targets: mcts:100, and strong search (openspiel-mcts needs free_move open_subgrids)
 ULTIMATE_GOALS = {"mcts:100": 0.5, "mcts:1000": 0.75, "mcts:10000": 0.5, "openspiel-mcts:1000": 0.5}
-SEARCH_SECONDS_PER_MOVE = 0.2  # issue 17: the robot's decision budget with search, one core
+SEARCH_SECONDS_PER_MOVE = 0.2  # the robot's decision budget with search, one core
 
 
 def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None = None, seed: int = 0,
@@ -174,7 +174,7 @@ def _play_worker_match(task: tuple) -> tuple[int, dict[str, Any]]:
 
 
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The issues' goals that this ladder covers: each with its value, and "met" / "missed" / "undecided".
+    """The goals that this ladder covers: each with its value, and "met" / "missed" / "undecided".
 
     ``met`` is the point estimate's verdict (kept for scripts); ``verdict`` says whether the games played decide
     it: the score's 95 % Wilson interval wholly at or above the target (met) or below it (missed)."""
@@ -220,7 +220,7 @@ def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str,
         lines.append(f"| {r.get('policy', 'agent')} | {r['opponent']} | {r['seat']} | {r['games']} | {r['win']:.3f} | {r['draw']:.3f} | {r['loss']:.3f} | "
                      f"{r['score']:.3f} | {r['task_success']:.3f} ({low:.3f}-{high:.3f}) | {r['avg_length']:.1f} | {cpu} |")
     if goals:
-        lines += ["", "Goals (issues 6 and 17; a score goal is decided when its 95 % interval lies on one side of the target):"]
+        lines += ["", "Goals (a score goal is decided when its 95 % interval lies on one side of the target):"]
         lines += [f"- {g.get('verdict', 'met' if g['met'] else 'missed')}: {g['goal']} ({g['value']})" for g in goals]
     return "\n".join(lines) + "\n"
 

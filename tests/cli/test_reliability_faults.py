@@ -1,4 +1,4 @@
-"""Faults a run meets in the wild (issue 18): a read-only or full disk, SIGINT/SIGTERM/SIGKILL while it writes, a
+"""Faults a run meets in the wild: a read-only or full disk, SIGINT/SIGTERM/SIGKILL while it writes, a
 second run into the same folder, a damaged newest checkpoint, a kill before the first checkpoint. Each must end
 in one line (exit 2, 130 or 143) and `--resume` must then finish the run with nothing of another run mixed in.
 

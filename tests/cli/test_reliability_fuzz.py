@@ -1,4 +1,4 @@
-"""Property-based fuzzing of the CLI's error boundary (issue 18): generated bad files, values and paths given to the
+"""Property-based fuzzing of the CLI's error boundary: generated bad files, values and paths given to the
 subcommands must end in exit code 2, ONE line on stderr, no traceback and no file left behind.
 
 Runs in-process through `pipelines.cli.app.main` (no interpreter start per example) so a few hundred inputs take

@@ -1,4 +1,4 @@
-"""The dialogue data budget's env option (issue 14): the act filter and the simulated user learnt from a seeded subset
+"""The dialogue data budget's env option: the act filter and the simulated user learnt from a seeded subset
 of k example dialogues, the vocabulary fixed; the authored dialogues 13-24 used only for k > 12.
 
 Real env rollouts hashed with envs/fingerprint.py: k = 12 (the whole dozen) must be bit-identical to the

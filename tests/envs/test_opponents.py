@@ -364,7 +364,7 @@ def test_uct_search_spends_every_simulation_below_the_root() -> None:
 
 
 def test_shared_search_loop_makes_the_decisions_of_the_former_uct_loop() -> None:
-    """envs.opponents.search replaced mcts.py's own loop (issue 13): the hash of root moves and root statistics on
+    """envs.opponents.search replaced mcts.py's own loop: the hash of root moves and root statistics on
     120 positions, pinned from the former loop (commit 1c89ae0), must not move."""
     import hashlib
 

@@ -42,7 +42,7 @@ def test_ladder_writes_table_json_and_png(tmp_path) -> None:
     assert all(r["win"] == 0 for r in rows if r["opponent"] == "minimax")
     files = result["files"]
     markdown = open(files["markdown"]).read()
-    assert "| minimax | second | 12 |" in markdown and "Goals (issues 6 and 17;" in markdown
+    assert "| minimax | second | 12 |" in markdown and "Goals (a score goal is decided" in markdown
     saved = json.loads(open(files["json"]).read())
     assert saved["rows"] == json.loads(json.dumps(rows)) and saved["game"] == "standard"
     import matplotlib.image
@@ -84,7 +84,7 @@ def test_ultimate_ladder_against_mcts(tmp_path) -> None:
         run_ladder(str(checkpoint), games=2, opponents=["minimax"], progress=False, out_dir=str(tmp_path / "x"))
 
 
-def test_goals_follow_the_issue() -> None:
+def test_goals_follow_the_targets() -> None:
     rows = [{"opponent": "minimax", "seat": s, "games": 10, "win": 0.0, "draw": d, "loss": 1 - d, "score": d / 2}
             for s, d in (("first", 1.0), ("second", 0.9))]
     (goal,) = [g for g in check_goals("standard", rows) if "minimax" in g["goal"]]

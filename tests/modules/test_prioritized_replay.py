@@ -111,7 +111,7 @@ def test_a_real_prioritised_run_is_reproducible_and_differs_from_uniform(tmp_pat
 
 
 def test_exact_curve_bench_reads_every_snapshot_of_a_run(tmp_path: Path) -> None:
-    """bench/exact_curve.py (how prioritised replay was chosen for default.yaml): one exact row per kept snapshot,
+    """bench/studies/exact_curve.py (how prioritised replay was chosen for default.yaml): one exact row per kept snapshot,
     the same losses as `ncbot eval --exhaustive` of that snapshot, a PNG, and exit 2 for a folder without snapshots."""
     import subprocess
     import sys
@@ -122,7 +122,7 @@ def test_exact_curve_bench_reads_every_snapshot_of_a_run(tmp_path: Path) -> None
     train(config, tmp_path / "run")
     snapshots = sorted((tmp_path / "run" / "checkpoints").glob("step-*.pt"))
     assert len(snapshots) == 2  # 512 frames, a snapshot every 256
-    bench = Path(__file__).resolve().parents[2] / "bench" / "exact_curve.py"
+    bench = Path(__file__).resolve().parents[2] / "bench" / "studies" / "exact_curve.py"
     done = subprocess.run([sys.executable, str(bench), str(tmp_path / "run"), "--dialogue-seeds", "1",
                            "--png", str(tmp_path / "curves.png")], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

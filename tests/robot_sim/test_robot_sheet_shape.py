@@ -1,4 +1,4 @@
-"""Issue 15's field conditions, second round: a curled or folded sheet (a bent SAPIEN mesh) and a camera whose
+"""Field conditions of the sheet and camera: a curled or folded sheet (a bent SAPIEN mesh) and a camera whose
 exposure follows the frame's brightness; both drawn from the game seed without moving any earlier draw."""
 from __future__ import annotations
 

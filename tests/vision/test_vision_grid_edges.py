@@ -1,4 +1,4 @@
-"""Harsh photos, fifth round (issue 15): a 3x3 grid's extent when its lines break off short or fade to dashes,
+"""Harsh photos: a 3x3 grid's extent when its lines break off short or fade to dashes,
 and straight scraps of marks that are no grid frame. Photos are from the TUNING split (the held-out split is
 only ever evaluated); the drawn sheets are plain pictures with a known grid."""
 from __future__ import annotations
@@ -50,12 +50,12 @@ def test_a_grid_line_broken_off_short_does_not_shrink_the_grid() -> None:
 
 
 def test_grid_lines_faded_to_dashes_are_still_found() -> None:
-    # the reader before this round found no horizontal line in dashes (no run reaches a fifth of the page)
+    # a reader without the dash repair finds no horizontal line in dashes (no run reaches a fifth of the page)
     assert _grid_error(_sheet(dashed=True)) < 0.1
 
 
 @pytest.mark.parametrize("styles,offset,photos", [
-    # pen tuning photos the reader before this round misread: broken line ends (0, 4, 19, 172, 219, 292, 360),
+    # pen tuning photos a reader without the line-end repairs misreads: broken line ends (0, 4, 19, 172, 219, 292, 360),
     # a scrap of a mark taken for a frame (338), a motion-faded line lost (54), no grid found (223, 273)
     (("pen",), 0, (0, 4, 19, 54, 172, 219, 223, 273, 292, 338, 360)),
     # marker (tuning-style) photos with broken line ends

@@ -1,5 +1,5 @@
 """Reading photos taken under harsh light: a shadow across the sheet, a colour cast, dim light, a cheap
-wide-angle lens, motion blur and JPEG (vision.data.conditions). The reader before issue 15 found no sheet
+wide-angle lens, motion blur and JPEG (vision.data.conditions). A reader tuned on clean photos finds no sheet
 in most of these photos; the photos here come from the tuning split (pen marks), the figures in
 docs/vision.md from the held-out one."""
 import json
@@ -87,7 +87,7 @@ def test_reads_harsh_3x3_photos() -> None:
         hits = sum(a == b for a, b in zip(cells, frame.board))
         whole += hits == 9
         right += hits
-    assert whole >= 8 and right >= 0.95 * 90  # the old reader: 2 boards, a third of the cells
+    assert whole >= 8 and right >= 0.95 * 90  # a reader tuned on clean photos only: 2 boards, a third of the cells
 
 
 def test_reads_harsh_9x9_photos() -> None:

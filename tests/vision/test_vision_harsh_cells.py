@@ -40,5 +40,5 @@ def test_shipped_weights_read_streaked_cells_of_unseen_seeds() -> None:
     right = float((load_classifier().predict(images) == labels).mean())
     # 5-7 px streaks: the weights shipped before harsh cells read 96.7% of these (10 wrong), the same recipe
     # retrained without them 96.7% too; the weights with pen harsh cells 98.7% (4 wrong), and so do the shipped
-    # ones, whose harsh cells are half "hasty" (issue 15's fourth round)
+    # ones, whose harsh cells are half "hasty"
     assert right >= 0.98, right

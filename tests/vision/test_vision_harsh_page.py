@@ -1,4 +1,4 @@
-"""Harsh photos, second round (issue 15): a 9x9 sheet half in a shadow is found whole, and unsure cells get
+"""Harsh photos: a 9x9 sheet half in a shadow is found whole, and unsure cells get
 a second look. Photos are from the TUNING split (the held-out split is only ever evaluated)."""
 from __future__ import annotations
 

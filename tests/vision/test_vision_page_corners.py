@@ -1,4 +1,4 @@
-"""The page's corners are named once each, whatever the sheet's turn (issue 15: random preset, seed 11, game 13).
+"""The page's corners are named once each, whatever the sheet's turn (seen with the random preset, seed 11, game 13).
 
 A sheet whose top and right corners lay on the same y - x line (turned ~25 degrees, seen in perspective) had
 one corner named twice by the old per-extreme ordering, so the page was dropped in about half of the frames

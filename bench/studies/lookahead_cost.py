@@ -1,12 +1,12 @@
-"""Cost per decision of the k-step look-ahead rules (issue 6), on positions of real dialogues.
+"""Cost per decision of the k-step look-ahead rules, on positions of real dialogues.
 
 Plays random dialogues in the real env (batch of games), keeps every TensorDict in which some robot may move,
 then times each look-ahead rule's masks on those TensorDicts. Prints, per game / rule variant and rule: mean
 wall and CPU milliseconds per robot decision, the worst batch, and how often the rule removed a move the
 one-step rule kept. The machine is shared: CPU time (time.process_time) is what an idle core would see.
 
-    python bench/lookahead_cost.py                    # standard + both ultimate variants, k1 k3 k5
-    python bench/lookahead_cost.py --games ultimate --rules k3 --steps 200 --png lookahead_cost.png
+    python bench/studies/lookahead_cost.py                    # standard + both ultimate variants, k1 k3 k5
+    python bench/studies/lookahead_cost.py --games ultimate --rules k3 --steps 200 --png lookahead_cost.png
 """
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
 """How often the Q-guided search's pick agrees with the greedy move on the robot's own moves (search-target labels).
 
 Why: `search_targets` trains Q towards the search's picks with a margin; where the two disagree on near-tied moves
-the margin teaches tie-breaks (docs/ultimate.md, eighth session). Plays `--frames` greedy frames of an agent
+the margin teaches tie-breaks (docs/ultimate.md). Plays `--frames` greedy frames of an agent
 against the random user, labels up to `--moves` robot moves with a choice (robot-second games unless `--seat both`)
 with each teacher, prints the share that agrees with the greedy move and the CPU per label.
 
-    python bench/search_label_agreement.py /tmp/ult/runs/base_s0/checkpoint.pt --value /tmp/s7/value_small/value.pt
+    python bench/studies/search_label_agreement.py /tmp/ult/runs/base_s0/checkpoint.pt --value /tmp/s7/value_small/value.pt
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import argparse
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

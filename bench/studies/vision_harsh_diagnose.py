@@ -1,6 +1,6 @@
 """Where harsh-photo reading errors come from, counted by cause, on the TUNING split only (docs/vision.md).
 
-    python bench/vision_harsh_diagnose.py GRID N [START] [STYLES] [CROPS.png]      e.g. 9 200 0 pen
+    python bench/studies/vision_harsh_diagnose.py GRID N [START] [STYLES] [CROPS.png]      e.g. 9 200 0 pen
 
 Every photo's true grid-line crossings are known (the generator's homography and lens), so each wrong cell
 is put down to: page or grid not found; the fitted lattice > 0.15 cell off at one of the cell's corners (split

@@ -3,7 +3,7 @@ move (`confirm_frames` beyond reach, one still frame), so every human move is as
 the preset's noise. Prints, per preset, the moves asked about, settled by an answer, misheard, and left to the
 second look, the answers' word error rate and the CPU seconds per answer's decode.
 
-    python bench/where_answers.py [--games 6] [--seed 21] [--presets lab,office,atrium,random] [--width 160]
+    python bench/studies/where_answers.py [--games 6] [--seed 21] [--presets lab,office,atrium,random] [--width 160]
 
 Small frames (default 160x120; the random preset needs 320x240 for the robot to find some sheets at all): only
 the speech matters here, the camera's verdict is forced to "unseen".
@@ -14,7 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
-"""Re-run the bad inputs of issue 18 against every subcommand and count how each ends (docs/reliability.md).
+"""Run the bad inputs of the reliability tests against every subcommand and count how each ends (docs/reliability.md).
 
-    python bench/reliability_sweep.py [--list]
+    python bench/studies/reliability_sweep.py [--list]
 
 Each case runs in-process through `pipelines.cli.app.main` in a fresh folder with a 90 s alarm. A case is HANDLED when
 it exits 2 with one `ncbot: error:` line and no traceback (or, for inputs that are fine, exits 0), and leaves
@@ -22,7 +22,7 @@ from pathlib import Path
 import torch
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from pipelines.checkpoint import FORMAT, atomic_save  # noqa: E402
 from pipelines.cli.app import main  # noqa: E402

@@ -1,11 +1,11 @@
-"""Training candidates for the cell classifier, judged on the TUNING-STYLE split (docs/vision.md, issue 15).
+"""Training candidates for the cell classifier, judged on the TUNING-STYLE split (docs/vision.md).
 
-    python bench/vision_style_candidates.py crops DIR [N9] [N3]     cut every scored set's reader crops once
-    python bench/vision_style_candidates.py base DIR                cache the shipped recipe's generated + photo cells
-    python bench/vision_style_candidates.py train DIR NAME [--harsh N] [--harsh-styles pen,hasty]
+    python bench/studies/vision_style_candidates.py crops DIR [N9] [N3]     cut every scored set's reader crops once
+    python bench/studies/vision_style_candidates.py base DIR                cache the shipped recipe's generated + photo cells
+    python bench/studies/vision_style_candidates.py train DIR NAME [--harsh N] [--harsh-styles pen,hasty]
                                             [--cell-styles pen] [--epochs E] [--streak-photo-cells 0.5]
-    python bench/vision_style_candidates.py score DIR W.pt [W.pt ...]
-    python bench/vision_style_candidates.py styles OUT.png          the five handwriting styles, clean and harsh cells
+    python bench/studies/vision_style_candidates.py score DIR W.pt [W.pt ...]
+    python bench/studies/vision_style_candidates.py styles OUT.png          the five handwriting styles, clean and harsh cells
 
 Scored sets, every candidate classifying the same crops (`vision.grid.extract_cells`, then
 `cell_probabilities` as `read_page` does; unread photos count as all cells wrong):
@@ -57,7 +57,7 @@ def photo_crops(grid: int, n: int, seed: int, styles: tuple[str, ...], condition
 
 
 def true_crossing_crops(grid: int, n: int, seed: int, styles: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Cells cut at the photos' TRUE grid-line crossings (as bench/vision_harsh_diagnose.py: the classifier's
+    """Cells cut at the photos' TRUE grid-line crossings (as bench/studies/vision_harsh_diagnose.py: the classifier's
     part alone, the reader's geometry errors left out)."""
     from vision.data.frames import random_board, random_scene, render
     from vision.grid import DEFAULT_RHO, cut_cells

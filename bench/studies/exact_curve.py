@@ -13,7 +13,7 @@ Train with periodic snapshots kept, e.g.
 
 (stop it whenever: every snapshot is complete on disk), then
 
-    python bench/exact_curve.py /tmp/c/per_s10 /tmp/c/base_s10 --png /tmp/c/curves.png
+    python bench/studies/exact_curve.py /tmp/c/per_s10 /tmp/c/base_s10 --png /tmp/c/curves.png
 
 prints, per run and snapshot, frames, the training wall seconds saved in the snapshot, and the exact loss of the
 robot first and second; then per run the first snapshot with both losses <= 0.005 (task success >= 0.995) and
@@ -25,7 +25,7 @@ import argparse
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

@@ -1,9 +1,9 @@
 """Wall time of the simulated robot: render, sheet texture update, IK, vision, and whole robot turns.
 
-Target (issue 7): <= 2 s wall per robot turn (policy + speech + drive + draw + return home, with the camera
+Target: <= 2 s wall per robot turn (policy + speech + drive + draw + return home, with the camera
 frames rendered and logged, and the robot's own look at its mark) on this 2-core CPU machine with lavapipe.
 
-    python bench/robot_turn.py [--games 3] [--game standard] [--width 640 --height 480] [--conditions atrium]
+    python bench/studies/robot_turn.py [--games 3] [--game standard] [--width 640 --height 480] [--conditions atrium]
 
 Figures are noisy when other jobs share the machine: the load average is printed with them.
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from pipelines.progress import progress_bar  # noqa: E402
 
 

@@ -1,6 +1,6 @@
 """Do agents trained with the ASR channel model play differently from uniform ones?
 
-    python bench/asr_agents.py --agent uniform=RUN/checkpoint.pt --agent channel=RUN/checkpoint.pt \
+    python bench/studies/asr_agents.py --agent uniform=RUN/checkpoint.pt --agent channel=RUN/checkpoint.pt \
         [--games 400] [--real-games 100] [--seed 0]
 
 Each agent plays greedy test games (seats alternating, random opponent) while hearing the user three ways:
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 SNR_DB = (10.0, 30.0)
 

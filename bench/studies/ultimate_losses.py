@@ -11,7 +11,7 @@ that still had a move escaping a 5-ply forced loss ("the last escape"):
 - ``none``: no robot decision in the game had an escape (lost from the look-ahead's view as early as it looks).
 One-step masks rule out chosen moves lost within 1 ply, so that class is only a check.
 
-    python bench/ultimate_losses.py DIR [--last 6]
+    python bench/studies/ultimate_losses.py DIR [--last 6]
 """
 from __future__ import annotations
 

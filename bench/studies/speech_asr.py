@@ -1,7 +1,7 @@
 """The recogniser on the example dialogues: word error rate and mean word confidence per noise condition, CPU
 per utterance for TTS and ASR, and the fitted channel model's figures on the same utterances beside the real ones.
 
-    python bench/speech_asr.py [--utterances 240] [--channel speech/data/asr_channel.json]
+    python bench/studies/speech_asr.py [--utterances 240] [--channel speech/data/asr_channel.json]
 
 Utterances are drawn (seed REPORT_SEED) from every user turn of the example dialogues, so frequent replies count
 as often as they are said; the person's voices, noise seeds and babble talkers are the report set of
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from speech.align import word_errors  # noqa: E402
 from speech.asr import Heard, Recogniser, dialogue_sentences  # noqa: E402

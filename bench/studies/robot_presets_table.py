@@ -1,6 +1,6 @@
 """The per-preset table of docs/robot.md from `ncbot robot play --out` folders (report.json + the MCAP log).
 
-    python bench/robot_presets_table.py runs/conditions/lab-s11,runs/conditions/lab-s12 runs/conditions/office-s11,...
+    python bench/studies/robot_presets_table.py runs/conditions/lab-s11,runs/conditions/lab-s12 runs/conditions/office-s11,...
 
 One argument per preset: its run folders, comma-separated (e.g. the 15 games of seed 11 and the 4 of seed 12).
 Counts are summed; the ASR word error rate is word errors over words said (episode summaries), the mean
@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 
 def preset_row(folders: list[Path]) -> dict:

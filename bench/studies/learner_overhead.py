@@ -1,6 +1,6 @@
 """CPU per training frame of the paper-faithful runs (batch 2, one update per env step), old tree against this one.
 
-    python bench/learner_overhead.py --old /tmp/base [--frames 5000] [--rounds 3]
+    python bench/studies/learner_overhead.py --old /tmp/base [--frames 5000] [--rounds 3]
         [--configs pipelines/configs/paper/standard_proposed_temporal.yaml pipelines/configs/paper/ultimate100_proposed_temporal.yaml]
 
 Why: at the paper's batch of 2 an update is almost all fixed cost (TensorDict plumbing, replay sampling, optimiser,
@@ -22,24 +22,29 @@ import sys
 import tempfile
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parents[2]
 CONFIGS = ["pipelines/configs/paper/standard_proposed_temporal.yaml",
            "pipelines/configs/paper/ultimate100_proposed_temporal.yaml"]
 
 # Runs inside the subprocess, with the measured tree first on sys.path.
 CHILD = r"""
 import json, sys, time
+import importlib
 import torchrl.collectors
-import pipelines.evaluate.games
 from pipelines.config import load_config
-from pipelines.train.run import train
+try:  # the tree's layout: pipelines/train/ and pipelines/evaluate/ packages, or the flat modules of older trees
+    from pipelines.train.run import train
+    evaluation = importlib.import_module("pipelines.evaluate.games")
+except ImportError:
+    from pipelines.train import train
+    evaluation = importlib.import_module("pipelines.evaluate")
 
 config_path, frames, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 config = load_config(config_path, [f"collector.total_frames={frames}", "train.max_games=null", "eval.games=10",
                                    "eval.periodic_games=10", "logger.mcap=false", "logger.progress=false",
                                    "checkpoint.every_frames=10000000"])
 eval_cpu = [0.0]
-real_eval = pipelines.evaluate.games.evaluate_agent
+real_eval = evaluation.evaluate_agent
 
 def timed_eval(*args, **kwargs):
     start = time.process_time()
@@ -48,7 +53,7 @@ def timed_eval(*args, **kwargs):
     finally:
         eval_cpu[0] += time.process_time() - start
 
-pipelines.evaluate.games.evaluate_agent = timed_eval
+evaluation.evaluate_agent = timed_eval
 marks = []  # (frames collected, CPU s, eval CPU s) at every batch handed to the loop
 real_iter = torchrl.collectors.Collector.__iter__
 
@@ -95,8 +100,8 @@ def main() -> None:
     parser.add_argument("--configs", nargs="+", default=CONFIGS)
     args = parser.parse_args()
     old = Path(args.old).resolve()
-    if not (old / "pipelines" / "train.py").is_file():
-        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/train/run.py); expected a checkout of the base commit")
+    if not (old / "pipelines" / "config.py").is_file():
+        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/config.py); expected a checkout of the base commit")
     print(f"load average at start: {os.getloadavg()[0]:.1f}; frames per run {args.frames}; rounds {args.rounds}")
     for config in args.configs:
         times: dict[str, list[float]] = {"old": [], "new": []}

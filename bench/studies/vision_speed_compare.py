@@ -1,11 +1,11 @@
 """Board reading of two source trees on the same photos: speed (interleaved runs, so a busy machine affects
 both alike) and what each reads.
 
-    git archive 1c89ae0 vision | tar -x -C /tmp/vision_old      # the reader before issue 15
-    python bench/vision_speed_compare.py --old /tmp/vision_old --frames 15 --rounds 3           # speed
-    python bench/vision_speed_compare.py --old /tmp/vision_old --split heldout --frames 100 \
+    git archive 1c89ae0 vision | tar -x -C /tmp/vision_old      # an older reader
+    python bench/studies/vision_speed_compare.py --old /tmp/vision_old --frames 15 --rounds 3           # speed
+    python bench/studies/vision_speed_compare.py --old /tmp/vision_old --split heldout --frames 100 \
         --repeats 0 --rounds 1                                                                  # accuracy
-    python bench/vision_speed_compare.py --old /tmp/vision_old --own-weights                    # new weights too
+    python bench/studies/vision_speed_compare.py --old /tmp/vision_old --own-weights                    # new weights too
 
 The photos are made by the new tree's generator and saved as PNG (lossless), so the old reader, which has
 no "harsh" conditions, reads exactly the same pixels. Split "tuning": clean photos (TEST_SEED + 70,000) and

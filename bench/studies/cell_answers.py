@@ -3,7 +3,7 @@ how often the cell phrase is heard as its cell, as no cell, or as another cell, 
 confirmation; with `--lone-words` also a lone "yes" / "no" heard through the cell phrases' LM (the design this
 replaced: why the confirmation is a whole sentence with its own LM, speech/cell_answers.py).
 
-    python bench/cell_answers.py [--repeats 2] [--seed 12345] [--lone-words]
+    python bench/studies/cell_answers.py [--repeats 2] [--seed 12345] [--lone-words]
 
 The person's voices are the four flite voices at their normal rate (robot play's), babble talkers the report set
 of speech/fit.py; every 3x3 cell phrase `--repeats` times per voice, each confirmation 4 times per voice.
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from speech.asr import Recogniser  # noqa: E402
 from speech.cell_answers import (CONFIRM_NO, CONFIRM_YES, answer_sentences, cell_of, cell_phrase,  # noqa: E402
