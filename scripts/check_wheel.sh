@@ -66,8 +66,10 @@ log "no extra installed (sapien, pocketsphinx, fastapi, uvicorn, websockets, htt
 # 5. the main job's commands, shortened, from an empty folder (nothing of the clone on the path)
 ncbot="$work/venv/bin/ncbot"
 rm -rf "$work/empty" && mkdir -p "$work/empty" && cd "$work/empty"
-config=$(env -u PYTHONPATH "$py" -c "import pathlib, pipelines; print(pathlib.Path(pipelines.__file__).parent / 'configs' / 'default.yaml')")
-case "$config" in "$work/venv/"*) ;; *) fail "pipelines comes from $config, not from the installed wheel" ;; esac
+where=$(env -u PYTHONPATH "$py" -c "import pipelines; print(pipelines.__file__)")
+case "$where" in "$work/venv/"*) ;; *) fail "pipelines comes from $where, not from the installed wheel" ;; esac
+# the README's path: no pipelines/ folder here, so ncbot reads the config shipped in the wheel
+config=pipelines/configs/default.yaml
 env -u PYTHONPATH "$ncbot" version
 env -u PYTHONPATH "$ncbot" train "$config" --out run collector.total_frames=4096 collector.init_random_frames=512 \
   eval.games=50 eval.periodic_games=50 train.eval_every_frames=2048 checkpoint.every_frames=2048 >train.log 2>&1 \
