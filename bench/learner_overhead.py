@@ -5,7 +5,7 @@
 
 Why: at the paper's batch of 2 an update is almost all fixed cost (TensorDict plumbing, replay sampling, optimiser,
 collector), so `reproduce --budget full` pays ~12 CPU hours mostly for overhead. This bench prices that overhead as
-a run pays it: each round runs `pipelines.train.train` of each config once in a fresh subprocess per tree (old,
+a run pays it: each round runs `pipelines.train.run.train` of each config once in a fresh subprocess per tree (old,
 new, alternately, so a burst of load on this shared machine hits both alike) and times, in CPU seconds of that
 process (`time.process_time`), the training loop after the burn-in (`collector.init_random_frames`), minus the
 periodic evaluations inside it. It patches only the timing hooks (the Collector's iterator and `evaluate_agent`),
@@ -30,16 +30,16 @@ CONFIGS = ["pipelines/configs/paper/standard_proposed_temporal.yaml",
 CHILD = r"""
 import json, sys, time
 import torchrl.collectors
-import pipelines.evaluate
+import pipelines.evaluate.games
 from pipelines.config import load_config
-from pipelines.train import train
+from pipelines.train.run import train
 
 config_path, frames, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 config = load_config(config_path, [f"collector.total_frames={frames}", "train.max_games=null", "eval.games=10",
                                    "eval.periodic_games=10", "logger.mcap=false", "logger.progress=false",
                                    "checkpoint.every_frames=10000000"])
 eval_cpu = [0.0]
-real_eval = pipelines.evaluate.evaluate_agent
+real_eval = pipelines.evaluate.games.evaluate_agent
 
 def timed_eval(*args, **kwargs):
     start = time.process_time()
@@ -48,7 +48,7 @@ def timed_eval(*args, **kwargs):
     finally:
         eval_cpu[0] += time.process_time() - start
 
-pipelines.evaluate.evaluate_agent = timed_eval
+pipelines.evaluate.games.evaluate_agent = timed_eval
 marks = []  # (frames collected, CPU s, eval CPU s) at every batch handed to the loop
 real_iter = torchrl.collectors.Collector.__iter__
 
@@ -96,7 +96,7 @@ def main() -> None:
     args = parser.parse_args()
     old = Path(args.old).resolve()
     if not (old / "pipelines" / "train.py").is_file():
-        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/train.py); expected a checkout of the base commit")
+        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/train/run.py); expected a checkout of the base commit")
     print(f"load average at start: {os.getloadavg()[0]:.1f}; frames per run {args.frames}; rounds {args.rounds}")
     for config in args.configs:
         times: dict[str, list[float]] = {"old": [], "new": []}

@@ -34,7 +34,7 @@ def main() -> None:
     from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
     from pipelines.agents import guided_search, load_agent
     from pipelines.run_env import make_run_env
-    from pipelines.train import make_collector
+    from pipelines.train.build import make_collector
 
     torch.set_num_threads(1)
     config, greedy = load_agent(args.checkpoint)

@@ -1,6 +1,6 @@
 """TorchRL speed hooks of the dialogue env: exact shortcuts past EnvBase's generic per-key passes.
 
-Why separate: these overrides change no number (``tests/test_env_speed.py`` compares them with TorchRL's own
+Why separate: these overrides change no number (``tests/envs/test_env_speed.py`` compares them with TorchRL's own
 path); they only skip work that EnvBase does for any env and that ours never needs. Keeping them apart leaves
 ``envs.dialogue_env`` about the game itself.
 """
@@ -20,7 +20,7 @@ class FastProcHooks:
 
         Why exact: ``_step`` always emits ``reward`` (B, 1) and the three done keys in their spec shapes, so
         the generic pass (reshape the reward to its spec, add missing done keys) changes nothing; only the
-        optional type checks (``run_type_checks``) go through it. ``tests/test_env_speed.py`` compares both.
+        optional type checks (``run_type_checks``) go through it. ``tests/envs/test_env_speed.py`` compares both.
         """
         if self.run_type_checks:
             return super()._step_proc_data(next_tensordict)

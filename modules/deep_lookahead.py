@@ -15,7 +15,7 @@ and the rare two-line subgrid is credited to the robot (as ``envs.opponents.line
 
 The search runs on the opponents' bitboards (``envs.opponents.bitboards``), one Python search per game that needs
 it: games with at most one safe move skip it. Exactness is tested against a
-brute-force search over ``envs.rules`` (tests/test_deep_lookahead.py); cost per decision: bench/lookahead_cost.py.
+brute-force search over ``envs.rules`` (tests/modules/test_deep_lookahead.py); cost per decision: bench/lookahead_cost.py.
 
 Rule names: ``k1`` .. ``k5`` assume the paper's ``free_move="anywhere"``; ``k1_open`` .. ``k5_open`` the
 ``open_subgrids`` variant. A rule that meets a root mask contradicting its variant raises ValueError.

@@ -31,7 +31,9 @@ LOOKAHEAD_RULES: dict[str, MaskRule] = {
     **{f"k{plies}_open": KStepLookahead(plies, "open_subgrids") for plies in range(1, MAX_PLIES + 1)},
 }
 
-AGENT_LOOKAHEAD: dict[str, str] = {"dqn_original": "none", "dqn_variant": "variant", "proposed": "one_step"}
+# each agent's own mask rule; `uniform` (no learning, a uniform choice inside the greedy mask) takes Proposed's
+AGENT_LOOKAHEAD: dict[str, str] = {"dqn_original": "none", "dqn_variant": "variant", "proposed": "one_step",
+                                   "uniform": "one_step"}
 
 
 def lookahead_rule(name: str) -> MaskRule:

@@ -3,15 +3,13 @@
 Every hyper-parameter is named and documented here, in one place (CleanRL style). `load_config(path, overrides)`
 reads a YAML file, applies `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key
 and what is allowed; the CLI turns that into exit code 2. Validation is pydantic's (strict types, `extra="forbid"`,
-range constraints on the fields); this module only turns pydantic's error list into that one line.
+range constraints on the fields); `pipelines.config_errors` turns pydantic's error list into that one line.
 
 Importing this module stays light (pydantic and yaml, no torch): the CLI and tools read configs without paying
 for torch.
 """
 from __future__ import annotations
 
-import types
-import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -19,7 +17,8 @@ import yaml
 
 from fileio.yaml_file import read_yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
-from pydantic.fields import FieldInfo
+
+from pipelines.config_errors import validation_line
 
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
@@ -116,9 +115,11 @@ class EnvConfig(Section):
 
 
 class AgentConfig(Section):
-    """Which learner: the paper's three agents, each with its own look-ahead masks."""
+    """Which learner: the paper's three agents, each with its own look-ahead masks, or `uniform`: no learning, a
+    uniform choice inside the greedy mask of `lookahead` (default Proposed's one-step masks), the baseline that
+    shows what learning adds (pipelines/train/uniform.py)."""
 
-    name: Literal["dqn_original", "dqn_variant", "proposed"] = "proposed"
+    name: Literal["dqn_original", "dqn_variant", "proposed", "uniform"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
@@ -143,7 +144,7 @@ class BufferConfig(Section):
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
-    # prioritised replay (Schaul et al. 2016; pipelines/prioritized_sampler.py, TorchRL's PrioritizedSampler
+    # prioritised replay (Schaul et al. 2016; modules/prioritized_sampler.py, TorchRL's PrioritizedSampler
     # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
     # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session); on 3x3 it cuts
@@ -247,7 +248,7 @@ class CheckpointConfig(Section):
 
 
 class SelfPlayConfig(Section):
-    """Self-play option of a run (section ``selfplay``; pipelines/selfplay.py): the user's moves by frozen snapshots."""
+    """Self-play option of a run (section ``selfplay``; pipelines/train/selfplay.py): the user's moves by frozen snapshots."""
 
     enabled: bool = False
     pool_size: Annotated[int, Field(gt=0, le=1_000)] = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
@@ -326,98 +327,6 @@ class RunConfig(Section):
         return self.model_dump()
 
 
-# --- pydantic's error list -> one line naming the key and what is allowed ------------------------------------------
-
-def _type_name(annotation: Any) -> str:
-    origin = typing.get_origin(annotation)
-    if origin is Annotated:
-        return _type_name(typing.get_args(annotation)[0])
-    if origin is Literal:
-        return "one of " + ", ".join(repr(v) for v in typing.get_args(annotation))
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_name(a) for a in typing.get_args(annotation))
-    if annotation is type(None):
-        return "null"
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return f"a mapping of {', '.join(annotation.model_fields)}"
-    if origin is list:
-        return f"a list of {_type_name(typing.get_args(annotation)[0])}"
-    if origin is dict:
-        return "a mapping"
-    return {int: "an integer", float: "a number", bool: "true/false", str: "a string"}.get(annotation, str(annotation))
-
-
-def _bounds(annotation: Any, field: FieldInfo | None = None) -> str:
-    """The range constraints of a field, e.g. '> 0' or 'between 0 and 1'."""
-    metadata = list(field.metadata) if field is not None else []
-    if typing.get_origin(annotation) in (typing.Union, types.UnionType):  # `Positive | None`: the number's bounds
-        annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
-    while typing.get_origin(annotation) is Annotated:
-        annotation, *extra = typing.get_args(annotation)
-        metadata += [m for item in extra for m in (item.metadata if isinstance(item, FieldInfo) else [item])]
-    limits = {key: getattr(m, key) for m in metadata for key in ("gt", "ge", "lt", "le") if getattr(m, key, None) is not None}
-    if "ge" in limits and "le" in limits:
-        return f"between {_number(limits['ge'])} and {_number(limits['le'])}"
-    symbols = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-    return " and ".join(f"{symbols[key]} {_number(value)}" for key, value in limits.items())
-
-
-def _number(value: float) -> str:
-    """A bound as people write it: 65536, 0.5 (no 6.5e+04)."""
-    return str(value) if isinstance(value, int) else f"{value:g}"
-
-
-def _describe(loc: tuple[Any, ...]) -> tuple[str, Any, FieldInfo | None, type[BaseModel]]:
-    """Walk an error location through the models: (dotted key, its annotation, its field, the model holding it)."""
-    model: type[BaseModel] = RunConfig
-    key, annotation, field = "", None, None
-    for part in loc:
-        if annotation is None:
-            if part not in model.model_fields:
-                return f"{key}.{part}" if key else str(part), None, None, model
-            field = model.model_fields[part]
-            key = f"{key}.{part}" if key else str(part)
-            annotation = field.annotation
-            if typing.get_origin(annotation) in (typing.Union, types.UnionType) and loc[-1] != part:  # `Section | None`
-                annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
-            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-                model, annotation, field = annotation, None, None
-        elif isinstance(part, int):
-            while typing.get_origin(annotation) is Annotated:
-                annotation = typing.get_args(annotation)[0]
-            if typing.get_origin(annotation) is not list:
-                break
-            key, annotation, field = f"{key}[{part}]", typing.get_args(annotation)[0], None
-    return key, annotation, field, model
-
-
-def _one_line(error: ValidationError) -> str:
-    """The first problem pydantic found, as the one line the CLI prints."""
-    first = error.errors(include_url=False)[0]
-    kind, loc, value = first["type"], first["loc"], first.get("input")
-    if kind == "value_error":  # raised by a validator above with its own sentence
-        return str(first["ctx"]["error"])
-    key, annotation, field, model = _describe(loc)
-    if kind == "extra_forbidden":
-        return f"unknown config key '{key}'; allowed: {', '.join(model.model_fields)}"
-    if annotation is None:  # a whole section has the wrong type
-        return f"config section '{key or 'root'}' must be a mapping, got {value!r}"
-    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        return f"config key '{key}' must be {_bounds(annotation, field)}, got {value!r}"
-    if kind == "too_short" and typing.get_origin(annotation) is not Literal:
-        return f"config key '{key}' must be a non-empty list, got {value!r}"
-    if kind == "too_long":
-        return f"config key '{key}' must be a list of at most {first['ctx']['max_length']} items, got {len(value)}"
-    if kind == "finite_number":
-        return f"config key '{key}' must be a finite number, got {value!r}"
-    bounds = _bounds(annotation, field)
-    members = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else ()
-    if bounds and type(None) in members:  # `Positive | None`: "an integer > 0 or null"
-        kind_name = _type_name(next(a for a in members if a is not type(None)))
-        return f"config key '{key}' must be {kind_name} {bounds} or null, got {value!r}"
-    return f"config key '{key}' must be {_type_name(annotation)}{' ' + bounds if bounds else ''}, got {value!r}"
-
-
 # --- loading -----------------------------------------------------------------------------------------------------
 
 def parse_override(text: str) -> tuple[list[str], Any]:
@@ -459,7 +368,7 @@ def config_from_dict(data: dict[str, Any]) -> RunConfig:
     try:
         return RunConfig.model_validate(data)
     except ValidationError as error:
-        raise ValueError(_one_line(error)) from None
+        raise ValueError(validation_line(error, RunConfig)) from None
 
 
 def shipped_config(path: str | Path) -> Path:
