@@ -31,10 +31,15 @@ def scheduled_lr(config: RunConfig, frames: int) -> float:
 
 
 def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
-                       beta: float = 0.4) -> TensorDictReplayBuffer:
+                       beta: float = 0.4, sequence_length: int | None = None) -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
     RandomSampler or, `prioritized`, a proportional one (`pipelines.prioritized_sampler`: rows drawn by the loss's
-    |TD error|, each with its importance weight `priority_weight`)."""
+    |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
+    of dialogues (`modules.recurrent.make_sequence_buffer`)."""
+    if sequence_length is not None:
+        from modules.recurrent import make_sequence_buffer
+
+        return make_sequence_buffer(size, batch_size, sequence_length)
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
     return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
                                   batch_size=batch_size)
@@ -69,8 +74,16 @@ class Learner:
     @classmethod
     def from_config(cls, qnet: TensorDictModule, config: RunConfig,
                     symmetries: BoardSymmetries | None = None) -> "Learner":
-        loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function, double_dqn=config.loss.double_dqn,
-                                         precision=config.optim.precision)
+        if config.agent.memory != "none":  # slices of dialogues through the recurrent network (modules/recurrent.py)
+            from modules.recurrent import SequenceDQNLoss
+
+            loss_module = SequenceDQNLoss(qnet, sequence_length=config.buffer.sequence_length,
+                                          burn_in=config.buffer.burn_in, loss_function=config.loss.loss_function,
+                                          double_dqn=config.loss.double_dqn, symmetries=symmetries)
+            symmetries = None  # the loss turns whole slices
+        else:
+            loss_module = CompetitiveDQNLoss(qnet, loss_function=config.loss.loss_function,
+                                             double_dqn=config.loss.double_dqn, precision=config.optim.precision)
         loss_module.set_keys(**LOSS_KEYS)  # the learning reward and bootstrap mask of modules/transitions.py
         loss_module.make_value_estimator(gamma=config.loss.gamma)
         updater = make_target_updater(loss_module, config.loss.target_update, config.loss.target_period, config.loss.tau)

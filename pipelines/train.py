@@ -121,7 +121,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
 def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
     from modules.policy import make_policies
-    from modules.qnet import make_qnet, seeded_init
+    from modules.recurrent import SequenceRows, make_agent_qnet, memory_env
     from modules.symmetry import make_symmetries
     from modules.transitions import make_multistep, prepare_transitions
     from pipelines.evaluate import evaluate_agent
@@ -148,13 +148,13 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
 
         selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
     env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
-    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
-    seeded_init(qnet, seed)
+    qnet = make_agent_qnet(env.n_features, env.n_actions, config.agent, seed)  # the MLP, or agent.memory's network
     agent = make_policies(
         qnet, env.action_spec_unbatched, config.lookahead,
         eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
         annealing_frames=config.collector.annealing_frames,
     )
+    env = memory_env(env, agent.explore)  # agent.memory: is_init and the hidden state carried by the env
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     symmetries = make_symmetries(config.buffer.augment, env, seed)
@@ -165,7 +165,9 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
         learner.teacher_weight, learner.teacher_margin = config.search_targets.weight, config.search_targets.margin
     multistep = make_multistep(config.loss.n_step, config.loss.gamma)  # n-step returns when loss.n_step > 1
     buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size, prioritized=config.buffer.prioritized,
-                                alpha=config.buffer.alpha, beta=config.buffer.beta)
+                                alpha=config.buffer.alpha, beta=config.buffer.beta,
+                                sequence_length=config.buffer.sequence_length if config.agent.memory != "none" else None)
+    sequence_rows = SequenceRows(config.agent.memory) if config.agent.memory != "none" else None
 
     counters = {"frames": 0, "updates": 0, "episodes": 0, "wall_offset": 0.0}
     history: list[dict[str, Any]] = []
@@ -236,7 +238,10 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
             # learning reward, bootstrap mask and n-step windows under their own keys (modules/transitions.py)
-            buffer.extend(prepare_transitions(batch, config, multistep))
+            transitions = prepare_transitions(batch, config, multistep)
+            if sequence_rows is not None:  # agent.memory: + dialogue id, step, is_init and hidden state
+                transitions = sequence_rows(batch, transitions, counters["frames"] - frames)
+            buffer.extend(transitions)
             if teacher is not None and counters["frames"] >= config.search_targets.start_frames:
                 teacher.label(batch)
             if mcap_logger is not None:
