@@ -133,11 +133,12 @@ def memory_env(env: EnvBase, policy) -> EnvBase:
 
 
 def require_feedforward(config, what: str) -> None:
-    """One-line error for the tools that read the Q-network as an MLP (one position, no history)."""
+    """One-line error for the tools that run the Q-network one position at a time, without the dialogue's history
+    (searches, the agent opponent, play/serve/robot): not built for agent.memory yet."""
     memory = getattr(config.agent, "memory", "none")
     if memory != "none":
-        raise ValueError(f"{what} reads the Q-network as a feed-forward MLP; this agent has agent.memory={memory} "
-                         "(a recurrent network needs the dialogue's history)")
+        raise ValueError(f"{what} does not support agent.memory={memory} yet (it reads the Q-network one position "
+                         "at a time, without the dialogue's history); ncbot eval and a plain ncbot ladder do")
 
 
 # --- sequence replay --------------------------------------------------------------------------------------------

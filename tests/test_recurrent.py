@@ -207,6 +207,12 @@ def test_tiny_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     numbers = json.loads(result.stdout)
     assert numbers["games"] == 40 and 0.0 <= numbers["task_success"] <= 1.0
+    from pipelines.agents import load_agent, load_robot
+
+    with pytest.raises(ValueError, match="agent.memory=gru"):  # e.g. ncbot play: it steps its own env
+        load_agent(run / "checkpoint.pt")
+    with pytest.raises(ValueError, match="agent.memory=gru"):
+        load_robot(str(run / "checkpoint.pt"), search=4)
 
 
 def test_memory_refuses_what_reads_the_network_as_an_mlp(tmp_path: Path) -> None:
