@@ -164,7 +164,8 @@ class SequenceRows:
 
     def __init__(self, memory: str) -> None:
         self.state_keys = STATE_KEYS[check_memory(memory)] if memory != "none" else ()
-        self.current: torch.Tensor | None = None
+        self.current: torch.Tensor | None = None  # per env row: the id of its running dialogue
+        self.steps: torch.Tensor | None = None  # per env row: the step number its next step will have
 
     def __call__(self, batch: TensorDictBase, transitions: TensorDictBase, frames_before: int) -> TensorDictBase:
         rows, steps = batch.shape
@@ -181,12 +182,10 @@ class SequenceRows:
         # the step number counts from each dialogue's first step (also for one that began in an earlier batch)
         first_seen = torch.where(is_init, torch.arange(steps).expand(rows, steps), torch.full_like(frame, -1))
         last_start = first_seen.cummax(dim=1).values
-        carried = getattr(self, "_steps", None)
-        if carried is None or carried.shape[0] != rows:
-            carried = torch.zeros(rows, dtype=torch.long)
+        carried = self.steps if self.steps is not None and self.steps.shape[0] == rows else torch.zeros(rows, dtype=torch.long)
         step = torch.where(last_start >= 0, torch.arange(steps) - last_start,
                            carried.unsqueeze(1) + torch.arange(steps))
-        self._steps = step[:, -1] + 1
+        self.steps = step[:, -1] + 1
         flat = transitions.set(IS_INIT_KEY, is_init.reshape(-1, 1))
         flat.set(EPISODE_KEY, episode.reshape(-1))
         flat.set(STEP_KEY, step.reshape(-1))

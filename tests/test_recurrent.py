@@ -84,9 +84,18 @@ def test_batched_env_partial_resets_mark_is_init_and_restart_the_state() -> None
     env, qnet = _network("gru")
     policies = make_policies(qnet, env.action_spec_unbatched, "one_step", eps_init=0.3)
     env = memory_env(env, policies.explore)
-    collector = make_collector(env, policies.explore, 4 * 40, 4 * 40)
-    batch = next(iter(collector))
+    collector = make_collector(env, policies.explore, 4 * 20, 4 * 40)
+    rows, config, frames, batches = SequenceRows("gru"), load_config(_tiny_path(), []), 0, []
+    for part in collector:  # two batches: dialogues running across the batch boundary keep their id and count on
+        tagged = rows(part, prepare_transitions(part, config), frames)
+        frames += part.numel()
+        assert torch.equal(tagged.get(STEP_KEY), part.get("turn").reshape(-1))  # the env's own count of acts
+        batches.append((part.clone(), tagged.get(EPISODE_KEY).reshape(4, -1)))
     collector.shutdown()
+    batch = torch.cat([part for part, _ in batches], dim=1)
+    episode = torch.cat([ids for _, ids in batches], dim=1)
+    assert torch.equal(episode[:, 1:] != episode[:, :-1], batch.get(IS_INIT_KEY).squeeze(-1)[:, 1:])
+    assert len(set(episode.flatten().tolist())) == int(batch.get(IS_INIT_KEY).sum())  # one id per dialogue
     is_init = batch.get(IS_INIT_KEY).squeeze(-1)
     done = batch.get(("next", "done")).squeeze(-1)
     assert bool(is_init[:, 0].all())
