@@ -6,7 +6,7 @@ Run by hand (figures go to docs/ultimate.md, "A faster search"):
     python bench/guided_search_speed.py CHECKPOINT --value VALUE.pt --budgets 1600 4000 --positions 12
     python bench/guided_search_speed.py PLAIN.pt THREATS.pt --budgets 100 400   # Q-value leaves, two agents in one run
 
-Issue 17 gives the robot 0.2 CPU s per move on one core; the stronger the search within that budget, the better
+The robot has 0.2 CPU s per move on one core; the stronger the search within that budget, the better
 it plays against ``mcts:10000``. Positions come from seeded random openings of 4 to 40 moves (Ultimate), the same
 for every row. The "torch reads" row reads both networks through ``nn.Module`` instead of the search's numpy
 reader (``modules.qnet.MLPReader``): the two rows' ratio is the reader's gain on this machine, measured in one run.

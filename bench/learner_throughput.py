@@ -65,9 +65,9 @@ class Ours:
         from modules.symmetry import make_symmetries
         from modules.transitions import make_multistep, prepare_transitions
         from pipelines.config import load_config
-        from pipelines.learner import Learner, make_replay_buffer
+        from modules.learner import Learner, make_replay_buffer
         from pipelines.run_env import make_run_env
-        from pipelines.train import frames_per_batch, make_collector
+        from pipelines.train.build import frames_per_batch, learner_settings, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -79,7 +79,7 @@ class Ours:
             seeded_init(qnet, 0)
             learner_config = load_config(config_path, [f"optim.precision={precision}"])
             symmetries = make_symmetries(config.buffer.augment, self.env, 0)  # buffer.augment: as training runs it
-            self.learners[precision] = Learner.from_config(qnet, learner_config, symmetries)
+            self.learners[precision] = Learner.build(qnet, learner_settings(learner_config), symmetries)
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
@@ -88,7 +88,10 @@ class Ours:
         batches = iter(self.collector)
 
         def collect() -> None:  # what the training loop does with a collected batch before the updates
-            self.buffer.extend(prepare_transitions(next(batches), config, multistep))
+            self.buffer.extend(prepare_transitions(next(batches), reward=config.loss.reward,
+                                                   loss_reward=config.loss.loss_reward,
+                                                   bootstrap=config.loss.bootstrap, lookahead=config.lookahead,
+                                                   multistep=multistep))
 
         self.collect = collect
         while len(self.buffer) < config.buffer.size:  # a full buffer, as for most of a training run
@@ -165,9 +168,11 @@ def levers(config_path: str, seconds: float, rounds: int, compile_too: bool) -> 
     from torch import nn
 
     from pipelines.config import load_config
+    from pipelines.train.build import env_sizes
 
     config = load_config(config_path)
-    batch, hidden, features, actions = config.buffer.batch_size, config.agent.hidden, 73, 18
+    features, actions = env_sizes(config)  # the config's env: its observation features and actions
+    batch, hidden = config.buffer.batch_size, config.agent.hidden
     torch.manual_seed(0)
     widths = [features, *hidden]
     layers: list[nn.Module] = []

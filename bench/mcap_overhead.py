@@ -146,7 +146,7 @@ def bench_train_share(config: str, frames: int, repeats: int) -> None:
     Immune to the between-run noise of a shared machine: both times come from one run. The logger's
     calls (record_steps, which also compresses and writes chunks, and close) are wrapped with a timer."""
     from logs import EpisodeLogger
-    from pipelines.train import resolve_run, train
+    from pipelines.train.run import resolve_run, train
 
     spent = {"seconds": 0.0, "calls": 0}
     original_record, original_close = EpisodeLogger.record_steps, EpisodeLogger.close

@@ -5,7 +5,7 @@ Run by hand (figures go to docs/opponents.md):
     python bench/mcts_speed.py                 # both games, 100 games per strength row
     python bench/mcts_speed.py --games 300 --budgets 10 100 300
 
-The issue's goal: enough simulations per second that a 100-simulation game against random plays in under
+The goal: enough simulations per second that a 100-simulation game against random plays in under
 0.2 s. "needed sims/s" below is that requirement for the measured number of MCTS decisions per game.
 Timings on a shared machine are noisy; run twice and keep the better figure when others are busy.
 """

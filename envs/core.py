@@ -22,6 +22,20 @@ ROBOT, HUMAN = 1, 2  # the env's board codes of the two seats, whoever opens
 SEATS = {ROBOT: "robot", HUMAN: "human"}
 DRAWN = 3  # a drawn subgrid (Ultimate owner grid), and a drawn game in the outcome codes below
 
+# The paper's ambiguous readings, each a named option (first value = the default; docs/env.md "Readings").
+# taken_squares: can the robot choose a square that is taken? Section 3: "all game moves were allowed from the
+#   subset of those not taken yet (to the robot's knowledge)", yet the rewards price "a repeated (already taken)
+#   action" at -5. never: only untaken squares are offered; refused: taken squares are offered too, refused at -5
+#   with nothing changed; misread: the robot's knowledge of the board can be wrong (a misread user move), a square
+#   really taken is refused at -5 and the refusal corrects the robot's knowledge.
+TAKEN_SQUARES_CHOICES = ("never", "refused", "misread")
+# win_set: what ``winning_actions`` (Algorithm 2's set A when non-empty) holds. wins_and_threats: every +5 move
+#   (wins and "about to win" threats); wins: "action(s) leading to win (legally) the game", the moves that win now.
+WIN_SET_CHOICES = ("wins_and_threats", "wins")
+# about_to: when "+5 ... about to win" is paid. standing: on every move after which the robot has a winning
+#   square; created: only on the move that creates it (the robot had no winning square before its move).
+ABOUT_TO_CHOICES = ("standing", "created")
+
 # Who opens a dialogue's game: the one name ``first`` (env option, config key, CLI option).
 FIRST_CHOICES = ("robot", "human", "alternate", "random")
 
@@ -58,6 +72,13 @@ def check_game(game: str) -> str:
     if game not in GAME_CHOICES:
         raise ValueError(f"game must be one of {', '.join(GAME_CHOICES)}; got {game!r}")
     return game
+
+
+def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
+    """``value`` if it is one of ``choices``; one-line ValueError naming the option ``name`` and the choices."""
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(choices)}; got {value!r}")
+    return value
 
 
 def check_free_move(free_move: str) -> str:

@@ -15,10 +15,10 @@ This module is the TorchRL adapter and the step; what it reads is built elsewher
 specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
 ``envs.env_speed``. Who opens is the option ``first`` (``env.first``); ``starts`` is its deprecated spelling.
 
-Two options read the paper more literally (both off by default, on in the paper configs; docs/reproduction.md):
-``offer_taken_cells`` offers the robot's taken squares in ``action_mask`` on its turn (choosing one is a refused
-act: -5, the board and the dialogue stay, the user does not move, the robot chooses again), and
-``dialogues="paper"`` learns the act filter, the vocabulary and the user from the paper-shaped example
+The paper's ambiguous readings are options (defaults = this project's first reading; the paper configs set the
+readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
+``misread_rate``) decides whether and why the robot can choose a taken square, ``win_set`` what
+``winning_actions`` holds, ``about_to`` when "about to win" pays, and ``dialogues="paper"`` learns the act filter, the vocabulary and the user from the paper-shaped example
 dialogues ("your turn" before every user move). ``dialogue_subset=(k, seed)`` learns them from a seeded subset of
 k example dialogues (the data-budget curve), with the whole set's vocabulary so the features keep their size.
 """
@@ -41,7 +41,9 @@ from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests a
 )
 from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
 from envs.engine.tables import uniform_choice_by_rows
-from envs.env_options import check_batch, check_confidence, check_hearing, check_subset, first_of, resolve_opponent
+from envs.env_options import (
+    check_batch, check_confidence, check_hearing, check_subset, check_taken_squares, first_of, resolve_opponent,
+)
 from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 
 STARTS_CHOICES = FIRST_CHOICES  # the deprecated spelling's name, kept for old imports
@@ -71,7 +73,10 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         asr_confidence: tuple[float, float] = (0.0, 1.0),
         max_actions: int = 100,
         starts: str | None = None,
-        offer_taken_cells: bool = False,
+        taken_squares: str = "never",
+        misread_rate: float | None = None,
+        win_set: str = "wins_and_threats",
+        about_to: str = "standing",
         dialogues: str = "compact",
         hearing: Any = None,
         dialogue_subset: tuple[int, int] | None = None,
@@ -84,17 +89,19 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         low, high = check_confidence(asr_confidence)
         if not isinstance(max_actions, int) or max_actions < 1:
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
-        if not isinstance(offer_taken_cells, bool):
-            raise ValueError(f"offer_taken_cells must be true or false, got {offer_taken_cells!r}")
+        taken_squares, misread_rate = check_taken_squares(taken_squares, misread_rate)
         if not isinstance(threat_features, bool):
             raise ValueError(f"threat_features must be true or false, got {threat_features!r}")
         self.threat_features = threat_features  # beyond the paper: envs/threat_features.py
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
-        self.offer_taken_cells, self.dialogues = offer_taken_cells, dlg.dialogue_set(dialogues).name
+        self.taken_squares, self.misread_rate = taken_squares, misread_rate
+        self._refused, self._misread = taken_squares == "refused", taken_squares == "misread"
+        self.dialogues = dlg.dialogue_set(dialogues).name
         self.dialogue_subset = check_subset(dialogue_subset)
-        self.engine = make_engine(game, free_move)
+        self.engine = make_engine(game, free_move, win_set=win_set, about_to=about_to)
+        self.win_set, self.about_to = win_set, about_to
         self.cells = self.engine.cells
         self.model = dlg.build_dialogue_model(game, self.dialogues, self.dialogue_subset)
         self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
@@ -107,6 +114,9 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
         for name, table in step_tables(self.model, self.engine, self.n_actions, (low, high)).items():
             setattr(self, name, table)
+        if self._misread and self._code_legal is not None:  # 3x3: the believed board's empty squares, by its code
+            empty = self.engine.empty_rows_by_code()
+            self._code_empty = torch.cat([empty, torch.ones(len(empty), self.n_actions - self.cells, dtype=torch.bool)], dim=1)
         self._reply_key: tuple | None = None  # what _reply_tables last derived its tables from
         self._all_games = torch.arange(batch)
         self._init_state(batch)
@@ -121,6 +131,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
     # ------------------------------------------------------------------ construction helpers
     def _init_state(self, batch: int) -> None:
         self.boards = self.engine.new(batch)
+        # taken_squares="misread": the robot's knowledge of the board (what it observes); else the board itself
+        self.belief = self.engine.new(batch) if self._misread else self.boards
         self.d = DialogueState()
         self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
         self.d.talk = torch.zeros(batch, dtype=torch.int64)
@@ -136,6 +148,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone(),
                             self.d.legal[0].clone(), None if self._act_lookahead is None else self.d.winning_moves[0].clone())
+        if self._misread:
+            self.d.misread = torch.zeros(batch, dtype=torch.bool)
         fresh = self._output()  # also fills d.observation / d.winning_actions, which partial resets reuse
         self._fresh_features = (fresh["observation"][0].clone(), fresh["winning_actions"][0].clone())
 
@@ -173,8 +187,12 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         """Recompute the mask and look-ahead of the current state (after a step).
 
         ``d.legal`` is what the step accepts; ``d.mask`` (``action_mask``) is what is offered: the same tensor
-        unless ``offer_taken_cells``, which adds the taken squares on the robot's turn (look-ahead -5).
+        unless ``taken_squares`` is ``refused``, which adds the taken squares on the robot's turn (look-ahead -5),
+        or ``misread`` (``_refresh_misread``), which offers the squares legal on the robot's believed board.
         """
+        if self._misread:
+            self._refresh_misread()
+            return
         cells = self.cells
         context = self.d.talk * N_STAGES + self._stage(self.d.flags)
         dialogue_mask = self._filter_table.index_select(0, context)  # (B, A): moves = "GameMove allowed"
@@ -193,17 +211,57 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
                 self.engine.write_move_rewards(lookahead, self.boards, ROBOT, can_move, winning)
             self.d.winning_moves = winning  # == lookahead == +5 (only a legal move can win)
         self.d.legal, self.d.dialogue_mask, self.d.lookahead = mask, dialogue_mask, lookahead
-        self.d.mask = self._offered(mask, dialogue_mask) if self.offer_taken_cells else mask
+        self.d.mask = self._offered(mask, dialogue_mask) if self._refused else mask
+
+    def _refresh_misread(self) -> None:
+        """``taken_squares="misread"``: what the step accepts and pays from the true board, what the robot is
+        offered and observes (``action_mask``, ``lookahead_reward``, ``winning_actions``) from its believed board.
+
+        ``d.legal`` / ``d.true_lookahead``: the true board's legal acts and one-step rewards (the reward of an
+        accepted act, -5 for a refused one); ``d.mask`` / ``d.lookahead``: the same read off ``self.belief``. The
+        believed board never decides the game (its ``outcome`` is the true one), so its offered squares are its
+        empty (Ultimate: and reachable) squares while the true game goes on. Where the belief is the truth (no
+        misread outstanding) both views are equal and the true look-ahead is not computed twice.
+        """
+        cells, boards, belief = self.cells, self.boards, self.belief
+        belief.outcome = boards.outcome.clone()
+        context = self.d.talk * N_STAGES + self._stage(self.d.flags)
+        dialogue_mask = self._filter_table.index_select(0, context)
+        if self._code_legal is not None:  # 3x3: one row gather per question, for each board
+            code, believed_code = boards.codes[:, 0], belief.codes[:, 0]
+            legal = dialogue_mask & self._code_legal.index_select(0, code)
+            true_lookahead = torch.where(legal, self._code_rewards.index_select(0, code), REWARD_ILLEGAL)
+            mask = dialogue_mask & self._code_empty.index_select(0, believed_code)
+            mask[:, :cells] &= (boards.outcome == 0).unsqueeze(1)
+            lookahead = torch.where(mask, self._code_rewards.index_select(0, believed_code), REWARD_ILLEGAL)
+        else:
+            moves = dialogue_mask[:, 0]
+            can_move = moves & (boards.outcome == 0)
+            talk = dialogue_mask[:, cells:]
+            legal = torch.cat([self.engine.legal(boards, moves), talk], dim=1)
+            mask = torch.cat([self.engine.legal(belief, moves), talk], dim=1)
+            lookahead = self._act_lookahead.index_select(0, context)
+            winning = torch.zeros_like(mask)
+            if bool(can_move.any()):
+                self.engine.write_move_rewards(lookahead, belief, ROBOT, can_move, winning)
+            self.d.winning_moves = winning
+            differs = (belief.board != boards.board).any(1)  # a misread is outstanding (else belief == truth)
+            true_lookahead = lookahead
+            if bool((differs & can_move).any()):
+                true_lookahead = torch.where(differs.unsqueeze(1), self._act_lookahead.index_select(0, context), lookahead)
+                self.engine.write_move_rewards(true_lookahead, boards, ROBOT, can_move & differs)
+        self.d.legal, self.d.dialogue_mask, self.d.lookahead, self.d.mask = legal, dialogue_mask, lookahead, mask
+        self.d.true_lookahead = true_lookahead
 
     def _offered(self, legal: torch.Tensor, dialogue_mask: torch.Tensor) -> torch.Tensor:
-        """``offer_taken_cells``: the legal acts plus every taken square where the filter allows a move (the
+        """``taken_squares="refused"``: the legal acts plus every taken square where the filter allows a move (the
         robot's turn only). Empty squares the rules forbid (Ultimate's redirect) stay out: they are not taken."""
         taken = torch.zeros_like(legal)
         taken[:, : self.cells] = (self.boards.board != 0) & dialogue_mask[:, : self.cells]
         return legal | taken
 
     def _observation(self) -> torch.Tensor:
-        boards = self.boards
+        boards = self.belief  # what the robot knows of the board: the board itself unless taken_squares="misread"
         parts = [*self.engine.mark_parts(boards), self.d.words[:, :-1]]  # one cat makes every part float32
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
@@ -220,9 +278,10 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         """
         mask = self.d.mask
         if reset_rows is None:
-            legal = self.d.legal  # a taken square offered (offer_taken_cells) never wins
-            if self._code_wins is not None:  # 3x3: the moves worth +5 are one row per board code
-                winning = legal & self._code_wins.index_select(0, self.boards.codes[:, 0])
+            # a taken square offered (taken_squares="refused") never wins; "misread": the believed board's
+            legal = self.d.mask if self._misread else self.d.legal
+            if self._code_wins is not None:  # 3x3: the moves worth +5 (or that win: win_set) are one row per board code
+                winning = legal & self._code_wins.index_select(0, self.belief.codes[:, 0])
             else:  # Ultimate: written with the look-ahead (_refresh)
                 winning = self.d.winning_moves
             observation = self._observation()
@@ -247,7 +306,8 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
                 "dialogue_mask": self.d.dialogue_mask,
                 "lookahead_reward": self.d.lookahead,
                 "winning_actions": winning,
-                "board": self.boards.board.clone(),  # resets (and the Ultimate engine) change boards in place
+                # resets (and the Ultimate engine) change boards in place; "misread": the robot's believed board
+                "board": self.belief.board.clone(),
                 "outcome": self.boards.outcome.to(torch.int8).unsqueeze(1),
                 "robot_first": self.d.robot_first,
                 "turn": self.d.turn,
@@ -283,12 +343,13 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         """
         boards = self.boards
         # in place: the engine's tensors never leave the env (outputs copy them), so nobody else holds them
-        grids = [boards.board, boards.codes, boards.move_order, boards.n_marks, boards.outcome]
-        if self.game == "ultimate":  # a 3x3 board has no subgrid owners (the column stays 0)
-            grids.append(boards.owners)
-        for grid in grids:
-            grid.index_fill_(0, index, 0)
-        boards.last_move.index_fill_(0, index, -1)
+        for boards in ((self.boards, self.belief) if self._misread else (boards,)):
+            grids = [boards.board, boards.codes, boards.move_order, boards.n_marks, boards.outcome]
+            if self.game == "ultimate":  # a 3x3 board has no subgrid owners (the column stays 0)
+                grids.append(boards.owners)
+            for grid in grids:
+                grid.index_fill_(0, index, 0)
+            boards.last_move.index_fill_(0, index, -1)
         # never handed out (outputs are built from them): changed in place
         self.d.words.index_fill_(0, index, 0.0)
         self.d.talk.index_fill_(0, index, 0)
@@ -313,7 +374,10 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self.d.mask = paste_rows(self.d.mask, index, mask)
         self.d.dialogue_mask = paste_rows(self.d.dialogue_mask, index, dialogue_mask)
         self.d.lookahead = paste_rows(self.d.lookahead, index, lookahead)
-        self.d.legal = paste_rows(self.d.legal, index, legal) if self.offer_taken_cells else self.d.mask
+        self.d.legal = paste_rows(self.d.legal, index, legal) if self.taken_squares != "never" else self.d.mask
+        if self._misread:  # a new dialogue: belief == truth, one look-ahead
+            self.d.true_lookahead = paste_rows(self.d.true_lookahead, index, lookahead)
+            self.d.misread = self.d.misread.index_fill(0, index, False)
         if winning is not None:  # Ultimate: the winning moves are written with the look-ahead
             self.d.winning_moves = paste_rows(self.d.winning_moves, index, winning)
 
@@ -329,12 +393,15 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
             raise
         index = action.unsqueeze(1)
         accepted = self.d.legal.gather(1, index).squeeze(1)  # an offered taken square is refused
-        reward = self.d.lookahead.gather(1, index)
+        reward = (self.d.true_lookahead if self._misread else self.d.lookahead).gather(1, index)
         said = (act_type + 1) * accepted  # the accepted act's type + 1, 0 if refused: the new "last system act"
+        reread = None  # taken_squares="misread": the games whose believed board becomes the true one this step
 
         robot_moves = said == dlg.MOVE + 1
         if bool(robot_moves.any()):
             self.engine.play(self.boards, action, ROBOT, robot_moves)
+            if self._misread:
+                reread = self._believe_robot_moves(action, robot_moves)
         flags = self.d.flags | self._said_flags.index_select(0, said)
 
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
@@ -350,9 +417,19 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         if bool(user_moves.any()):
             cells_taken = self._user_cells(user_moves)
             self.engine.play(self.boards, cells_taken, USER, user_moves)
+            if self._misread:  # the robot reads the user's mark off the sheet, sometimes wrongly
+                cells_taken, conflict = self._read_user_moves(cells_taken, user_moves)
+                reread = conflict if reread is None else reread | conflict
             user_move = torch.where(user_moves, cells_taken, -1)
         else:
             user_move = torch.full_like(action, -1)
+        if self._misread:
+            if not bool(user_moves.any()):
+                self.d.misread = torch.zeros_like(user_moves)
+            # a refused game move: the robot chose a square it believed free; the sheet is read again
+            refused_move = ~accepted & (act_type == dlg.MOVE)
+            reread = refused_move if reread is None else reread | refused_move
+            self._reread(reread)
         if self.hearing is None:  # uniform ASR: the robot hears the words said, at uniform random confidences
             user_act = self._utterance_acts.index_select(0, utterance)
             columns = self._utterance_word_columns.index_select(0, utterance)
@@ -377,6 +454,51 @@ class DialogueGameEnv(FastProcHooks, EnvBase):
         self._refresh()
 
         return self._output(reward)
+
+    # ------------------------------------------------------------------ taken_squares="misread"
+    def _believe_robot_moves(self, action: torch.Tensor, robot_moves: torch.Tensor) -> torch.Tensor:
+        """The robot's accepted moves on its believed board too; (B,) bool the games to re-read (the square
+        was taken on the believed board: only a policy choosing outside ``action_mask`` gets there)."""
+        belief = self.belief
+        free = belief.board.gather(1, action.clamp(0, self.cells - 1).unsqueeze(1)).squeeze(1) == 0
+        self.engine.play(belief, action, ROBOT, robot_moves & free)
+        return robot_moves & ~free
+
+    def _read_user_moves(self, cells: torch.Tensor, user_moves: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The user's moves ``cells`` (B,) as the robot reads them, played on its believed board.
+
+        With probability ``misread_rate`` per user move (one draw per game from the env's generator) the robot
+        believes the user marked another square, uniform among the squares empty and legal for the user on the
+        believed board other than the true one (none: it reads correctly). Returns the squares read (B,) and the
+        games to re-read (B,) bool: the true square was already marked on the believed board (an earlier misread
+        put a mark there), so the read cannot be placed and the robot looks at the sheet again.
+        """
+        belief = self.belief
+        belief.outcome = self.boards.outcome.clone()  # the believed board never ends the game (see _refresh_misread)
+        slip = user_moves & (torch.rand(user_moves.shape, generator=self._rng) < self.misread_rate)
+        column = cells.clamp(0, self.cells - 1).unsqueeze(1)
+        if self._code_legal is not None:  # 3x3: the believed empty squares (a believed line does not stop the game)
+            candidates = self.engine.empty_rows_by_code().index_select(0, belief.codes[:, 0])
+        else:
+            candidates = self.engine.legal(belief)
+        candidates = candidates & slip.unsqueeze(1)
+        candidates.scatter_(1, column, False)
+        slip = slip & candidates.any(1)
+        read = torch.where(slip, uniform_choice(candidates, self._rng), cells)
+        conflict = user_moves & (belief.board.gather(1, read.clamp(0, self.cells - 1).unsqueeze(1)).squeeze(1) != 0)
+        self.engine.play(belief, read, USER, user_moves & ~conflict)
+        self.d.misread = slip & ~conflict
+        return read, conflict
+
+    def _reread(self, rows: torch.Tensor) -> None:
+        """The believed board of the games ``rows`` (B,) bool becomes the true board (every field)."""
+        if not bool(rows.any()):
+            return
+        belief, boards = self.belief, self.boards
+        for name in ("board", "codes", "owners", "last_move", "n_marks", "move_order", "outcome"):
+            true, believed = getattr(boards, name), getattr(belief, name)
+            keep = rows.view(-1, *([1] * (true.dim() - 1)))
+            setattr(belief, name, torch.where(keep, true, believed))
 
     def _heard(self, utterance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """What ``self.hearing`` makes of the user's utterances (B,): the act understood (B,) (-1 silence),

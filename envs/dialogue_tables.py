@@ -80,7 +80,11 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
         t["_code_legal"] = torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous()
         code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
         t["_code_rewards"] = code_rewards
-        t["_code_wins"] = (code_rewards == REWARD_WIN).contiguous()  # winning_actions = mask & this row
+        if engine.win_set == "wins_and_threats":
+            t["_code_wins"] = (code_rewards == REWARD_WIN).contiguous()  # winning_actions = mask & this row
+        else:  # win_set="wins": only the squares that win the game now
+            wins = engine.winning_rows_by_code(ROBOT)
+            t["_code_wins"] = torch.cat([wins, torch.zeros(len(wins), talk_acts, dtype=torch.bool)], dim=1).contiguous()
     else:  # Ultimate: the look-ahead row before the moves' rewards are written in: allowed acts 0, else -5
         acts = torch.where(t["_filter_table"], 0.0, REWARD_ILLEGAL)
         acts[:, :cells] = REWARD_ILLEGAL

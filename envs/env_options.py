@@ -5,11 +5,26 @@ import inspect
 import warnings
 from typing import Any
 
-from envs.core import FIRST_CHOICES
+from envs.core import FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
 
-# starts: deprecated spelling of first; offer_taken_cells and dialogues: the paper's readings (docs/reproduction.md)
-OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "offer_taken_cells", "dialogues",
-                "hearing", "dialogue_subset", "threat_features")
+# starts: deprecated spelling of first; taken_squares (with misread_rate), win_set, about_to and dialogues: the
+# paper's readings (envs.core, docs/env.md "Readings", docs/reproduction.md)
+OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "taken_squares", "misread_rate",
+                "win_set", "about_to", "dialogues", "hearing", "dialogue_subset", "threat_features")
+
+
+def check_taken_squares(taken_squares: Any, misread_rate: Any) -> tuple[str, float | None]:
+    """``taken_squares`` (``envs.core.TAKEN_SQUARES_CHOICES``) and its ``misread_rate``: a float in (0, 1), required
+    with ``misread`` (the chance that the robot misreads a user move) and refused with the other readings."""
+    check_choice("taken_squares", taken_squares, TAKEN_SQUARES_CHOICES)
+    if taken_squares != "misread":
+        if misread_rate is not None:
+            raise ValueError(f"misread_rate is only used with taken_squares=misread (got taken_squares={taken_squares!r}, "
+                             f"misread_rate={misread_rate!r}): leave it unset")
+        return taken_squares, None
+    if isinstance(misread_rate, bool) or not isinstance(misread_rate, (int, float)) or not 0.0 < misread_rate < 1.0:
+        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares=misread, got {misread_rate!r}")
+    return taken_squares, float(misread_rate)
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:

@@ -1,6 +1,6 @@
 """TorchRL speed hooks of the dialogue env: exact shortcuts past EnvBase's generic per-key passes.
 
-Why separate: these overrides change no number (``tests/test_env_speed.py`` compares them with TorchRL's own
+Why separate: these overrides change no number (``tests/envs/test_env_speed.py`` compares them with TorchRL's own
 path); they only skip work that EnvBase does for any env and that ours never needs. Keeping them apart leaves
 ``envs.dialogue_env`` about the game itself.
 """
@@ -20,7 +20,7 @@ class FastProcHooks:
 
         Why exact: ``_step`` always emits ``reward`` (B, 1) and the three done keys in their spec shapes, so
         the generic pass (reshape the reward to its spec, add missing done keys) changes nothing; only the
-        optional type checks (``run_type_checks``) go through it. ``tests/test_env_speed.py`` compares both.
+        optional type checks (``run_type_checks``) go through it. ``tests/envs/test_env_speed.py`` compares both.
         """
         if self.run_type_checks:
             return super()._step_proc_data(next_tensordict)
@@ -77,7 +77,9 @@ class DialogueState:
     user_utterance: torch.Tensor  # (B, 1) id of the user's utterance in the last step (-1 none)
     words: torch.Tensor  # (B, C + V + 1) the observation's commands + words (last column: spare, hit by padding)
     mask: torch.Tensor  # (B, A) action_mask: what is offered
-    legal: torch.Tensor  # (B, A) what the step accepts: ``mask`` itself unless offer_taken_cells adds taken squares
+    legal: torch.Tensor  # (B, A) what the step accepts: ``mask`` itself unless taken_squares is refused / misread
+    true_lookahead: torch.Tensor  # (B, A) taken_squares="misread": the one-step reward on the true board (paid)
+    misread: torch.Tensor  # (B,) bool taken_squares="misread": the last step's user move was misread
     dialogue_mask: torch.Tensor  # (B, A) the act filter alone
     lookahead: torch.Tensor  # (B, A) one-step reward of every action
     observation: torch.Tensor  # (B, F) the observation of the last output (reused by partial resets)

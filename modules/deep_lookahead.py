@@ -15,7 +15,7 @@ and the rare two-line subgrid is credited to the robot (as ``envs.opponents.line
 
 The search runs on the opponents' bitboards (``envs.opponents.bitboards``), one Python search per game that needs
 it: games with at most one safe move skip it. Exactness is tested against a
-brute-force search over ``envs.rules`` (tests/test_deep_lookahead.py); cost per decision: bench/lookahead_cost.py.
+brute-force search over ``envs.rules`` (tests/modules/test_deep_lookahead.py); cost per decision: bench/studies/lookahead_cost.py.
 
 Rule names: ``k1`` .. ``k5`` assume the paper's ``free_move="anywhere"``; ``k1_open`` .. ``k5_open`` the
 ``open_subgrids`` variant. A rule that meets a root mask contradicting its variant raises ValueError.
@@ -27,7 +27,7 @@ from tensordict import TensorDictBase
 
 from envs.opponents.bitboards import FREE_SQUARES, IS_LINE, ONGOING, StandardBits, UltimateBits
 from envs.rules import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL
-from modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, nonempty_or
+from modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, fallback, nonempty_or
 
 ROBOT, HUMAN = 1, 2
 MAX_PLIES = 5
@@ -149,7 +149,9 @@ class KStepLookahead:
         raise ValueError(f"look-ahead k{self.plies} reads the board: use it through modules.masks.LookaheadMasks "
                          "(or masks_from_tensordict), not as a three-tensor rule")
 
-    def masks_from_tensordict(self, td: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
+    def masks_from_tensordict(self, td: TensorDictBase, untaken: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """(explore, greedy); ``untaken`` (``all_negative="untaken"``): the last fallback, when no move is safe even
+        one step deep, is set A without the squares taken to the robot's knowledge, as the one-step rules do."""
         available, reward, winning = td.get(AVAILABLE_KEY), td.get(LOOKAHEAD_REWARD_KEY), td.get(WINNING_KEY)
         set_a = nonempty_or(winning & available, available)
         safe_now = available & ~(reward < 0)  # available minus the one-step A_hat
@@ -157,7 +159,7 @@ class KStepLookahead:
         # The env's set A holds "about to win" moves (a threat earns +5), and a threat can walk into a forced
         # loss: then the greedy choice may leave A for a move that survives the deeper search.
         greedy = nonempty_or(set_a & safe_now & ~deep, safe_now & ~deep)
-        return set_a, nonempty_or(greedy, nonempty_or(set_a & safe_now, set_a))
+        return set_a, nonempty_or(greedy, nonempty_or(set_a & safe_now, fallback(set_a, untaken)))
 
     def forced_losses(self, td: TensorDictBase, candidates: torch.Tensor) -> torch.Tensor:
         """(B, A) bool: candidate game moves after which the user forces a win within k plies."""

@@ -12,7 +12,7 @@ evaluator, on the opponents' bitboards, with three inputs from the agent:
 
 ``simulations`` is the budget per decision. All chance comes from one seed per decision drawn from the caller's
 torch generator, so results are reproducible by seed. Two front-ends: ``QMCTSOpponent`` (an ``envs.opponents``
-opponent, name ``qmcts:N:CHECKPOINT`` registered by ``pipelines.ladder``) and ``GuidedMCTSPolicy`` (the robot's
+opponent, name ``qmcts:N:CHECKPOINT`` registered by ``pipelines.evaluate.ladder``) and ``GuidedMCTSPolicy`` (the robot's
 policy at eval time: the greedy dialogue policy, with its game moves chosen by the search).
 """
 from __future__ import annotations
@@ -277,7 +277,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
     the board.
 
     ``searching`` ((B,) bool or None): rows whose game move is searched; the others keep the greedy move.
-    ``pipelines.evaluate.play_games`` sets it to the games still being counted, so no search is spent on the
+    ``pipelines.evaluate.games.play_games`` sets it to the games still being counted, so no search is spent on the
     extra games of slots that already finished. ``decisions`` / ``cpu_seconds`` count the searched moves and
     their process CPU time (the cost per robot move that eval reports).
     """

@@ -17,8 +17,9 @@ from tensordict.nn import TensorDictModuleBase
 
 from modules.deep_lookahead import MAX_PLIES, KStepLookahead
 from modules.mask_rules import (  # noqa: F401  (the keys and rules are used from here too)
-    AVAILABLE_KEY, EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, MaskRule, no_lookahead,
-    one_step_lookahead, variant_lookahead,
+    ALL_NEGATIVE_CHOICES, AVAILABLE_KEY, BOARD_KEY, EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY,
+    MaskRule, all_moves_negative, check_all_negative, no_lookahead, one_step_lookahead, untaken_actions,
+    variant_lookahead,
 )
 
 #: Every mask rule a config, the CLI or a checkpoint can name: the paper's three, then the k-step searches
@@ -31,7 +32,9 @@ LOOKAHEAD_RULES: dict[str, MaskRule] = {
     **{f"k{plies}_open": KStepLookahead(plies, "open_subgrids") for plies in range(1, MAX_PLIES + 1)},
 }
 
-AGENT_LOOKAHEAD: dict[str, str] = {"dqn_original": "none", "dqn_variant": "variant", "proposed": "one_step"}
+# each agent's own mask rule; `uniform` (no learning, a uniform choice inside the greedy mask) takes Proposed's
+AGENT_LOOKAHEAD: dict[str, str] = {"dqn_original": "none", "dqn_variant": "variant", "proposed": "one_step",
+                                   "uniform": "one_step"}
 
 
 def lookahead_rule(name: str) -> MaskRule:
@@ -43,22 +46,33 @@ def lookahead_rule(name: str) -> MaskRule:
 
 
 class LookaheadMasks(TensorDictModuleBase):
-    """Writes `explore_mask` and `greedy_mask` from the env's look-ahead keys, using the rule called `lookahead`."""
+    """Writes `explore_mask` and `greedy_mask` from the env's look-ahead keys, using the rule called `lookahead`.
 
-    in_keys = [AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY]
+    `all_negative` (`agent.all_negative`): where the greedy mask falls back when every action of set A has a
+    negative look-ahead reward: `available` (set A) or `untaken` (set A without the squares taken on the env's
+    `board` key, which it then also reads); see `modules.mask_rules`. The variant, one_step and k-step rules use it;
+    `none` has no look-ahead and no fallback.
+    """
+
     out_keys = [EXPLORE_MASK_KEY, GREEDY_MASK_KEY]
 
-    def __init__(self, lookahead: str = "one_step") -> None:
+    def __init__(self, lookahead: str = "one_step", all_negative: str = "available") -> None:
         super().__init__()
         self.lookahead = lookahead
         self.rule = lookahead_rule(lookahead)
+        self.all_negative = check_all_negative(all_negative)
+        self.in_keys = [AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY] + ([BOARD_KEY] if all_negative == "untaken" else [])
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        available = tensordict.get(AVAILABLE_KEY)
+        untaken = None
+        if self.all_negative == "untaken":
+            untaken = untaken_actions(tensordict.get(BOARD_KEY), available.shape[-1])
         if getattr(self.rule, "needs_tensordict", False):  # e.g. k-step look-ahead (modules.deep_lookahead)
-            explore, greedy = self.rule.masks_from_tensordict(tensordict)
+            explore, greedy = self.rule.masks_from_tensordict(tensordict, untaken)
         else:
             explore, greedy = self.rule(
-                tensordict.get(AVAILABLE_KEY), tensordict.get(LOOKAHEAD_REWARD_KEY), tensordict.get(WINNING_KEY)
+                available, tensordict.get(LOOKAHEAD_REWARD_KEY), tensordict.get(WINNING_KEY), untaken
             )
         tensordict.set(EXPLORE_MASK_KEY, explore)
         tensordict.set(GREEDY_MASK_KEY, greedy)
@@ -74,8 +88,8 @@ class LookaheadOnlyPolicy:
 
     name = "lookahead"
 
-    def __init__(self, seed: int = 0, lookahead: str = "one_step") -> None:
-        self.masks = LookaheadMasks(lookahead)
+    def __init__(self, seed: int = 0, lookahead: str = "one_step", all_negative: str = "available") -> None:
+        self.masks = LookaheadMasks(lookahead, all_negative)
         self.generator = torch.Generator().manual_seed(int(seed))
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:

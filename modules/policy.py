@@ -38,6 +38,7 @@ def make_policies(
     eps_init: float = 1.0,
     eps_end: float = 0.005,
     annealing_frames: int = 10_000,
+    all_negative: str = "available",
 ) -> AgentPolicies:
     """Chain the Q-network with the look-ahead masks, a masked argmax and an epsilon-greedy layer.
 
@@ -47,7 +48,7 @@ def make_policies(
         # the same network and parameters, without TensorDictModule's per-call overhead; a recurrent network
         # (modules/recurrent.py, a TensorDictSequential) runs as it is
         qnet if isinstance(qnet, TensorDictSequential) else QValues(qnet),
-        LookaheadMasks(lookahead),
+        LookaheadMasks(lookahead, all_negative),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
     )
     egreedy = EGreedyModule(

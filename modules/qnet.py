@@ -39,7 +39,7 @@ class MLPReader:
 
     Why: the searches read a network once per simulation on one position. At that size torch's per-op dispatch
     (``nn.Module.__call__``, autograd's no-grad guard, ``F.linear``) costs more than the products; numpy's
-    matrix-vector products on the same float32 weights take half the time (docs/ultimate.md, seventh session).
+    matrix-vector products on the same float32 weights take half the time (docs/ultimate.md).
     The weights are copied when the reader is made: build it after the network is loaded or trained. Outputs
     agree with the network's to float32 rounding (the sums run in another order), not bit for bit."""
 

@@ -194,6 +194,18 @@ class SequenceRows:
         return flat
 
 
+def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) -> "SequenceDQNLoss":
+    """The loss of a recurrent learner from `modules.learner.LearnerSettings` (memory, sequence_length, burn_in,
+    loss_function, double_dqn, gamma), reading the transitions' learning reward and bootstrap mask (`LOSS_KEYS`)."""
+    from modules.transitions import LOSS_KEYS
+
+    loss = SequenceDQNLoss(qnet, sequence_length=settings.sequence_length, burn_in=settings.burn_in,
+                           loss_function=settings.loss_function, double_dqn=settings.double_dqn, symmetries=symmetries)
+    loss.set_keys(**LOSS_KEYS)
+    loss.make_value_estimator(gamma=settings.gamma)
+    return loss
+
+
 class SequenceDQNLoss(LossModule):
     """The competitive DQN loss (`modules.loss.CompetitiveDQNLoss`: same keys, same target) on slices of
     dialogues, unrolling the recurrent network in recurrent mode (see module doc)."""

@@ -2,7 +2,7 @@
 call (`prepare_transitions`), so the training loop has one line between the Collector and the buffer.
 
 Keys written (nothing the env wrote changes meaning; the loss reads the new keys through its `set_keys`,
-`LOSS_KEYS`):
+`LOSS_KEYS`, wired by `modules.learner.make_loss`):
 - ("next", "learning_reward"): the reward the learner trains on (modules/rewards.py, `loss.reward`);
 - ("next", "bootstrap_mask"): the next actions the TD target maximises over (modules/bootstrap.py,
   `loss.bootstrap`);
@@ -14,8 +14,6 @@ The buffer keeps only what the loss reads (`BUFFER_KEYS`): the env's masks, outc
 needed to build the keys above.
 """
 from __future__ import annotations
-
-from typing import Any
 
 import torch
 from tensordict import TensorDictBase
@@ -53,19 +51,18 @@ def make_multistep(n_step: int, gamma: float) -> MultiStepTransform | None:
     return MultiStepTransform(int(n_step), float(gamma), reward_keys=[LEARNING_REWARD_KEY[1]], done_keys=[])
 
 
-def prepare_transitions(batch: TensorDictBase, config: Any,
+def prepare_transitions(batch: TensorDictBase, *, reward: str, loss_reward: float, bootstrap: str, lookahead: str,
                         multistep: MultiStepTransform | None = None) -> TensorDictBase:
     """(env rows, T) collector batch -> flat transitions with `BUFFER_KEYS` (+ `steps_to_next_obs` with n-step).
 
-    `config` is the run's `pipelines.config.RunConfig`; read: loss.reward, loss.loss_reward, loss.bootstrap and
-    lookahead. `multistep` is `make_multistep(...)` of the run (it holds the rows' unfinished windows)."""
+    `reward`, `loss_reward`: the learning reward (modules/rewards.py); `bootstrap`, `lookahead`: the bootstrap mask
+    (modules/bootstrap.py); `multistep` is `make_multistep(...)` of the run (it holds the rows' unfinished windows)."""
     if batch.batch_dims != 2:
         raise ValueError(f"prepare_transitions needs collector batches shaped (env rows, time), "
                          f"got {tuple(batch.shape)}")
-    loss = config.loss
-    transitions = batch.select(*TRANSITION_KEYS, *bootstrap_keys(loss.bootstrap))
-    transitions = learning_rewards(transitions, loss.reward, loss_reward=loss.loss_reward)
-    transitions = set_bootstrap_mask(transitions, loss.bootstrap, config.lookahead).select(*BUFFER_KEYS)
+    transitions = batch.select(*TRANSITION_KEYS, *bootstrap_keys(bootstrap))
+    transitions = learning_rewards(transitions, reward, loss_reward=loss_reward)
+    transitions = set_bootstrap_mask(transitions, bootstrap, lookahead).select(*BUFFER_KEYS)
     if multistep is None:
         return transitions.reshape(-1)
     windows = multistep.inv(transitions)

@@ -3,7 +3,7 @@
 Why: the Q-guided search (``modules.guided_mcts``) scored a leaf by 25 % of the Q-network's value and 75 % of one
 random playout. The Q-values were learnt against a random user, and one playout is a coin toss; against
 ``mcts:10000`` (which averages ten thousand playouts a move) that search scored 0.15. This network is trained
-(``pipelines.value_training``) to predict the root value a plain UCT search finds from a position, so one
+(``pipelines.train.value_training``) to predict the root value a plain UCT search finds from a position, so one
 forward pass gives a leaf what a few hundred playouts would, without their noise (expert iteration's "search
 as the target", with plain UCT as the expert).
 

@@ -41,7 +41,7 @@ def load_agent(checkpoint_path, *, recurrent: bool = False):
     qnet = make_agent_qnet(data["n_features"], data["n_actions"], config.agent)  # agent.memory's network or the MLP
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead)
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative)
     return config, policies.greedy
 
 
@@ -85,7 +85,7 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
 
         qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
         n_actions = qnet.module[-1].out_features  # its last Linear has one output per action (modules.qnet.make_qnet)
-        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead).greedy
+        greedy = make_policies(qnet, Categorical(n_actions), config.lookahead, all_negative=config.agent.all_negative).greedy
     description = f"greedy Q, masks {config.lookahead}"
     if not search:
         return config, greedy, description
@@ -195,7 +195,7 @@ def register_agent_opponent() -> None:
     register_qmcts_opponent()
 
 
-# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT (issue 6)
+# ------------------------------------------------------------------------------------ qmcts:N:CHECKPOINT
 def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""

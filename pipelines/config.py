@@ -3,15 +3,13 @@
 Every hyper-parameter is named and documented here, in one place (CleanRL style). `load_config(path, overrides)`
 reads a YAML file, applies `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key
 and what is allowed; the CLI turns that into exit code 2. Validation is pydantic's (strict types, `extra="forbid"`,
-range constraints on the fields); this module only turns pydantic's error list into that one line.
+range constraints on the fields); `pipelines.config_errors` turns pydantic's error list into that one line.
 
 Importing this module stays light (pydantic and yaml, no torch): the CLI and tools read configs without paying
 for torch.
 """
 from __future__ import annotations
 
-import types
-import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -19,7 +17,8 @@ import yaml
 
 from fileio.yaml_file import read_yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
-from pydantic.fields import FieldInfo
+
+from pipelines.config_errors import validation_line
 
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
@@ -75,10 +74,18 @@ class EnvConfig(Section):
     first: Literal["robot", "human", "alternate", "random"] = "alternate"  # who opens the training games
     opponent: str = "random"  # envs.opponents name of the simulated user's move policy
     max_steps: Annotated[int, Field(gt=0, le=10_000)] = 100  # actions per dialogue before truncation (paper: 100)
-    # The paper's readings (docs/reproduction.md), on in pipelines/configs/paper/: the robot is offered its taken
-    # squares (choosing one earns -5, the board and the dialogue stay, the user does not move, the robot chooses
-    # again); off = only legal squares are offered (our reading of "not taken yet", faster to learn)
-    offer_taken_cells: bool = False
+    # The paper's ambiguous readings (envs.core, docs/env.md "Readings"; pipelines/configs/paper/ set the ones
+    # closest to the text). taken_squares: "moves ... allowed from the subset of those not taken yet (to the robot's
+    # knowledge)" vs "-5 ... a repeated (already taken) action": never (only untaken squares offered) | refused
+    # (taken squares offered too, refused at -5 with nothing changed) | misread (the robot misreads a user move
+    # with probability misread_rate; a square really taken is refused at -5 and the sheet is read again)
+    taken_squares: Literal["never", "refused", "misread"] = "never"
+    misread_rate: Annotated[Number, Field(gt=0.0, lt=1.0)] | None = None  # required with misread, else unset
+    # what winning_actions (Algorithm 2's set A) holds: every +5 move | only "action(s) leading to win ... the game"
+    win_set: Literal["wins_and_threats", "wins"] = "wins_and_threats"
+    # "+5 win or about to win": about to win paid on every move after which a winning square stands | only on the
+    # move that creates it
+    about_to: Literal["standing", "created"] = "standing"
     # example dialogues the act filter, vocabulary and simulated user are learnt from: compact (ours: the user answers
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
@@ -110,16 +117,25 @@ class EnvConfig(Section):
         if self.dialogues == "compact" and self.subset is not None and self.subset[0] > 12:
             raise ValueError(f"env.dialogue_subset.k must be <= 12 with env.dialogues: compact (a dozen example "
                              f"dialogues per game; 13-24 exist for dialogues: paper), got {self.subset[0]}")
+        if (self.taken_squares == "misread") != (self.misread_rate is not None):
+            raise ValueError(f"env.misread_rate must be set (a number in (0, 1)) with env.taken_squares: misread and "
+                             f"unset otherwise; got taken_squares {self.taken_squares!r}, misread_rate {self.misread_rate!r}")
         if self.asr_channel is not None and not Path(self.asr_channel).is_file():
             raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m speech.fit)")
         return self
 
 
 class AgentConfig(Section):
-    """Which learner: the paper's three agents, each with its own look-ahead masks."""
+    """Which learner: the paper's three agents, each with its own look-ahead masks, or `uniform`: no learning, a
+    uniform choice inside the greedy mask of `lookahead` (default Proposed's one-step masks), the baseline that
+    shows what learning adds (pipelines/train/uniform.py)."""
 
-    name: Literal["dqn_original", "dqn_variant", "proposed"] = "proposed"
+    name: Literal["dqn_original", "dqn_variant", "proposed", "uniform"] = "proposed"
     lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
+    # where the greedy mask falls back when every action of set A has a negative look-ahead reward (the paper leaves
+    # it open; modules.mask_rules): available = set A | untaken = set A without the squares taken to the robot's
+    # knowledge ("moves ... allowed from the subset of those not taken yet (to the robot's knowledge)")
+    all_negative: Literal["available", "untaken"] = "available"
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
         Field(default_factory=lambda: [100, 100, 100])
@@ -149,11 +165,11 @@ class BufferConfig(Section):
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
     # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
-    # prioritised replay (Schaul et al. 2016; pipelines/prioritized_sampler.py, TorchRL's PrioritizedSampler
+    # prioritised replay (Schaul et al. 2016; modules/prioritized_sampler.py, TorchRL's PrioritizedSampler
     # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
-    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md, eighth session); on 3x3 it cuts
-    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md, tenth session).
+    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md); on 3x3 it cuts
+    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
@@ -258,7 +274,7 @@ class CheckpointConfig(Section):
 
 
 class SelfPlayConfig(Section):
-    """Self-play option of a run (section ``selfplay``; pipelines/selfplay.py): the user's moves by frozen snapshots."""
+    """Self-play option of a run (section ``selfplay``; pipelines/train/selfplay.py): the user's moves by frozen snapshots."""
 
     enabled: bool = False
     pool_size: Annotated[int, Field(gt=0, le=1_000)] = 5  # frozen snapshots kept; the oldest is dropped when a new one arrives
@@ -273,9 +289,9 @@ class SearchTargetsConfig(Section):
     After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
     Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
     update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above the moves
-    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: the issue names
-    it (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
-    with every teacher tried (docs/ultimate.md, eighth session)."""
+    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: search distilled into the
+    network (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
+    with every teacher tried (docs/ultimate.md)."""
 
     enabled: bool = False
     simulations: Annotated[int, Field(gt=0, le=100_000)] = 32
@@ -337,6 +353,7 @@ class RunConfig(Section):
             raise ValueError(f"config key 'buffer.batch_size' must be a multiple of buffer.sequence_length "
                              f"({buffer.sequence_length}) with agent.memory={memory}, got {buffer.batch_size}")
         unsupported = [
+            ("agent.name", self.agent.name == "uniform", "a learning agent", "the uniform agent has no network"),
             ("buffer.prioritized", buffer.prioritized, "false", "slices are replayed uniformly"),
             ("loss.n_step", self.loss.n_step != 1, "1", "the slice's unroll gives the one-step target"),
             ("optim.precision", self.optim.precision != "fp32", "fp32", "the recurrent unroll runs in float32"),
@@ -357,98 +374,6 @@ class RunConfig(Section):
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (checkpoints and config.yaml store it)."""
         return self.model_dump()
-
-
-# --- pydantic's error list -> one line naming the key and what is allowed ------------------------------------------
-
-def _type_name(annotation: Any) -> str:
-    origin = typing.get_origin(annotation)
-    if origin is Annotated:
-        return _type_name(typing.get_args(annotation)[0])
-    if origin is Literal:
-        return "one of " + ", ".join(repr(v) for v in typing.get_args(annotation))
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_name(a) for a in typing.get_args(annotation))
-    if annotation is type(None):
-        return "null"
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return f"a mapping of {', '.join(annotation.model_fields)}"
-    if origin is list:
-        return f"a list of {_type_name(typing.get_args(annotation)[0])}"
-    if origin is dict:
-        return "a mapping"
-    return {int: "an integer", float: "a number", bool: "true/false", str: "a string"}.get(annotation, str(annotation))
-
-
-def _bounds(annotation: Any, field: FieldInfo | None = None) -> str:
-    """The range constraints of a field, e.g. '> 0' or 'between 0 and 1'."""
-    metadata = list(field.metadata) if field is not None else []
-    if typing.get_origin(annotation) in (typing.Union, types.UnionType):  # `Positive | None`: the number's bounds
-        annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
-    while typing.get_origin(annotation) is Annotated:
-        annotation, *extra = typing.get_args(annotation)
-        metadata += [m for item in extra for m in (item.metadata if isinstance(item, FieldInfo) else [item])]
-    limits = {key: getattr(m, key) for m in metadata for key in ("gt", "ge", "lt", "le") if getattr(m, key, None) is not None}
-    if "ge" in limits and "le" in limits:
-        return f"between {_number(limits['ge'])} and {_number(limits['le'])}"
-    symbols = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-    return " and ".join(f"{symbols[key]} {_number(value)}" for key, value in limits.items())
-
-
-def _number(value: float) -> str:
-    """A bound as people write it: 65536, 0.5 (no 6.5e+04)."""
-    return str(value) if isinstance(value, int) else f"{value:g}"
-
-
-def _describe(loc: tuple[Any, ...]) -> tuple[str, Any, FieldInfo | None, type[BaseModel]]:
-    """Walk an error location through the models: (dotted key, its annotation, its field, the model holding it)."""
-    model: type[BaseModel] = RunConfig
-    key, annotation, field = "", None, None
-    for part in loc:
-        if annotation is None:
-            if part not in model.model_fields:
-                return f"{key}.{part}" if key else str(part), None, None, model
-            field = model.model_fields[part]
-            key = f"{key}.{part}" if key else str(part)
-            annotation = field.annotation
-            if typing.get_origin(annotation) in (typing.Union, types.UnionType) and loc[-1] != part:  # `Section | None`
-                annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
-            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-                model, annotation, field = annotation, None, None
-        elif isinstance(part, int):
-            while typing.get_origin(annotation) is Annotated:
-                annotation = typing.get_args(annotation)[0]
-            if typing.get_origin(annotation) is not list:
-                break
-            key, annotation, field = f"{key}[{part}]", typing.get_args(annotation)[0], None
-    return key, annotation, field, model
-
-
-def _one_line(error: ValidationError) -> str:
-    """The first problem pydantic found, as the one line the CLI prints."""
-    first = error.errors(include_url=False)[0]
-    kind, loc, value = first["type"], first["loc"], first.get("input")
-    if kind == "value_error":  # raised by a validator above with its own sentence
-        return str(first["ctx"]["error"])
-    key, annotation, field, model = _describe(loc)
-    if kind == "extra_forbidden":
-        return f"unknown config key '{key}'; allowed: {', '.join(model.model_fields)}"
-    if annotation is None:  # a whole section has the wrong type
-        return f"config section '{key or 'root'}' must be a mapping, got {value!r}"
-    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        return f"config key '{key}' must be {_bounds(annotation, field)}, got {value!r}"
-    if kind == "too_short" and typing.get_origin(annotation) is not Literal:
-        return f"config key '{key}' must be a non-empty list, got {value!r}"
-    if kind == "too_long":
-        return f"config key '{key}' must be a list of at most {first['ctx']['max_length']} items, got {len(value)}"
-    if kind == "finite_number":
-        return f"config key '{key}' must be a finite number, got {value!r}"
-    bounds = _bounds(annotation, field)
-    members = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else ()
-    if bounds and type(None) in members:  # `Positive | None`: "an integer > 0 or null"
-        kind_name = _type_name(next(a for a in members if a is not type(None)))
-        return f"config key '{key}' must be {kind_name} {bounds} or null, got {value!r}"
-    return f"config key '{key}' must be {_type_name(annotation)}{' ' + bounds if bounds else ''}, got {value!r}"
 
 
 # --- loading -----------------------------------------------------------------------------------------------------
@@ -492,7 +417,7 @@ def config_from_dict(data: dict[str, Any]) -> RunConfig:
     try:
         return RunConfig.model_validate(data)
     except ValidationError as error:
-        raise ValueError(_one_line(error)) from None
+        raise ValueError(validation_line(error, RunConfig)) from None
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:

@@ -61,17 +61,26 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
     frames = [h["frames"] for h in history]
     seconds = [h["wall_time"] for h in history]
     for row, (key, label) in enumerate(CURVES):
-        values = [h.get(key, float("nan")) for h in history]
+        lines = {"both seats": [h.get(key, float("nan")) for h in history]}
+        if key == "task_success" and any("seats" in h for h in history):
+            lines = {name.split(", ")[1]: [seat_value(h, seat) for h in history] for seat, name in SEAT_PANELS}
         for col, xs in enumerate((frames, seconds)):
             ax = axes[row, col]
-            ax.plot(xs, values, marker="o", markersize=3)
+            for name, values in lines.items():
+                ax.plot(xs, values, marker="o", markersize=3, label=name if len(lines) > 1 else None)
             ax.grid(alpha=0.3)
             if col == 0:
                 ax.set_ylabel(label)
             if key == "train_loss":
+                from matplotlib.ticker import LogLocator
+
                 ax.set_yscale("log")
+                ax.yaxis.set_major_locator(LogLocator(numticks=4))  # a few decades: labels never overlap
+                ax.yaxis.set_minor_formatter(lambda *_: "")
             if key == "task_success":
                 ax.axhline(0.995, color="grey", linestyle="--", linewidth=0.8)
+                if len(lines) > 1:
+                    ax.legend(fontsize=7)
     frames_axis(axes[-1, 0])  # sharex: the bottom axis sets the column's ticks
     axes[-1, 0].set_xlabel("env frames (robot actions)")
     axes[-1, 1].set_xlabel("wall time (s, shared 2-core machine)")
@@ -79,27 +88,44 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
     return save_figure(fig, path)
 
 
-def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str | os.PathLike, title: str = "") -> Path:
-    """Task success and avg reward per agent: mean over seeds (line) and min..max band; x = env frames."""
+SEAT_PANELS = (("robot_first", "task success, robot first"), ("robot_second", "task success, robot second"))
+
+
+def seat_value(record: dict[str, Any], seat: str, key: str = "task_success") -> float:
+    """A periodic evaluation's metric for one seat; NaN where the record has no per-seat results."""
+    return float(record.get("seats", {}).get(seat, {}).get(key, float("nan")))
+
+
+def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str | os.PathLike, title: str = "",
+                      levels: dict[str, tuple[float, float]] | None = None) -> Path:
+    """Task success robot first and robot second per agent: mean over seeds (line) and min..max band; x = env
+    frames. ``levels``: agents without a curve (no learning), drawn as dashed lines at their (first, second) task
+    success, so a reader sees what learning adds."""
     import numpy as np
 
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for name, runs in sorted(curves.items()):
         runs = [r for r in runs if r]
         if not runs:
             continue
         length = min(len(r) for r in runs)
         frames = np.array([h["frames"] for h in runs[0][:length]])
-        for ax, key in zip(axes, ("task_success", "avg_reward")):
-            values = np.array([[h.get(key, np.nan) for h in r[:length]] for r in runs])
+        for ax, (seat, _) in zip(axes, SEAT_PANELS):
+            values = np.array([[seat_value(h, seat) for h in r[:length]] for r in runs])
+            if np.isnan(values).all():
+                continue
             (line,) = ax.plot(frames, values.mean(0), label=name)
             ax.fill_between(frames, values.min(0), values.max(0), alpha=0.2, color=line.get_color())
-    for ax, label in zip(axes, ("task success", "avg reward / action")):
+    for name, seat_levels in sorted((levels or {}).items()):
+        for ax, level in zip(axes, seat_levels):
+            ax.axhline(level, color="black", linestyle="--", linewidth=1, label=name)
+    for ax, (_, label) in zip(axes, SEAT_PANELS):
         frames_axis(ax)
         ax.set_xlabel("env frames")
-        ax.set_ylabel(label)
+        ax.set_title(label, fontsize=10)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
+        ax.legend(fontsize=7)
+    axes[0].set_ylabel("task success (greedy periodic evaluation)")
     fig.suptitle(title or "learning curves per agent (mean over seeds, band = min..max)")
     return save_figure(fig, path)

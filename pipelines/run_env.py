@@ -17,7 +17,8 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
     (e.g. a `speech.hearing.RecogniserHearing`) replaces the ears `env.asr` would give it."""
     from envs import make_env
 
-    readings = {"offer_taken_cells": env_config.offer_taken_cells, "dialogues": env_config.dialogues,
+    readings = {"taken_squares": env_config.taken_squares, "misread_rate": env_config.misread_rate,
+                "win_set": env_config.win_set, "about_to": env_config.about_to, "dialogues": env_config.dialogues,
                 "dialogue_subset": env_config.subset}
     if hearing is not None:
         readings["hearing"] = hearing

@@ -15,7 +15,7 @@ from typing import Any
 
 EXPERIMENT = "scalars"  # TorchRL's experiment name: the sub-folder of the run folder the backend writes into
 PACKAGES = {"tensorboard": "tensorboard", "wandb": "wandb", "mlflow": "mlflow"}  # backend -> package it needs
-EVAL_KEYS = ("task_success", "win", "draw", "loss", "avg_length", "avg_reward", "avg_return")
+EVAL_KEYS = ("task_success", "win", "draw", "loss", "truncated", "all_negative", "avg_length", "avg_reward", "avg_return")
 
 
 def check_backend(backend: str) -> None:

@@ -69,7 +69,7 @@ class GameRecord:
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
-    """The JSON report of `ncbot robot play` (first keys as in the issue, then details)."""
+    """The JSON report of `ncbot robot play` (the headline keys first, then details)."""
     moves = [s for r in records for s in r.robot_move_seconds]
     moves_cpu = [s for r in records for s in r.robot_move_cpu_seconds]
     acts = [s for r in records for s in r.dialogue_act_seconds]

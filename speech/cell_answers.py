@@ -4,8 +4,8 @@ the words mapped back to a cell.
 Why more recognisers: a field system listens for what it just asked. The dialogue's LM (speech.asr, built from
 the example dialogues) has no cell words, so the question "where did you draw?" gets its own small LM (the
 game's cell phrases) and the question "did you say top left?" another (its two answers, `CONFIRM_YES` and
-`CONFIRM_NO`). The dialogue recogniser is never fed these answers, so the dialogue replies are heard as before.
-Why whole sentences to confirm: a lone "yes" or "no" is too short to hear in noise (`python bench/cell_answers.py
+`CONFIRM_NO`). The dialogue recogniser is never fed these answers, so they never change how a dialogue reply is heard.
+Why whole sentences to confirm: a lone "yes" or "no" is too short to hear in noise (`python bench/studies/cell_answers.py
 --lone-words`, the four play voices, 32 confirmations per level: lone words through the cell phrases' LM 10 and 15
 swapped at white 10 / 5 dB; "yes, that is right" / "no, that is wrong" through their own LM 0 and 6, 1 at babble
 10 dB).

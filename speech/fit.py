@@ -1,7 +1,7 @@
 """Fit the ASR channel model from real round trips: ``python -m speech.fit [--out PATH] [--seeds N]``
 (``--show`` prints the per-level figures of an existing model instead).
 
-The voices, noise seeds and babble talkers used here are kept apart from those bench/speech_asr.py reports on
+The voices, noise seeds and babble talkers used here are kept apart from those bench/studies/speech_asr.py reports on
 (``REPORT_*`` below): the fit hears the person's flite voices slowed and sped up (rate 0.85 / 1.15) with seeds
 from ``FIT_SEED``; the report hears them at their normal rate (1.0, the voices ``ncbot robot play`` uses) with
 seeds from ``REPORT_SEED``, in babble of other talkers. The texts are the same closed set of 25 user sentences:

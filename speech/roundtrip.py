@@ -1,6 +1,6 @@
 """Real round trips: text -> TTS voice -> background noise -> recogniser, with CPU time per stage.
 
-Used to measure the recogniser (bench/speech_asr.py) and to fit the channel model (``python -m speech.fit``).
+Used to measure the recogniser (bench/studies/speech_asr.py) and to fit the channel model (``python -m speech.fit``).
 TTS audio is cached per (text, voice): noise and decoding vary, the clean speech of a voice does not.
 """
 from __future__ import annotations

@@ -36,7 +36,7 @@ def write_paper_configs(folder: Path, total_frames: int) -> Path:
     on, tiny network and budget."""
     configs = folder / "configs"
     configs.mkdir()
-    tiny = write_tiny_config(folder, env={"offer_taken_cells": True, "dialogues": "paper", "first": "robot"},
+    tiny = write_tiny_config(folder, env={"taken_squares": "refused", "dialogues": "paper", "first": "robot"},
                              collector={"total_frames": total_frames}, eval={"games": 20, "periodic_games": 10})
     shutil.copy(tiny, configs / "standard_proposed_temporal.yaml")
     return configs

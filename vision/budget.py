@@ -36,7 +36,7 @@ _SHIPPED = DefaultTraining()
 SHIPPED_CELLS = 48_002  # training cells of vision/weights/cell_cnn.pt (its meta "n_training_cells")
 # every budget gets the optimiser updates of the shipped run on its clean and noisy cells (24,000 generated + 16,002
 # photo cells = 40,002; 14 epochs of 64-cell batches = 8,764): the budget draws those two kinds only, and its
-# figures in results/ were measured so; the 8,000 harsh cells the shipped run also sees (issue 15) are not counted
+# figures in results/ were measured so; the 8,000 harsh cells the shipped run also sees are not counted
 BUDGET_UPDATES = _SHIPPED.train.epochs * math.ceil((SHIPPED_CELLS - _SHIPPED.n_harsh_cells) / _SHIPPED.train.batch_size)
 PHOTO_POOL = (24, 4)  # 3x3 and 9x9 training photos per draw seed (540 cells; the shipped 700 : 120 ratio)
 HELDOUT_STYLES = ("sketch", "hershey")

@@ -37,7 +37,7 @@ class DefaultTraining:
     n_frames_9: int = 120          # 9x9 photos (81 cells each)
     n_harsh_cells: int = 8_000     # generated cells as a harsh photo leaves them (seed + 300,000)
     cell_styles: tuple[str, ...] = ("pen",)   # handwriting of the generated cells (vision.strokes.TRAINING_STYLES)
-    harsh_styles: tuple[str, ...] = ("pen", "hasty")  # ... and of the harsh cells (issue 15's fourth round)
+    harsh_styles: tuple[str, ...] = ("pen", "hasty")  # ... and of the harsh cells
     seed: int = TRAIN_SEED         # data seed; test data uses vision.data.TEST_SEED and up
     train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
 

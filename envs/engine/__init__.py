@@ -28,6 +28,12 @@ from envs.engine.ultimate import UltimateEngine
 __all__ = ["Boards", "StandardEngine", "UltimateEngine", "make_engine", "grid_tables", "uniform_choice"]
 
 
-def make_engine(game: str, free_move: str = "anywhere") -> StandardEngine | UltimateEngine:
-    """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise."""
-    return StandardEngine() if check_game(game) == "standard" else UltimateEngine(free_move)
+def make_engine(game: str, free_move: str = "anywhere", win_set: str = "wins_and_threats",
+                about_to: str = "standing") -> StandardEngine | UltimateEngine:
+    """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise.
+
+    ``win_set`` (which moves the env's ``winning_actions`` holds) and ``about_to`` (when "about to win" pays +5)
+    are the paper's readings of ``envs.core``; the defaults are this project's original rewards."""
+    if check_game(game) == "standard":
+        return StandardEngine(win_set=win_set, about_to=about_to)
+    return UltimateEngine(free_move, win_set=win_set, about_to=about_to)

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 import torch
 
+from envs.core import ABOUT_TO_CHOICES, WIN_SET_CHOICES, check_choice
 from envs.engine.tables import grid_tables, uniform_choice
 
 
@@ -34,7 +35,11 @@ class _Engine:
     cells: int
     grids: int
 
-    def __init__(self) -> None:
+    def __init__(self, win_set: str = "wins_and_threats", about_to: str = "standing") -> None:
+        # the paper's readings of set A and of "about to win" (envs.core, docs/env.md "Readings"); the defaults
+        # are the rewards and winning moves this project always had
+        self.win_set = check_choice("win_set", win_set, WIN_SET_CHOICES)
+        self.about_to = check_choice("about_to", about_to, ABOUT_TO_CHOICES)
         self.tables = grid_tables(3)
         self.pow3 = 3 ** torch.arange(9, dtype=torch.int64)
 
@@ -108,7 +113,7 @@ class _Engine:
         has a legal move that wins at once; +1 "about to draw": the move makes the position dead (no line can
         be completed by anyone any more) when it was not before; +5 "about to win": afterwards ``player``
         has a square that would win the game if it were ``player``'s turn (in Ultimate ignoring where the
-        opponent's reply sends it); else 0. Entries of illegal cells are meaningless (the env overwrites them),
+        opponent's reply sends it) and, with ``about_to="created"``, had none before the move; else 0. Entries of illegal cells are meaningless (the env overwrites them),
         and so are the rows outside ``active`` ((B,) bool, default all), which an engine may skip.
         """
         raise NotImplementedError

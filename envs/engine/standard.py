@@ -5,7 +5,7 @@ from functools import lru_cache
 
 import torch
 
-from envs.core import DRAWN
+from envs.core import DRAWN, REWARD_WIN
 from envs.engine.base import Boards, _Engine
 from envs.engine.tables import grid_tables, lookup, prioritise
 
@@ -64,7 +64,35 @@ class StandardEngine(_Engine):
     def rows_by_code(self, player: int) -> tuple[torch.Tensor, torch.Tensor]:
         """(3^9, 9) bool legal squares and (3^9, 9) float32 move rewards of ``player``, row = board code: what a
         caller needs to answer "legal" and "look-ahead" for a whole batch with one row gather each."""
-        return self._code_tables()[0], self._move_reward_rows(player)
+        return self._code_tables()[0], self._move_reward_rows(player, self.about_to)
+
+    @staticmethod
+    def empty_rows_by_code() -> torch.Tensor:
+        """(3^9, 9) bool, row = board code: the empty squares, whether or not the grid holds a line (the env's
+        believed board under ``taken_squares="misread"`` may show a line the true board does not)."""
+        return StandardEngine._empty_rows()
+
+    @staticmethod
+    @lru_cache(maxsize=1)
+    def _empty_rows() -> torch.Tensor:
+        return (StandardEngine._code_tables()[2] == 0).contiguous()
+
+    def winning_rows_by_code(self, player: int) -> torch.Tensor:
+        """(3^9, 9) bool, row = board code: the squares of ``player``'s set A under ``win_set``: every move worth
+        +5 (``wins_and_threats``) or only the empty squares that complete a line of ``player`` now (``wins``)."""
+        if self.win_set == "wins":
+            return self._win_rows(player)
+        return self._move_reward_rows(player, self.about_to) == REWARD_WIN
+
+    @staticmethod
+    @lru_cache(maxsize=2)
+    def _win_rows(player: int) -> torch.Tensor:
+        """(3^9, 9) bool: ``player`` taking this empty square completes a line (wins the game now)."""
+        code = torch.arange(3**9).unsqueeze(1)
+        pow3 = 3 ** torch.arange(9)
+        empty = (code // pow3) % 3 == 0
+        after = torch.where(empty, code + player * pow3, code)
+        return (empty & lookup(grid_tables(3).has_line[player], after)).contiguous()
 
     @staticmethod
     @lru_cache(maxsize=1)
@@ -109,31 +137,39 @@ class StandardEngine(_Engine):
         state.outcome = self._outcome_table().index_select(0, code)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
-        return self._move_reward_rows(player).index_select(0, state.codes[:, 0])
+        return self._move_reward_rows(player, self.about_to).index_select(0, state.codes[:, 0])
 
     @staticmethod
-    @lru_cache(maxsize=2)
-    def _move_reward_rows(player: int) -> torch.Tensor:
+    @lru_cache(maxsize=4)
+    def _move_reward_rows(player: int, about_to: str = "standing") -> torch.Tensor:
         """(3^9, 9) float32: row c holds the reward of ``player`` taking each square of the board with code c
-        (one gather per step instead of ~8 ops; taken squares hold meaningless values)."""
+        (one gather per step instead of ~8 ops; taken squares hold meaningless values). ``about_to="created"``:
+        in the rows where ``player`` already has a winning square, "about to win" pays nothing (the table built
+        without that event)."""
         code = torch.arange(3**9).unsqueeze(1)  # (N, 1)
         pow3 = 3 ** torch.arange(9)
         empty = (code // pow3) % 3 == 0
         after = torch.where(empty, code + player * pow3, code)  # (N, 9): code after each move
         dead_before = lookup(grid_tables(3).dead, code).long() * 3**9
-        return lookup(StandardEngine._reward_table()[player], after + dead_before).contiguous()
+        rows = lookup(StandardEngine._reward_table()[player], after + dead_before)
+        if about_to == "created":
+            had_threat = lookup(grid_tables(3).win_bits[player], code) != 0  # (N, 1)
+            quiet = lookup(StandardEngine._reward_table(about_to_win=False)[player], after + dead_before)
+            rows = torch.where(had_threat, quiet, rows)
+        return rows.contiguous()
 
     @staticmethod
-    @lru_cache(maxsize=1)
-    def _reward_table() -> torch.Tensor:
-        """(3, 2 * 3^9): reward of the board content a move of the player reached; second half: it was dead before."""
+    @lru_cache(maxsize=2)
+    def _reward_table(about_to_win: bool = True) -> torch.Tensor:
+        """(3, 2 * 3^9): reward of the board content a move of the player reached; second half: it was dead before.
+        ``about_to_win=False``: the same without the "about to win" event (``about_to="created"``)."""
         tables = grid_tables(3)
         rows = torch.zeros(3, 2 * 3**9)
         for player in (1, 2):
             win = tables.has_line[player]
             draw = tables.full & ~win
             about_to_lose = tables.win_bits[3 - player] != 0
-            about_to_win = tables.win_bits[player] != 0
-            rows[player, : 3**9] = prioritise(win, draw, about_to_lose, tables.dead, about_to_win)
-            rows[player, 3**9:] = prioritise(win, draw, about_to_lose, torch.zeros_like(win), about_to_win)
+            threat = (tables.win_bits[player] != 0) & about_to_win
+            rows[player, : 3**9] = prioritise(win, draw, about_to_lose, tables.dead, threat)
+            rows[player, 3**9:] = prioritise(win, draw, about_to_lose, torch.zeros_like(win), threat)
         return rows

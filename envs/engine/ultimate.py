@@ -17,8 +17,8 @@ class UltimateEngine(_Engine):
     cells = 81
     grids = 9
 
-    def __init__(self, free_move: str = "anywhere") -> None:
-        super().__init__()
+    def __init__(self, free_move: str = "anywhere", win_set: str = "wins_and_threats", about_to: str = "standing") -> None:
+        super().__init__(win_set, about_to)
         self.free_move = check_free_move(free_move)
         self.meta = grid_tables(4)
         self.subgrid_of = torch.tensor(SUBGRID_OF_CELL)  # (81,) subgrid holding the cell
@@ -152,7 +152,8 @@ class UltimateEngine(_Engine):
         place: every square of each subgrid the player may play in (a taken square: -5); the other entries are
         left as they are, so the env writes them straight into its (B, actions) look-ahead row (its other
         entries already -5 or the dialogue acts' 0). ``wins`` (B, W) bool (contiguous), if given, gets True
-        where the written reward is +5 (the env's ``winning_actions``, without a float compare of the whole row).
+        where the written reward is +5 (the env's ``winning_actions``, without a float compare of the whole row),
+        or with ``win_set="wins"`` only where the move wins the game now.
         Only squares that can be legal are evaluated, one subgrid (9 squares) per row: a game sent to an open
         subgrid is one row, a free game one row per subgrid it may play in. With ``active`` (B,) bool, only those
         games are evaluated: the env passes the games where the robot has a legal move."""
@@ -169,7 +170,8 @@ class UltimateEngine(_Engine):
         rows, subs = candidates.nonzero().unbind(1)  # row order does not matter: each row writes its own squares
         squares = ((rows * out.shape[1]).unsqueeze(1) + self.subgrid_cells.index_select(0, subs)).view(-1)  # flat indices
         events = self._events_at(state, player, rows, subs, open_grid).view(-1)
-        rewards, is_win = self._event_tables()
+        rewards, is_plus5, is_game_win = self._event_tables()
+        is_win = is_game_win if self.win_set == "wins" else is_plus5
         # scatter_ rather than index_copy_: the same writes (the indices are distinct), ~4x faster here
         out.view(-1).scatter_(0, squares, rewards.index_select(0, events))
         if wins is not None:
@@ -177,15 +179,15 @@ class UltimateEngine(_Engine):
 
     @staticmethod
     @lru_cache(maxsize=1)
-    def _event_tables() -> tuple[torch.Tensor, torch.Tensor]:
+    def _event_tables() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(64,) float32 the reward of a move from its events' bits (bit 0 win, 1 about to draw, 2 draw, 3 about
         to lose, 4 about to win, 5 the square is taken), highest priority first as ``prioritise`` does; (64,)
-        bool whether that reward is +5."""
+        bool whether that reward is +5; (64,) bool whether the move wins the game now (``win_set="wins"``)."""
         bits = torch.arange(64).unsqueeze(1) >> torch.arange(6) & 1 == 1
         taken = bits[:, 5]
         reward = prioritise(bits[:, 0], bits[:, 2], bits[:, 3], bits[:, 1], bits[:, 4])
         reward = torch.where(taken, REWARD_LOSE, reward).float().contiguous()
-        return reward, (reward == REWARD_WIN).contiguous()
+        return reward, (reward == REWARD_WIN).contiguous(), (bits[:, 0] & ~taken).contiguous()
 
     def _events_at(self, state: Boards, player: int, rows: torch.Tensor, subs: torch.Tensor,
                    open_grid: torch.Tensor) -> torch.Tensor:
@@ -200,7 +202,11 @@ class UltimateEngine(_Engine):
         now = (lookup(now_table[player], state.codes + self._grid_offsets) * open_grid).sum(1)  # bits 0-8 opponent, 9-17 player
 
         open_bits = (open_grid * self.bit9).sum(1)
-        dead_before = lookup(meta_table[player], meta_code) & 2
+        meta_now = lookup(meta_table[player], meta_code)
+        dead_before = meta_now & 2
+        # about_to="created": the player already has a winning square (an open subgrid where it can complete a
+        # line whose winning completes a line of subgrids: the "about to win" test below, before the move)
+        had_threat = ((now & (meta_now >> 2)) > 511) if self.about_to == "created" else None
         meta_code, now, open_bits, dead_before = (t.index_select(0, rows).unsqueeze(1).to(i32) for t in (meta_code, now, open_bits, dead_before))
 
         sub, pos = subs.unsqueeze(1).to(i32), self._positions32  # (N, 1), (1, 9)
@@ -232,5 +238,8 @@ class UltimateEngine(_Engine):
         threats = threats & (meta_facts >> 2)
         # sent to an open subgrid: the opponent's threat there; else (a free move): any of its threats
         events = events | ((threats & (511 - target_open * self._not_position32)) != 0) * eight  # about to lose
-        events = events | (threats > 511) * sixteen  # about to win
+        about_to_win = threats > 511
+        if had_threat is not None:  # created: paid only on the move that makes the first threat
+            about_to_win = about_to_win & ~had_threat.index_select(0, rows).unsqueeze(1)
+        events = events | about_to_win * sixteen  # about to win
         return events | (after & 32)  # the square is taken (bit 5 of ``after``)

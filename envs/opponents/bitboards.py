@@ -3,7 +3,7 @@
 MCTS spends nearly all its time in random playouts, so positions here are small tuples of 9-bit ints and
 every question ("is this a line?", "which squares of this subgrid are free?") is one lookup in a table
 precomputed over all 512 masks. Sides are 0 (to move first in the position we were given) and 1; results are
-``ONGOING`` (-1), 0 or 1 (that side won) or ``DRAW`` (2). ``tests/test_opponents.py`` checks these engines
+``ONGOING`` (-1), 0 or 1 (that side won) or ``DRAW`` (2). ``tests/envs/test_opponents.py`` checks these engines
 against ``envs.rules`` on random games of both games and both free-move variants.
 
 Ultimate positions: ``(subs0, subs1, decided, macro0, macro1, target, turn, n_empty, result)`` with

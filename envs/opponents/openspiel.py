@@ -13,7 +13,7 @@ OpenSpiel's ``MCTSBot`` (random-rollout evaluator, one rollout, ``uct_c`` = 2 as
 
 OpenSpiel's Ultimate lets a player sent to a decided subgrid choose any *undecided* subgrid: our
 ``free_move="open_subgrids"``. Under our paper rule (``anywhere``) it is refused with one line. The equivalence
-of the rules is tested by playing random games through both engines (tests/test_openspiel.py).
+of the rules is tested by playing random games through both engines (tests/envs/test_openspiel.py).
 
 The bot only sees boards, so it follows each game move by move: after its own move it remembers the OpenSpiel
 history under the resulting board, and the next call finds it by removing the other side's last mark. A position

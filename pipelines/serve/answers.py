@@ -2,7 +2,7 @@
 
 Why through the env: in `ncbot robot play` the env's simulated user answers each robot act with an utterance
 learnt from the example dialogues, and that utterance (its words and act) is what the robot's state, the act
-filter and the policy see next. A person in the browser takes that user's place: `pipelines.play.HeardReplies`
+filter and the policy see next. A person in the browser takes that user's place: `pipelines.evaluate.play.HeardReplies`
 (the same hook `ncbot play` uses for typed text) makes the env's reply table hold the person's utterance, so
 the env's own step turns it into words, a user act and its effect (a "no" to "shall we play?" never agrees to
 play; silence is silence). Typed text is understood with `speech.understand.closest_utterance` (each typed word
@@ -40,7 +40,7 @@ class EnvAnswers:
     """One env's reply hook: which buttons fit a robot act, what a button or typed text means, and setting it."""
 
     def __init__(self, env: Any) -> None:
-        from pipelines.play import HeardReplies
+        from pipelines.evaluate.play import HeardReplies
         from speech.understand import utterance_table
 
         model = env.model  # the env's own tables, before HeardReplies swaps in its private copy

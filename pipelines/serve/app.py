@@ -141,16 +141,11 @@ def create_app(config: ServeConfig):
 
     @app.get("/api/stats")
     async def stats() -> dict[str, Any]:
-        every = {**sessions.closed, **sessions.live}
-        return {"sessions": {sid: {"latencies": [round(x, 4) for x in s.latencies], "outcomes": s.outcomes,
-                                   "live": sid in sessions.live} for sid, s in every.items()}}
+        return _stats(sessions)
 
     @app.get("/audio/{session_id}/{name}")
     async def audio(session_id: str, name: str):
-        session = sessions.live.get(session_id) or sessions.closed.get(session_id)
-        if session is None or not AUDIO_NAME.match(name) or not (session.dir / "audio" / name).is_file():
-            raise HTTPException(404, "no such utterance")
-        return FileResponse(session.dir / "audio" / name, media_type="audio/wav")
+        return FileResponse(_utterance(sessions, session_id, name), media_type="audio/wav")
 
     @app.get("/frame/{session_id}.jpg")
     async def frame(session_id: str):
@@ -189,6 +184,21 @@ def create_app(config: ServeConfig):
             session.unsubscribe(outbox)
 
     return app
+
+
+def _stats(sessions: Sessions) -> dict[str, Any]:
+    """Every session's click-to-reply latencies and outcomes, live or closed."""
+    every = {**sessions.closed, **sessions.live}
+    return {"sessions": {sid: {"latencies": [round(x, 4) for x in s.latencies], "outcomes": s.outcomes,
+                               "live": sid in sessions.live} for sid, s in every.items()}}
+
+
+def _utterance(sessions: Sessions, session_id: str, name: str) -> Path:
+    """The path of a session's spoken utterance `name` (404 for an unknown session or name)."""
+    session = sessions.live.get(session_id) or sessions.closed.get(session_id)
+    if session is None or not AUDIO_NAME.match(name) or not (session.dir / "audio" / name).is_file():
+        raise HTTPException(404, "no such utterance")
+    return session.dir / "audio" / name
 
 
 async def _send_loop(websocket, outbox: asyncio.Queue) -> None:

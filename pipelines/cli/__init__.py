@@ -1,0 +1,1 @@
+"""The `ncbot` command line: the root app (`pipelines.cli.app`) and one module of commands per area."""

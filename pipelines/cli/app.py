@@ -1,0 +1,127 @@
+"""The `ncbot` command line: one root Typer app; each area registers its own commands.
+
+Every area module (`env`, `learn`, `logs`, `vision`, `robot`, `play`, `reproduce`) exposes
+`register(app)` and imports its heavy dependencies (torch, sapien, cv2) inside the commands, so that
+`ncbot --help` stays fast. Bad input raises `ValueError`/`FileNotFoundError` with a clear message; `main`
+turns it into one line on stderr and exit code 2 (set NCBOT_DEBUG=1 to see the traceback).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import traceback
+import warnings
+
+import typer
+
+import pipelines.cli.env as cli_env
+import pipelines.cli.learn as cli_learn
+import pipelines.cli.logs as cli_logs
+import pipelines.cli.play as cli_play
+import pipelines.cli.reproduce as cli_reproduce
+import pipelines.cli.robot as cli_robot
+import pipelines.cli.vision as cli_vision
+from pipelines.errors import Terminated, one_line, squeeze  # light: no torch
+
+app = typer.Typer(
+    name="ncbot",
+    help="ncbot: a Pepper robot that learns to play Noughts & Crosses with people.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+@app.callback()
+def root() -> None:
+    """ncbot: a Pepper robot that learns to play Noughts & Crosses with people."""
+
+
+@app.command()
+def version() -> None:
+    """Print the installed ncbot version."""
+    from importlib.metadata import version as installed_version
+
+    typer.echo(f"ncbot {installed_version('ncbot')}")
+
+
+for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
+    area.register(app)
+
+
+def _on_sigterm(_signum: int, _frame: object) -> None:
+    raise Terminated()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Console entry point and the CLI's one error boundary (pipelines/errors.py).
+
+    Usage errors and every expected failure -> one line on stderr, exit 2; Ctrl-C -> one line, exit 130; SIGTERM
+    -> one line, exit 143 (both unwind, so atomic writers remove their temp files); a bug -> the traceback and a
+    request to report it. NCBOT_DEBUG=1 re-raises expected failures too, to see where they came from.
+    """
+    click = click_exceptions()
+
+    if threading_is_main():
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    # torch warns about the pickle protocol of a file its safe loader is about to refuse: the refusal is the line
+    warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
+    command = typer.main.get_command(app)
+    code = 0
+    try:
+        with command.make_context("ncbot", list(sys.argv[1:] if args is None else args)) as context:
+            command.invoke(context)
+    except click.Exit as done:  # --help, typer.Exit(n)
+        code = done.exit_code
+    except click.NoArgsIsHelpError as usage:
+        usage.show()
+        code = 2
+    except click.ClickException as usage:  # bad option or argument: one line (the usage is under --help)
+        where = f" (see: {usage.ctx.command_path} --help)" if getattr(usage, "ctx", None) else ""
+        print(f"ncbot: error: {squeeze(usage.format_message())}{where}", file=sys.stderr)
+        code = usage.exit_code
+    except (KeyboardInterrupt, click.Abort):
+        print("\nncbot: interrupted (Ctrl-C); a run folder can be continued with ncbot train --resume DIR",
+              file=sys.stderr)
+        code = 130
+    except Terminated:
+        print("ncbot: terminated (SIGTERM); a run folder can be continued with ncbot train --resume DIR",
+              file=sys.stderr)
+        code = 143
+    except Exception as error:  # noqa: BLE001 - the boundary: sorted into expected failures and bugs
+        line = one_line(error)
+        if line is None or os.environ.get("NCBOT_DEBUG"):
+            traceback.print_exc()
+            if line is None:
+                print("ncbot: internal error (a bug, not your input): please report it with the command you ran "
+                      "and the traceback above", file=sys.stderr)
+                code = 1
+            else:
+                code = 2
+        if line is not None:
+            print(f"ncbot: error: {line}", file=sys.stderr)
+            code = 2
+    sys.exit(code)
+
+
+def click_exceptions():
+    """The exception classes of the click that typer runs on (typer 0.29 vendors its own copy as typer._click)."""
+    import types
+
+    try:
+        from typer._click import exceptions
+    except ImportError:  # older typer: plain click
+        from click import exceptions
+    return types.SimpleNamespace(Exit=typer.Exit, Abort=typer.Abort, ClickException=exceptions.ClickException,
+                                 NoArgsIsHelpError=exceptions.NoArgsIsHelpError)
+
+
+def threading_is_main() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,122 @@
+"""`ncbot logs ...`: look into the MCAP episode logs of a run (logic in `logs/`; this file only parses options).
+
+Bad input (missing path, empty or non-MCAP file, an MCAP without ncbot channels, an unknown episode) raises
+ValueError/FileNotFoundError, which `pipelines.cli.app.main` prints as one line with exit code 2.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from pipelines.outputs import check_writable_file
+from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
+
+logs_app = typer.Typer(help="Inspect, replay, plot and export the MCAP episode logs of a run.",
+                       no_args_is_help=True)
+
+PATH_HELP = "an episodes-NNNN.mcap file or a run directory holding them"
+
+
+@logs_app.command("inspect")
+def inspect_log(path: Path = typer.Argument(..., help=PATH_HELP),
+                as_json: bool = typer.Option(False, "--json", help="print one JSON object instead of text")) -> None:
+    """Channels and schemas, message counts, time span, episodes by phase, and whether a file was cut off."""
+    from logs.reader import LogReader
+    from logs.summary import format_study, format_summary, study_sessions, summarize, summarize_study
+
+    if study_sessions(path):  # a browser study: one session-<id>/ folder per tab (`ncbot robot serve`)
+        study = summarize_study(path)
+        typer.echo(json.dumps(study, indent=2) if as_json else format_study(study))
+        return
+    summary = summarize(path, LogReader(path, progress=progress_bar))
+    typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
+
+
+@logs_app.command("episodes")
+def list_episodes(path: Path = typer.Argument(..., help=PATH_HELP),
+                  phase: Optional[str] = typer.Option(None, help="train, eval or robot"),
+                  outcome: Optional[str] = typer.Option(None, help="win, loss, draw or none (robot's view)"),
+                  agent: Optional[str] = typer.Option(None, help="only this agent"),
+                  limit: int = typer.Option(50, min=1, help="show at most this many (the first matches)")) -> None:
+    """A table of the episodes that match the filters."""
+    from logs.reader import LogReader
+    from logs.schemas import EPISODE_TOPIC, OUTCOMES, PHASES
+
+    if phase is not None and phase not in PHASES:
+        raise ValueError(f"--phase must be one of {', '.join(PHASES)}, got {phase!r}")
+    if outcome is not None and outcome not in OUTCOMES:
+        raise ValueError(f"--outcome must be one of {', '.join(OUTCOMES)}, got {outcome!r}")
+    reader = LogReader(path, progress=progress_bar)
+    episodes = [m.data for m in reader.messages([EPISODE_TOPIC])]
+    reader.require_ncbot()
+    matches = [e for e in episodes if (phase is None or e.get("phase") == phase)
+               and (outcome is None or e.get("outcome") == outcome)
+               and (agent is None or e.get("agent") == agent)]
+    header = f"{'id':>7} {'phase':<6} {'game':<8} {'agent':<16} {'seed':>4} {'seat':<6} {'outcome':<7} " \
+             f"{'return':>8} {'length':>6} {'env_steps':>9} {'epsilon':>7}"
+    typer.echo(header)
+    for e in matches[:limit]:
+        steps = "" if e.get("env_steps") is None else e["env_steps"]
+        epsilon = "" if e.get("epsilon") is None else f"{e['epsilon']:.3f}"
+        typer.echo(f"{e['episode']:>7} {e['phase']:<6} {e['game']:<8} {str(e['agent'])[:16]:<16} {e['seed']:>4} "
+                   f"{e['seat']:<6} {e['outcome']:<7} {e['return']:>8.3f} {e['length']:>6} {steps:>9} {epsilon:>7}"
+                   + (" truncated" if e.get("truncated") else ""))
+    shown = min(limit, len(matches))
+    typer.echo(f"{shown} of {len(matches)} matching episodes shown ({len(episodes)} in the log)")
+
+
+@logs_app.command("show")
+def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
+                 episode_id: int = typer.Argument(..., help="episode id (see `ncbot logs episodes`)"),
+                 max_q: int = typer.Option(8, min=1, help="Q-values shown per decision (highest first)")) -> None:
+    """Replay one dialogue: utterances, the board after each move, Q-values and masks of each robot decision."""
+    from logs.replay import format_episode, load_episode
+
+    record, names = load_episode(path, episode_id, progress=progress_bar)
+    typer.echo(format_episode(record, names, max_q=max_q))
+
+
+@logs_app.command("curve")
+def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
+                   output: Path = typer.Option(..., "-o", "--output", help="PNG file to write"),
+                   window: int = typer.Option(200, min=1, help="moving-average window over training episodes")) -> None:
+    """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
+    from logs.curve import plot_learning_curve
+
+    check_writable_file(output, "-o", (".png",))
+
+    series = plot_learning_curve(path, output, window, progress=progress_bar)
+    for label, entry in series.items():
+        last = []
+        if "train" in entry and len(entry["train"]["x"]):
+            last.append(f"train task success {entry['train']['task_success'][-1]:.3f}")
+        if "eval" in entry:
+            last.append(f"last eval task success {entry['eval']['task_success'][-1]:.3f} "
+                        f"({entry['eval']['games'][-1]} games at {int(entry['eval']['x'][-1])} env steps)")
+        typer.echo(f"{label}: " + ", ".join(last))
+    typer.echo(f"wrote {output}")
+
+
+@logs_app.command("to-rerun")
+def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
+             output: Path = typer.Option(..., "-o", "--output", help=".rrd file to write"),
+             episodes: Optional[str] = typer.Option(None, help="ids and ranges, e.g. '3,7,10-12' (default: the last "
+                                                               "--max-episodes)"),
+             max_episodes: int = typer.Option(200, min=1, help="cap on exported episodes")) -> None:
+    """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
+    from logs.rerun_export import export_to_rerun, parse_episode_spec
+
+    check_writable_file(output, "-o", (".rrd",))
+
+    counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=progress_bar)
+    typer.echo(f"wrote {output} ({counts['bytes']} bytes): {counts['episodes']} episodes, {counts['steps']} steps, "
+               f"{counts['camera_frames']} camera frames, {counts['joint_states']} joint states, "
+               f"{counts['transforms']} transforms; open with `rerun {output}`")
+
+
+def register(app: typer.Typer) -> None:
+    """Add `ncbot logs ...` to the root app."""
+    app.add_typer(logs_app, name="logs")

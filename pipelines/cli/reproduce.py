@@ -1,0 +1,67 @@
+"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce/grid.py)."""
+from __future__ import annotations
+
+import json
+from typing import Optional
+
+import typer
+
+
+def reproduce_command(
+    part: str = typer.Argument("all", help="table | vision | budget | all."),
+    budget: str = typer.Option(..., "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full (the paper's protocol, resumable)."),
+    workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
+    out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md and PNGs."),
+    runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget)."),
+    backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
+    address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
+                                          "(default: a local instance); every node must see --runs at the same path."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (budget: {vision, dialogues, games})."),
+    report_only: bool = typer.Option(False, "--report-only", help="table only: start no run, write the table and "
+                                     "claims from the runs finished so far (marked PARTIAL until all are done)."),
+) -> None:
+    """Reproduce the paper's findings with the faithful options: runs (finished ones skipped), table, claims, budgets."""
+    import shlex
+    import sys
+
+    from pipelines.reproduce.grid import reproduce
+
+    command = "ncbot " + shlex.join(sys.argv[1:])
+    result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,
+                       address=address, report_only=report_only)
+    if as_json:
+        report = result.get("budget_report")
+        if part == "budget":
+            typer.echo(json.dumps({key: report[key] for key in ("vision", "dialogues", "games", "label")}))
+        elif part == "vision":
+            typer.echo(json.dumps({key: result["vision_report"][key] for key in ("vision", "label")}))
+        else:
+            typer.echo(json.dumps(result))
+        return
+    if "vision_report" in result:
+        typer.echo(f"{result['vision_report']['label']}\nwrote {', '.join(result['vision_report']['files'])}")
+    if "runs" not in result:  # the vision part trains no RL agents; --report-only starts none
+        if "table" in result:
+            table = result["table"]
+            typer.echo(f"{table['finished_runs']} of {table['planned_runs']} runs finished; wrote {table['table']} "
+                       f"and {table['claims_file']}")
+        return
+    summary = result["runs"]
+    typer.echo(result["label"])
+    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), {summary['failed']} "
+               f"failed; runs in {summary['runs_dir']}")
+    dialogue_runs = result.get("dialogue_runs")
+    if dialogue_runs:
+        typer.echo(f"dialogue budget: {dialogue_runs['done']} runs finished, {dialogue_runs['skipped']} skipped, "
+                   f"{dialogue_runs['failed']} failed; runs in {dialogue_runs['runs_dir']}")
+    if "table" in result:
+        typer.echo(f"wrote {result['table']['table']} and {result['table']['claims_file']}")
+    if "budget_report" in result:
+        typer.echo(f"wrote {out}/data_budget.md and {', '.join(result['budget_report']['figures'])}")
+    if summary["failed"] or (dialogue_runs or {}).get("failed"):
+        raise typer.Exit(1)
+
+
+def register(app: typer.Typer) -> None:
+    """Add this area's command to the root app."""
+    app.command("reproduce")(reproduce_command)

@@ -1,0 +1,237 @@
+"""The paper's claims tested over seeds: one-sided Welch's t-tests, alpha 0.05, at least 5 seeds a side.
+
+A sample is one seed's evaluation mean (3000 test games); seeds are the independent repetitions, so the
+tests compare seed means, never individual games. The claims (Cuayahuitl 2019), per suite and game row:
+  (i)   task success: Proposed + temporal > DQN-Variant > DQN-Original;
+  (ii)  task success of the proposed agent: with temporal features > without;
+  (iii) dialogue length: Proposed + temporal shorter than DQN-Variant and than DQN-Original.
+A claim made of several comparisons is reproduced only when every comparison is significant (an
+intersection-union test: valid at alpha without a multiplicity correction; its p-value is the largest one).
+Each claim is tested on its own: no correction across the claims and rows of the table.
+
+Zero variance (every seed gave the same value, common for task success near 1): Welch's statistic is
+undefined only when BOTH sides are constant; then the difference is exact and p is 0 when the claimed side is
+larger, 1 otherwise (t and df are reported as None). One constant side is ordinary Welch (df = n - 1 of the
+other side). Constancy is decided on the values themselves, so rounding in a mean never fakes a spread.
+"""
+from __future__ import annotations
+
+import math
+import statistics
+from dataclasses import asdict, dataclass
+from typing import Any
+
+ALPHA = 0.05
+POWER = 0.8  # the power below which a claim that is not reproduced counts as untested
+MIN_SEEDS = 5
+TOO_FEW = f"too few seeds (need >= {MIN_SEEDS})"
+
+# The paper's table layout: game rows and agent cells (cell names are those `ncbot ablate` writes).
+GAME_LABELS = {"standard": "3x3 (100)", "ultimate100": "Ultimate (100)", "ultimate150": "Ultimate (150)"}
+ORIGINAL, VARIANT = "dqn_original-notemporal", "dqn_variant-notemporal"
+PROPOSED_NOTEMPORAL, PROPOSED = "proposed-notemporal", "proposed-temporal"
+UNIFORM = "uniform-notemporal"
+CELL_LABELS = {UNIFORM: "Uniform in the masks (no learning)", ORIGINAL: "DQN-Original", VARIANT: "DQN-Variant",
+               PROPOSED_NOTEMPORAL: "Proposed, no temporal", PROPOSED: "Proposed + temporal"}
+
+# Paper (Cuayahuitl 2019) table: (avg reward per action, task success, dialogue length); paper-notes section 5.
+PAPER = {
+    ("standard", ORIGINAL): (0.0658, 0.8258, 13.93),
+    ("standard", VARIANT): (0.5530, 0.9720, 13.99),
+    ("standard", PROPOSED_NOTEMPORAL): (0.4710, 0.9868, 15.31),
+    ("standard", PROPOSED): (0.6300, 0.9980, 14.06),
+    ("ultimate100", ORIGINAL): (-0.6900, 0.7873, 63.54),
+    ("ultimate100", VARIANT): (0.0177, 0.9074, 64.82),
+    ("ultimate100", PROPOSED_NOTEMPORAL): (0.0693, 0.9377, 63.62),
+    ("ultimate100", PROPOSED): (0.1440, 0.9753, 52.03),
+    ("ultimate150", ORIGINAL): (-0.1120, 0.7290, 65.49),
+    ("ultimate150", VARIANT): (-0.0310, 0.8663, 70.57),
+    ("ultimate150", PROPOSED_NOTEMPORAL): (0.0997, 0.9473, 59.69),
+    ("ultimate150", PROPOSED): (0.1640, 0.9846, 52.09),
+}
+# claim id -> (statement, [(metric, cell claimed larger, cell claimed smaller)]).
+CLAIMS: dict[str, tuple[str, list[tuple[str, str, str]]]] = {
+    "i": ("task success: Proposed + temporal > DQN-Variant > DQN-Original",
+          [("task_success", PROPOSED, VARIANT), ("task_success", VARIANT, ORIGINAL)]),
+    "ii": ("task success: Proposed + temporal > Proposed, no temporal",
+           [("task_success", PROPOSED, PROPOSED_NOTEMPORAL)]),
+    "iii": ("dialogue length: Proposed + temporal shorter than DQN-Variant and DQN-Original",
+            [("avg_length", VARIANT, PROPOSED), ("avg_length", ORIGINAL, PROPOSED)]),
+}
+
+
+@dataclass(frozen=True)
+class Welch:
+    """One one-sided Welch's t-test of "mean(larger) > mean(smaller)" over seeds."""
+
+    metric: str
+    larger: str
+    smaller: str
+    n: tuple[int, int]
+    mean: tuple[float, float]
+    t: float | None
+    df: float | None
+    p: float | None  # None: a side has fewer than 2 seeds (no variance to estimate)
+
+    @property
+    def decided(self) -> bool:
+        return min(self.n) >= MIN_SEEDS and self.p is not None
+
+    def text(self) -> str:
+        sides = [f"{CELL_LABELS.get(cell, cell)} {mean:.4f} (n={n})" for cell, mean, n in
+                 zip((self.larger, self.smaller), self.mean, self.n)]
+        stat = "–" if self.p is None else ("both sides constant" if self.t is None else
+                                            f"t={self.t:.2f}, df={self.df:.1f}")
+        return f"{sides[0]} > {sides[1]}: {stat}, p={_p(self.p)}"
+
+
+def mean_and_variance(values: list[float]) -> tuple[float, float]:
+    """(mean, sample variance) of n >= 2 values; identical values give exactly 0 variance and the value itself as
+    mean (so no rounding residue turns into a spurious spread)."""
+    if max(values) == min(values):
+        return values[0], 0.0
+    return statistics.fmean(values), statistics.variance(values)
+
+
+def welch_greater(larger: list[float], smaller: list[float]) -> tuple[float | None, float | None, float | None]:
+    """(t, df, p) of the one-sided Welch's t-test H1: mean(larger) > mean(smaller); see the module docstring
+    for zero variance. (None, None, None) when a side has fewer than 2 values."""
+    from scipy.stats import t as student_t
+
+    if min(len(larger), len(smaller)) < 2:
+        return None, None, None
+    (mean_a, var_a), (mean_b, var_b) = mean_and_variance(larger), mean_and_variance(smaller)
+    se_a, se_b = var_a / len(larger), var_b / len(smaller)
+    if se_a + se_b == 0.0:
+        return None, None, 0.0 if mean_a > mean_b else 1.0
+    t = (mean_a - mean_b) / math.sqrt(se_a + se_b)
+    df = (se_a + se_b) ** 2 / (se_a ** 2 / (len(larger) - 1) + se_b ** 2 / (len(smaller) - 1))
+    return t, df, float(student_t.sf(t, df))
+
+
+@dataclass(frozen=True)
+class Claim:
+    claim: str
+    suite: str
+    game: str
+    statement: str
+    tests: tuple[Welch, ...]
+    # the power of these seeds to detect the paper's own difference at our spread (None: no paper difference, or
+    # fewer than 2 seeds a side); a claim not reproduced with low power is untested rather than refuted
+    power: float | None = None
+    holm_p: float | None = None  # p adjusted over every claim of the report (Holm), for a family-wise reading
+
+    @property
+    def p(self) -> float | None:
+        """Intersection-union p-value: the largest of the tests' (None if any test has none)."""
+        ps = [test.p for test in self.tests]
+        return None if None in ps else max(ps)
+
+    @property
+    def verdict(self) -> str:
+        if not all(test.decided for test in self.tests):
+            return TOO_FEW
+        if self.p < ALPHA:
+            return "reproduced"
+        if self.power is not None and self.power < POWER:
+            return f"not reproduced; power {self.power:.2f} < {POWER} to detect the paper's difference: untested"
+        return "not reproduced"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"claim": self.claim, "suite": self.suite, "game": self.game, "statement": self.statement,
+                "test": "one-sided Welch's t-test over seeds", "alpha": ALPHA, "min_seeds": MIN_SEEDS,
+                "p": self.p, "holm_p": self.holm_p, "power_at_paper_difference": self.power,
+                "verdict": self.verdict, "tests": [asdict(test) for test in self.tests]}
+
+
+def evaluate_claims(samples: dict[tuple[str, str, str], dict[str, list[float]]]) -> list[Claim]:
+    """Every claim for every (suite, game) whose agents all have at least one run, in table order.
+
+    ``samples`` maps (suite, game row, agent cell) to per-seed values by metric name."""
+    claims = []
+    for suite, game in sorted({(s, g) for s, g, _ in samples}, key=_row_order):
+        for claim, (statement, comparisons) in CLAIMS.items():
+            if any((suite, game, cell) not in samples for _, a, b in comparisons for cell in (a, b)):
+                continue
+            tests = []
+            for metric, larger, smaller in comparisons:
+                a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
+                t, df, p = welch_greater(a, b)
+                tests.append(Welch(metric, larger, smaller, (len(a), len(b)),
+                                   (statistics.fmean(a), statistics.fmean(b)), t, df, p))
+            claims.append(Claim(claim, suite, game, statement, tuple(tests),
+                                power=_power(samples, suite, game, comparisons)))
+    return _with_holm(claims)
+
+
+def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: str, game: str,
+           comparisons: list[tuple[str, str, str]]) -> float | None:
+    """The smallest power over the claim's comparisons to detect the paper's own difference (its table's two
+    numbers) with our seeds and our pooled spread; None where the paper gives no number or a side has < 2 seeds."""
+    from pipelines.reproduce.seed_stats import power_of
+
+    powers = []
+    for metric, larger, smaller in comparisons:
+        column = {"task_success": 1, "avg_length": 2}.get(metric)
+        if column is None or (game, larger) not in PAPER or (game, smaller) not in PAPER:
+            return None
+        difference = PAPER[(game, larger)][column] - PAPER[(game, smaller)][column]
+        a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
+        if min(len(a), len(b)) < 2 or difference <= 0:
+            return None
+        spread = math.sqrt((statistics.variance(a) + statistics.variance(b)) / 2)
+        powers.append(power_of(difference, spread, min(len(a), len(b)), ALPHA))
+    return min(powers) if powers else None
+
+
+def _with_holm(claims: list[Claim]) -> list[Claim]:
+    """Holm's step-down adjustment of the claims' p-values over the whole report (claims without p keep None)."""
+    from dataclasses import replace
+
+    ranked = sorted((claim.p, i) for i, claim in enumerate(claims) if claim.p is not None)
+    adjusted: dict[int, float] = {}
+    running = 0.0
+    for rank, (p, i) in enumerate(ranked):
+        running = max(running, min(1.0, (len(ranked) - rank) * p))
+        adjusted[i] = running
+    return [replace(claim, holm_p=adjusted.get(i)) for i, claim in enumerate(claims)]
+
+
+def _row_order(row: tuple[str, str]) -> tuple:
+    suite, game = row
+    order = list(GAME_LABELS)
+    return (order.index(game) if game in order else len(order), game, suite)
+
+
+def _p(p: float | None) -> str:
+    return "–" if p is None else (f"{p:.4f}" if p >= 1e-4 else f"{p:.1e}")
+
+
+def render_claims(claims: list[Claim], command: str) -> str:
+    """Markdown: one row per claim with its tests, p-value and verdict, and how they were decided."""
+    lines = [
+        "# The paper's claims, tested over seeds",
+        "",
+        f"Made by `{command}`.",
+        "",
+        f"Each comparison is a one-sided Welch's t-test over seeds (one sample = one seed's evaluation mean; unequal "
+        f"variances, Welch-Satterthwaite df), alpha {ALPHA}. A claim made of several comparisons is reproduced only "
+        f"when every one is significant (intersection-union test; its p-value is the largest). A claim needs >= "
+        f"{MIN_SEEDS} seeds on every side, else it is \"{TOO_FEW}\" and its p-values (shown when each side has >= 2 "
+        "seeds) are for information only. Both sides constant across seeds: p = 0 if the claimed side is larger, "
+        f"else 1. Multiplicity: each verdict is at alpha {ALPHA} on its own; the Holm-adjusted p-value over every "
+        "claim in this file is given beside it for a family-wise reading. Power: the probability that these seeds, "
+        "at our spread between seeds, detect the difference the paper itself reports (noncentral t); a claim that is "
+        f"not reproduced with power below {POWER} is untested, not refuted.",
+        "",
+        "| claim | game (units) | settings | statement | comparisons (one-sided Welch's t-test) | p-value | Holm p "
+        "| power at the paper's difference | verdict |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for claim in claims:
+        lines.append(f"| ({claim.claim}) | {GAME_LABELS.get(claim.game, claim.game)} | {claim.suite} | "
+                     f"{claim.statement} | {'<br>'.join(test.text() for test in claim.tests)} | {_p(claim.p)} | "
+                     f"{_p(claim.holm_p)} | {'–' if claim.power is None else f'{claim.power:.2f}'} | {claim.verdict} |")
+    if not claims:
+        lines.append("| – | – | – | no game row has runs of every agent a claim compares | – | – | – | – | – |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,235 @@
+"""`ncbot ablate`: run a grid of training runs in parallel processes (local pool or Ray), skipping finished ones.
+
+Each run is a separate `ncbot train` process (its own torch thread, its own crash domain), so a failing run does
+not take the grid down and an interrupted grid resumes: runs with `eval.json` are skipped, runs with periodic
+checkpoints but no `eval.json` are continued with `--resume`.
+"""
+from __future__ import annotations
+
+import itertools
+import subprocess
+import sys
+import threading
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+GRID_AXES = ("suite", "game", "agent", "temporal", "lookahead")
+
+
+@dataclass
+class PlannedRun:
+    """One cell of the grid: where it goes and how `ncbot train` is called for it."""
+
+    name: str
+    run_dir: Path
+    config: Path
+    overrides: list[str] = field(default_factory=list)
+
+    def command(self) -> list[str]:
+        if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
+            return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
+        return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
+                "--out", str(self.run_dir), "--no-progress", "--overwrite"]  # no checkpoint yet: start it again
+
+    @property
+    def finished(self) -> bool:
+        return (self.run_dir / "eval.json").is_file()
+
+
+def load_grid(path: str | Path) -> dict[str, Any]:
+    """The ablation grid, read through the one safe YAML loader and checked shape by shape (one line each)."""
+    from fileio.yaml_file import read_yaml
+
+    path = Path(path)
+    expected = "a YAML mapping with 'suites' and 'grid', e.g. pipelines/configs/ablation.yaml"
+    grid = read_yaml(path, "ablation grid", expected)
+    if not isinstance(grid, dict):
+        raise ValueError(f"ablation grid {str(path)!r} must be {expected}")
+    unknown = set(grid) - {"runs_dir", "suites", "grid", "baselines_with_temporal"}
+    if unknown:
+        raise ValueError(f"unknown key '{sorted(map(str, unknown))[0]}' in ablation grid; allowed: runs_dir, suites, grid, baselines_with_temporal")
+    for key in ("suites", "grid"):
+        if not isinstance(grid.get(key), dict):
+            raise ValueError(f"ablation grid {str(path)!r} needs a '{key}' mapping")
+    if not isinstance(grid.get("runs_dir", ""), str):
+        raise ValueError(f"ablation grid {str(path)!r}: 'runs_dir' must be a folder name")
+    bad_axes = set(grid["grid"]) - set(GRID_AXES)
+    if bad_axes:
+        raise ValueError(f"unknown grid axis '{sorted(map(str, bad_axes))[0]}'; allowed: {', '.join(GRID_AXES)}")
+    for axis, values in grid["grid"].items():
+        if not isinstance(values, list) or not values or not all(v is None or isinstance(v, (str, int, float))
+                                                                   for v in values):
+            raise ValueError(f"grid axis '{axis}' must be a non-empty list of names or flags (e.g. {axis}: [a, b]), got {values!r}")
+    for suite, rows in grid["suites"].items():
+        if not isinstance(rows, dict):
+            raise ValueError(f"suite {suite!r} must map game rows to {{config: FILE, overrides: [...]}}, got {rows!r}")
+        for row, entry in rows.items():
+            if not isinstance(entry, dict) or not isinstance(entry.get("config"), str):
+                raise ValueError(f"suite {suite!r} row {row!r} needs 'config: FILE' (a YAML run config), got {entry!r}")
+            overrides = entry.get("overrides", [])
+            if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+                raise ValueError(f"suite {suite!r} row {row!r}: 'overrides' must be a list of key=value strings")
+    return grid
+
+
+def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None = None) -> list[PlannedRun]:
+    """Every (suite, game, agent, temporal, look-ahead, seed) cell of the grid, validated before anything runs."""
+    from pipelines.config import load_config
+
+    grid_path = Path(grid_path)
+    grid = load_grid(grid_path)
+    if not 0 < seeds <= 1000:
+        raise ValueError(f"--seeds must be a positive number (at most 1000), got {seeds}")
+    runs_dir = Path(runs_dir or grid.get("runs_dir", "runs/ablation"))
+    axes = grid["grid"]
+    values = {axis: axes.get(axis, [None]) for axis in GRID_AXES}
+    planned = []
+    for suite, game, agent, temporal, lookahead in itertools.product(*(values[a] for a in GRID_AXES)):
+        if not isinstance(suite, str) or suite not in grid["suites"]:
+            raise ValueError(f"grid suite {suite!r} is not defined under 'suites' ({', '.join(grid['suites'])})")
+        entry = grid["suites"][suite].get(game)
+        if entry is None:
+            raise ValueError(f"suite {suite!r} has no config for game row {game!r}")
+        if agent != "proposed" and temporal and not grid.get("baselines_with_temporal", False):
+            continue
+        config = (grid_path.parent / entry["config"]).resolve()
+        overrides = list(entry.get("overrides", [])) + [f"agent.name={agent}", f"env.temporal={str(bool(temporal)).lower()}"]
+        if lookahead is not None:
+            overrides.append(f"agent.lookahead={lookahead}")
+        cell = f"{agent}-{'temporal' if temporal else 'notemporal'}" + (f"-{lookahead}" if lookahead else "")
+        for seed in range(seeds):
+            load_config(config, overrides + [f"train.seed={seed}"])  # fail early, with the key, before any run starts
+            planned.append(PlannedRun(
+                name=f"{suite}/{game}/{cell}/seed{seed}", run_dir=runs_dir / suite / game / cell / f"seed{seed}",
+                config=config, overrides=overrides + [f"train.seed={seed}"],
+            ))
+    return planned
+
+
+class _Children:
+    """The `ncbot train` processes the local pool has running, so a stopped grid stops them too.
+
+    Why: the pool's worker threads block in `wait()`; without this, Ctrl-C or SIGTERM on `ncbot ablate` would wait
+    for the running trainings and then start every queued one (the executor drains its queue on shutdown).
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._running: set[subprocess.Popen] = set()
+        self.stopping = False
+
+    def start(self, command: list[str], log) -> subprocess.Popen | None:
+        with self._lock:
+            if self.stopping:
+                return None
+            child = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
+            self._running.add(child)
+            return child
+
+    def finished(self, child: subprocess.Popen) -> None:
+        with self._lock:
+            self._running.discard(child)
+
+    def stop(self, grace_s: float = 60.0) -> None:
+        """SIGTERM every running training (each saves nothing half-written and exits 143, resumable), then wait."""
+        with self._lock:
+            self.stopping = True
+            running = list(self._running)
+        for child in running:
+            child.terminate()
+        for child in running:
+            try:
+                child.wait(timeout=grace_s)
+            except subprocess.TimeoutExpired:
+                child.kill()
+
+
+STOPPED = -15  # the code a run reports when the grid was stopped before it started
+
+
+def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str, int]:
+    """One `ncbot train` subprocess; its output goes to the run's train.log. ``children``: the local pool's
+    registry (a Ray task, alone in its worker, gets its own)."""
+    children = children if children is not None else _Children()
+    run.run_dir.mkdir(parents=True, exist_ok=True)
+    with open(run.run_dir / "train.log", "a") as log:
+        child = children.start(run.command(), log)
+        if child is None:
+            return run.name, STOPPED
+        try:
+            code = child.wait()
+        finally:
+            children.finished(child)
+    return run.name, code
+
+
+def check_backend(backend: str, workers: int, address: str | None = None) -> None:
+    """One-line ValueError for a backend, worker count or address that cannot run (before anything is planned)."""
+    from pipelines.train.ray_backend import ray_available
+
+    if backend not in ("local", "ray"):
+        raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
+    if address is not None and backend != "ray":
+        raise ValueError(f"--address {address} needs --backend ray (it is the Ray cluster's HOST:PORT)")
+    if backend == "ray" and not ray_available():
+        raise ValueError("backend 'ray' needs the optional extra: pip install 'ncbot[ray]' (ray is not importable)")
+    if not 0 < workers <= 256:
+        raise ValueError(f"--workers must be a positive number of parallel runs (at most 256), got {workers}")
+
+
+def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local", address: str | None = None,
+                 runs_dir: str | Path | None = None, desc: str = "ablate") -> list[str]:
+    """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names.
+
+    Ray (pipelines/train/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
+    every node must see ``runs_dir`` at the same absolute path (checked before any run starts).
+    """
+    from pipelines.progress import progress_bar
+    from pipelines.train.ray_backend import run_on_ray
+
+    check_backend(backend, workers, address)
+    failed: list[str] = []
+    bar = progress_bar(total=len(todo), unit="run", desc=desc)
+
+    def done(name: str, code: int) -> None:
+        if code != 0:
+            failed.append(name)
+        bar.update(1)
+
+    if backend == "local":
+        children = _Children()
+        pool = ThreadPoolExecutor(max_workers=workers)
+        try:
+            for future in as_completed([pool.submit(_run_local, run, children) for run in todo]):
+                done(*future.result())
+        except BaseException:  # Ctrl-C, SIGTERM (pipelines.errors.Terminated), a bug: stop, leave runs resumable
+            pool.shutdown(wait=False, cancel_futures=True)
+            children.stop()
+            raise
+        pool.shutdown()
+    elif todo:
+        root = Path(runs_dir or todo[0].run_dir.parent).resolve()
+        absolute = [PlannedRun(run.name, run.run_dir.resolve(), run.config.resolve(), list(run.overrides)) for run in todo]
+        outside = [run.name for run in absolute if root not in run.run_dir.parents]
+        if outside:
+            raise ValueError(f"run {outside[0]} is not under the runs folder {root} that the Ray nodes share")
+        run_on_ray(absolute, _run_local, workers=workers, address=address, runs_dir=root, on_done=done)
+    bar.close()
+    return failed
+
+
+def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
+                 out: str | Path | None = None, only: str | None = None, address: str | None = None) -> dict[str, Any]:
+    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
+    check_backend(backend, workers, address)
+    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
+    if only:
+        planned = [run for run in planned if only in run.name]
+    todo = [run for run in planned if not run.finished]
+    runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
+    failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir)
+    return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
+            "failed_runs": failed, "runs_dir": str(runs_dir)}

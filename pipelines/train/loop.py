@@ -1,0 +1,204 @@
+"""The training loop of one run, as in TorchRL's DQN script: for every Collector batch, store its transitions, learn
+from the replay buffer once past the burn-in, anneal epsilon; evaluate greedily and checkpoint at their periods;
+at the end, the final checkpoint and the evaluation from both seats.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
+from pipelines.config import RunConfig
+from pipelines.run_folder import MCAP_KEY
+from pipelines.train.build import TrainingParts, training_state
+
+SUCCESS_THRESHOLD = 0.995
+EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
+
+
+def next_multiple(frames: int, every: int) -> int:
+    """The first multiple of `every` strictly after `frames`: when the next evaluation or checkpoint is due."""
+    return (frames // every + 1) * every
+
+
+def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_THRESHOLD) -> float | None:
+    """Wall time of the first periodic evaluation whose task success reached `threshold`."""
+    for record in history:
+        if record["task_success"] >= threshold:
+            return record["wall_time"]
+    return None
+
+
+def anneal_epsilon(egreedy: Any, frames: int) -> None:
+    """TorchRL's `EGreedyModule.step(frames)`, skipped once annealing down has reached eps_end: from there a step
+    leaves eps as it is (max(eps_end, eps_end - delta) = eps_end), and it runs a loop of tensor ops per frame."""
+    if egreedy.eps_init >= egreedy.eps_end and bool(egreedy.eps <= egreedy.eps_end):
+        return
+    egreedy.step(frames)
+
+
+class TrainingLoop:
+    """One run's loop over its Collector (`run`), then its final checkpoint and evaluation (`finish`)."""
+
+    def __init__(self, config: RunConfig, parts: TrainingParts, *, seed: int, run_id: str, out_dir: Path,
+                 started: float, scalar_log: Any = None, mcap_logger: Any = None) -> None:
+        self.config, self.parts, self.seed, self.run_id, self.out_dir = config, parts, seed, run_id, out_dir
+        self.started, self.scalar_log, self.mcap_logger = started, scalar_log, mcap_logger
+        self.counters = parts.counters
+        self.stop_on_episodes = config.train.episodes is not None
+        self.losses: list[float] = []  # mean loss of each learning batch since the last evaluation
+
+    def wall_time(self) -> float:
+        return self.counters["wall_offset"] + time.monotonic() - self.started
+
+    def recent_loss(self) -> float:
+        return float(np.mean(self.losses)) if self.losses else float("nan")
+
+    def evaluate(self) -> dict[str, Any]:
+        """A periodic greedy evaluation, recorded in the history (and the scalar log)."""
+        from pipelines.evaluate.games import evaluate_agent
+        from pipelines.scalars import eval_scalars
+
+        config, counters, agent = self.config, self.counters, self.parts.agent
+        result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, seat="alternate",
+                                seed=self.seed + EVAL_SEED_OFFSET)
+        record = {"frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+                  "wall_time": round(self.wall_time(), 3),
+                  "train_loss": self.recent_loss(), "epsilon": float(agent.egreedy.eps), **result.to_dict()}
+        self.parts.history.append(record)
+        if self.scalar_log is not None:
+            self.scalar_log.log(eval_scalars(record), step=counters["frames"])
+        return record
+
+    def store(self, batch: Any) -> None:
+        """A collected batch into the replay buffer (learning reward, bootstrap mask and n-step windows under their
+        own keys: modules/transitions.py), the search teacher, the MCAP log; then epsilon and self-play move on."""
+        from modules.transitions import prepare_transitions
+
+        config, parts, counters = self.config, self.parts, self.counters
+        loss = config.loss
+        transitions = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
+                                          bootstrap=loss.bootstrap, lookahead=config.lookahead,
+                                          multistep=parts.multistep)
+        if parts.sequence_rows is not None:  # agent.memory: + dialogue id, step, is_init and hidden state
+            transitions = parts.sequence_rows(batch, transitions, counters["frames"] - batch.numel())
+        parts.buffer.extend(transitions)
+        if parts.teacher is not None and counters["frames"] >= config.search_targets.start_frames:
+            parts.teacher.label(batch)
+        if self.mcap_logger is not None:
+            self.mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=self.seed,
+                                          epsilon=float(parts.agent.egreedy.eps), env_steps=counters["frames"],
+                                          env=parts.env)
+        anneal_epsilon(parts.agent.egreedy, batch.numel())
+        if parts.selfplay_pool is not None:
+            parts.selfplay_pool.maybe_add(parts.qnet, counters["frames"])
+
+    def learn(self) -> bool:
+        """Several updates per collected batch once the burn-in is in the buffer; False before that."""
+        from modules.learner import scheduled_lr
+
+        config, learner = self.config, self.parts.learner
+        if len(self.parts.buffer) < config.collector.init_random_frames:
+            return False
+        if config.schedule.lr_end is not None:
+            learner.set_lr(scheduled_lr(self.counters["frames"], config.optim.lr, config.schedule.lr_end,
+                                        config.collector.total_frames))
+        step_losses = learner.update_many(self.parts.buffer, config.optim.updates_per_batch)
+        self.counters["updates"] += len(step_losses)
+        self.losses.append(float(torch.stack(step_losses).mean()))
+        return True
+
+    def log_scalars(self, frames: int, seconds: float, updated: bool) -> None:
+        self.scalar_log.log({
+            "train/loss": self.losses[-1] if updated else None, "train/epsilon": float(self.parts.agent.egreedy.eps),
+            "train/lr": self.parts.learner.optimizer.param_groups[0]["lr"], "train/frames_per_s": frames / seconds,
+            "train/updates_per_s": self.config.optim.updates_per_batch / seconds if updated else 0.0,
+        }, step=self.counters["frames"])
+
+    def finished(self) -> bool:
+        config, counters = self.config, self.counters
+        done = (counters["episodes"] >= config.train.episodes) if self.stop_on_episodes else \
+            counters["frames"] >= config.collector.total_frames
+        return done or (config.train.max_games is not None and counters["episodes"] >= config.train.max_games)
+
+    def checkpoint(self) -> None:
+        """A periodic checkpoint; the log rolls here: its finished files hold exactly the episodes it counts."""
+        log_next = self.mcap_logger.roll() if self.mcap_logger is not None else None
+        state = training_state(self.config, self.parts, self.run_id, self.wall_time())
+        save_periodic({**state, MCAP_KEY: log_next}, self.out_dir, self.counters["frames"],
+                      self.config.checkpoint.keep)
+
+    def run(self, collector: Any) -> None:
+        """Collect, store, learn, evaluate and checkpoint until the run's frames (or games) are done."""
+        from pipelines.progress import progress_bar
+
+        config, counters, agent = self.config, self.counters, self.parts.agent
+        next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
+        next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
+        bar = progress_bar(total=config.train.episodes if self.stop_on_episodes else config.collector.total_frames,
+                           initial=counters["episodes"] if self.stop_on_episodes else counters["frames"],
+                           unit="game" if self.stop_on_episodes else "frame", unit_scale=not self.stop_on_episodes,
+                           disable=not config.logger.progress, desc=f"train {config.env.game} {config.agent.name}")
+        batch_started = time.monotonic()
+        last_eval = self.parts.history[-1] if self.parts.history else None
+        for batch in collector if collector is not None else ():  # bool(collector) calls len(): inf when open-ended
+            frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
+            counters["frames"] += frames
+            counters["episodes"] += episodes_ended
+            self.store(batch)
+            updated = self.learn()
+            if self.scalar_log is not None:
+                now = time.monotonic()
+                seconds, batch_started = max(now - batch_started, 1e-9), now
+                self.log_scalars(frames, seconds, updated)
+            finished = self.finished()
+            if counters["frames"] >= next_eval or finished:
+                last_eval = self.evaluate()
+                self.losses.clear()
+                next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
+            if counters["frames"] >= next_ckpt:
+                self.checkpoint()
+                next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
+            bar.update(episodes_ended if self.stop_on_episodes else frames)
+            bar.set_postfix(eps=f"{float(agent.egreedy.eps):.3f}", upd=counters["updates"],
+                            success=f"{last_eval['task_success']:.3f}" if last_eval else "-", refresh=False)
+            if finished:
+                break
+        bar.close()
+        if collector is not None:
+            collector.shutdown()
+
+    def finish(self) -> dict[str, Any]:
+        """The final agent (checkpoint.pt) and its evaluation from both seats; returns the run's report."""
+        from pipelines.evaluate.games import evaluate_agent
+
+        config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
+        if not history or history[-1]["frames"] != counters["frames"]:
+            self.evaluate()
+        final = {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
+                 "n_actions": parts.env.n_actions, "qnet": parts.qnet.state_dict(), "frames": counters["frames"],
+                 "updates": counters["updates"], "episodes": counters["episodes"], "run_id": self.run_id}
+        atomic_save(final, self.out_dir / FINAL_NAME)
+        report: dict[str, Any] = {
+            "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+            "seed": self.seed, "run_id": self.run_id,
+            "train_wall_time_s": round(self.wall_time(), 2), "time_to_0995_s": time_to_success(history),
+        }
+        for seat in ("first", "second"):
+            result = evaluate_agent(config, parts.agent.greedy, games=config.eval.games, seat=seat,
+                                    seed=self.seed + 2 * EVAL_SEED_OFFSET, logger=self.mcap_logger,
+                                    agent_name=config.agent.name)
+            report[seat] = result.to_dict()
+        if parts.teacher is not None:
+            report["search_targets"] = {"searched": parts.teacher.searched, "labels": parts.teacher.kept,
+                                        "search_cpu_s": round(parts.teacher.cpu_seconds, 2)}
+        if parts.selfplay_pool is not None:
+            from pipelines.train.selfplay import pool_summary
+
+            report["selfplay"] = pool_summary(parts.selfplay_pool)
+        report["history"] = history
+        return report

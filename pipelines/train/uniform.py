@@ -1,0 +1,36 @@
+"""The agent that learns nothing: a uniform choice inside an agent's greedy look-ahead mask (`agent.name: uniform`).
+
+Why it is a row of every table: the masks alone (Algorithm 2's A and A_hat) win or draw most games against a random
+user, so a learnt agent's task success means something only beside this baseline's. It is evaluated exactly like
+a trained agent (same seeds, games and seats) and writes the same eval.json, with 0 frames and no checkpoint.
+"""
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+from fileio import atomic_write_text
+from pipelines.config import RunConfig
+from pipelines.train.loop import EVAL_SEED_OFFSET
+
+
+def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
+    """eval.json of the uniform-inside-the-masks agent of ``config.lookahead`` (`train.seed` seeds its choices)."""
+    from modules.masks import LookaheadOnlyPolicy
+    from pipelines.evaluate.games import evaluate_agent
+
+    started = time.monotonic()
+    seed = config.train.seed
+    policy = LookaheadOnlyPolicy(seed=seed, lookahead=config.lookahead, all_negative=config.agent.all_negative)
+    report: dict[str, Any] = {"frames": 0, "updates": 0, "episodes": 0, "seed": seed, "run_id": run.run_id,
+                              "time_to_0995_s": None,
+                              "lookahead": config.lookahead}
+    for seat in ("first", "second"):
+        result = evaluate_agent(config, policy, games=config.eval.games, seat=seat, seed=seed + 2 * EVAL_SEED_OFFSET,
+                                agent_name="uniform")
+        report[seat] = result.to_dict()
+    report["train_wall_time_s"] = round(time.monotonic() - started, 2)
+    report["history"] = []
+    atomic_write_text(json.dumps(report, indent=2) + "\n", run.path / "eval.json")
+    return report

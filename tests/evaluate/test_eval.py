@@ -1,0 +1,109 @@
+"""`ncbot eval`: JSON with exactly the documented keys, seats, and one-line errors for bad input."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from pipelines.config import load_config
+from modules.mask_rules import all_moves_negative
+from pipelines.evaluate.games import GameRecords, evaluate_checkpoint, summarise, wilson_interval
+from pipelines.train.run import train
+from tests.learning_helpers import ncbot, write_tiny_config
+
+torch.set_num_threads(1)
+KEYS = {"games", "win", "draw", "loss", "truncated", "all_negative", "task_success", "task_success_ci95", "avg_reward",
+        "avg_return", "avg_length"}
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("eval")
+    train(load_config(write_tiny_config(folder), ["collector.total_frames=256"]), folder / "run")
+    return folder / "run" / "checkpoint.pt"
+
+
+def test_eval_json_has_exactly_the_documented_keys(checkpoint: Path) -> None:
+    result = ncbot("eval", str(checkpoint), "--games", "40", "--seat", "second", "--seed", "1", "--json")
+    assert result.returncode == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert set(data) == KEYS
+    assert data["games"] == 40
+    assert abs(data["win"] + data["draw"] + data["loss"] + data["truncated"] - 1) < 1e-9
+    assert data["task_success"] == pytest.approx(data["win"] + data["draw"])
+    low, high = data["task_success_ci95"]
+    assert 0 <= low <= data["task_success"] <= high <= 1
+    assert data["avg_length"] > 5  # greeting, name, play request, moves, feedback, closing
+
+
+def test_seats_are_respected_and_seeded(checkpoint: Path) -> None:
+    first = evaluate_checkpoint(checkpoint, games=50, seat="first", seed=0)
+    again = evaluate_checkpoint(checkpoint, games=50, seat="first", seed=0)
+    assert first == again
+    second = evaluate_checkpoint(checkpoint, games=50, seat="second", seed=0)
+    assert second != first  # robot-second games are other games (the user moves first)
+    both = evaluate_checkpoint(checkpoint, games=51, seat="alternate", seed=0)
+    assert both.games == 51
+
+
+def test_metrics_from_known_games() -> None:
+    outcomes = torch.tensor([1, 1, 3, 2, 0])  # win, win, draw, loss, unfinished at the act cap
+    returns = torch.tensor([10.0, 5.0, 1.0, -5.0, -20.0])
+    lengths = torch.tensor([10, 10, 12, 8, 100])
+    truncated = torch.tensor([False, False, False, False, True])
+    negative = torch.tensor([False, True, False, True, True])
+    result = summarise(GameRecords(outcomes, returns, lengths, truncated, negative))
+    assert (result.win, result.draw, result.loss, result.truncated, result.task_success) == (0.4, 0.2, 0.2, 0.2, 0.6)
+    assert result.all_negative == pytest.approx(0.6)
+    assert result.avg_reward == pytest.approx(-9.0 / 140)  # per action, as the paper
+    assert result.avg_return == pytest.approx(-1.8) and result.avg_length == pytest.approx(28.0)
+    assert wilson_interval(3000, 3000)[0] == pytest.approx(0.99872, abs=1e-4)
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, checkpoint: Path) -> None:
+    missing = ncbot("eval", str(tmp_path / "nope.pt"), "--games", "5")
+    assert missing.returncode == 2 and len(missing.stderr.strip().splitlines()) == 1 and "not found" in missing.stderr
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(checkpoint.read_bytes()[:200])
+    result = ncbot("eval", str(corrupt), "--games", "5")
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1 and "corrupt" in result.stderr
+    with pytest.raises(ValueError, match="seat 'third'; expected one of first, second, alternate"):
+        evaluate_checkpoint(checkpoint, games=5, seat="third")
+    with pytest.raises(ValueError, match="games must be a positive number"):
+        evaluate_checkpoint(checkpoint, games=0)
+
+
+def test_first_is_the_new_name_of_seat(checkpoint: Path) -> None:
+    """`--first human` plays the same games as the old `--seat second`, which still works with a one-line note."""
+    new = ncbot("eval", str(checkpoint), "--games", "30", "--first", "human", "--seed", "2", "--json")
+    old = ncbot("eval", str(checkpoint), "--games", "30", "--seat", "second", "--seed", "2", "--json")
+    assert new.returncode == 0 and old.returncode == 0, new.stderr + old.stderr
+    assert json.loads(new.stdout) == json.loads(old.stdout)
+    assert "old spelling" not in new.stderr
+    assert "ncbot: note: --seat second is the old spelling of --first human" in old.stderr.splitlines()
+    both = ncbot("eval", str(checkpoint), "--first", "robot", "--seat", "first")
+    assert both.returncode == 2 and both.stderr.strip() == "ncbot: error: give --first only (--seat is its old spelling)"
+    bad = ncbot("eval", str(checkpoint), "--first", "pepper")
+    assert bad.returncode == 2 and "--first must be one of robot, human, alternate" in bad.stderr
+
+
+def test_games_cut_at_the_act_cap_are_truncated_not_lost(checkpoint: Path) -> None:
+    from pipelines.agents import load_agent
+    from pipelines.evaluate.games import evaluate_agent
+
+    config, policy = load_agent(checkpoint)
+    config.env.max_steps = 5  # greeting, name, play request and two moves: no game can end
+    result = evaluate_agent(config, policy, games=20, seat="alternate", seed=0)
+    assert (result.truncated, result.loss, result.task_success) == (1.0, 0.0, 0.0)
+    assert set(result.seats) == {"robot_first", "robot_second"}
+    assert [result.seats[s]["games"] for s in ("robot_first", "robot_second")] == [10, 10]
+    assert all(result.seats[s]["truncated"] == 1.0 for s in result.seats)
+
+
+def test_all_moves_negative_needs_an_offered_move_and_no_other() -> None:
+    mask = torch.tensor([[True, True, False, True], [True, False, False, True], [False, False, False, True]])
+    reward = torch.tensor([[-5.0, 0.0, 5.0, 0.0], [-5.0, 5.0, 0.0, 0.0], [-5.0, -5.0, -5.0, 0.0]])
+    # 3 cells + 1 dialogue act: row 0 has a quiet move, row 1 only a -5 move, row 2 no move offered
+    assert all_moves_negative(mask, reward, cells=3).tolist() == [False, True, False]

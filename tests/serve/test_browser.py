@@ -1,0 +1,116 @@
+"""A whole 3x3 game played through the page by headless Chromium (Debian's chromium + chromium-driver, Selenium),
+with answers typed and pressed (a "no" that changes what the robot says next, text it cannot understand), a click
+on a taken cell and a reload mid-game; the robot learns every move through its camera."""
+from __future__ import annotations
+
+import httpx
+import pytest
+from selenium.webdriver.common.by import By
+
+from logs.summary import summarize_study
+from tests.serve.chromium import (
+    answer_with_button, board, click_cell, enabled_acts, open_chromium, page_latencies, play_to_end, start_game, status,
+    type_answer, wait_for,
+)
+from tests.serve.helpers import running_server
+
+pytestmark = [pytest.mark.sapien, pytest.mark.slow]
+PLAY_QUESTION = "Would you like to play a game?"
+MOVE_LINE = "I take this one."
+
+
+def _says(driver) -> tuple[int, str]:
+    element = driver.find_element(By.ID, "robot-says")
+    return int(element.get_attribute("data-seq")), element.text
+
+
+def _answer(seen: dict):
+    """The person: types at the first greeting text the robot cannot understand, types their name, says no to the
+    first "shall we play?" (the robot must not start the game) and answers everything else cooperatively."""
+
+    def answer(d, n: int) -> None:
+        seq, says = _says(d)
+        heard = lambda d: d.find_element(By.ID, "heard").text  # noqa: E731
+        if n == 0:
+            type_answer(d, "blorp zzyzx")
+            seen["not_understood"] = wait_for(d, heard, timeout=30, what="what the robot heard")
+        elif says.startswith("My name is Pepper") and "typed" not in seen:
+            type_answer(d, "My name is Alice!")
+            seen["typed"] = wait_for(d, heard, timeout=30, what="what the robot heard")
+        elif says == PLAY_QUESTION and "after_no" not in seen:
+            seen["acts"] = enabled_acts(d)
+            answer_with_button(d, "no")
+            seen["after_no"] = wait_for(d, lambda d: (s := _says(d))[0] > seq and s[1], timeout=60, what="the reply to no")
+        else:
+            answer_with_button(d)
+
+    return answer
+
+
+def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
+    out = tmp_path / "study"
+    with running_server(out, "--idle-seconds", "60") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/")
+            seen: dict[str, object] = {}
+
+            def disturb(d, turn: int) -> None:
+                if turn == 0:  # the robot opened: its cell is taken
+                    before = board(d)
+                    taken = next(i for i, mark in enumerate(before) if mark)
+                    click_cell(d, taken)
+                    error = wait_for(d, lambda d: d.find_element(By.ID, "error").text, timeout=20, what="the error")
+                    seen["error"] = error
+                    assert "taken" in error
+                    assert board(d) == before and status(d).startswith("Your turn")
+                elif turn == 1:
+                    before = board(d)
+                    d.refresh()
+                    wait_for(d, lambda d: status(d).startswith("Your turn") and board(d) == before, timeout=30,
+                             what="the reloaded page to show the same game")
+                    seen["reloaded"] = True
+
+            outcome = play_to_end(driver, on_turn=disturb, answer=_answer(seen))
+            assert outcome in ("win", "loss", "draw")
+            assert status(driver).endswith(outcome)
+            assert driver.find_element(By.ID, "play-again").is_displayed()
+            assert driver.find_element(By.ID, "robot-says").text
+            assert seen.get("error") and seen.get("reloaded")
+            assert "did not understand" in seen["not_understood"]
+            assert "understood: 'my name is sam'" in seen["typed"]
+            assert seen["acts"] == ["yes", "no", "silence"]  # only answers that fit "shall we play?"
+            assert seen["after_no"][1] not in (MOVE_LINE, "Yes, let's play!")  # "no" never starts the game
+            assert page_latencies(driver), "the page timed no click-to-reply"
+            voice = driver.execute_script("return window.ncbotAudio")  # espeak-ng is installed here: every line spoken
+            assert voice and httpx.get(url + voice[0]).content[:4] == b"RIFF"
+            driver.find_element(By.ID, "mute").click()
+            assert driver.find_element(By.ID, "mute").text.startswith("Unmute")
+            assert driver.execute_script("return localStorage.getItem('ncbot-muted')") == "1"
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert study["sessions"] == 1 and study["games"] == 1
+    assert study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+    assert sum(study["outcomes"].values()) == 1 and study["outcomes"][outcome] == 1
+    assert study["person_dialogue_acts_per_session"]["max"] >= 4  # typed x2, "no", and the cooperative answers
+
+
+def test_a_whole_ultimate_game_through_the_page(tmp_path):
+    out = tmp_path / "study"
+    with running_server(out, "--game", "ultimate", "--idle-seconds", "60") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/", first="human")
+            assert len(board(driver)) == 81
+
+            def first_legal(cells: list[str]) -> int:  # the page highlights the small board the person must play in
+                legal = driver.find_elements(By.CSS_SELECTOR, "[data-cell].legal")
+                return int(legal[0].get_attribute("data-cell"))
+
+            outcome = play_to_end(driver, choose=first_legal, timeout=600)
+            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0

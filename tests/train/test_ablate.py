@@ -1,0 +1,87 @@
+"""`ncbot ablate` + `ncbot table` on a tiny real grid: runs in parallel processes, finished runs are skipped,
+the table has the paper's numbers beside ours and the curves PNG is written."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pipelines.train.ablate import plan_runs, run_ablation
+from pipelines.reproduce.table import write_table
+from tests.learning_helpers import write_tiny_config
+
+
+def _grid(folder: Path) -> Path:
+    base = write_tiny_config(folder, collector={"total_frames": 128}, eval={"games": 20, "periodic_games": 10})
+    grid = {
+        "runs_dir": str(folder / "runs"),
+        "suites": {"fast": {"standard": {"config": base.name}}},
+        "grid": {"suite": ["fast"], "game": ["standard"], "agent": ["dqn_variant", "proposed"], "temporal": [False, True]},
+    }
+    path = folder / "grid.yaml"
+    path.write_text(yaml.safe_dump(grid))
+    return path
+
+
+def test_plan_covers_the_grid_and_drops_temporal_baselines(tmp_path: Path) -> None:
+    names = [run.name for run in plan_runs(_grid(tmp_path), seeds=2)]
+    assert names == [
+        "fast/standard/dqn_variant-notemporal/seed0", "fast/standard/dqn_variant-notemporal/seed1",
+        "fast/standard/proposed-notemporal/seed0", "fast/standard/proposed-notemporal/seed1",
+        "fast/standard/proposed-temporal/seed0", "fast/standard/proposed-temporal/seed1",
+    ]
+
+
+def test_bad_grid_is_a_clear_error(tmp_path: Path) -> None:
+    path = _grid(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    data["grid"]["agent"] = ["dqn_magic"]
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ValueError, match="'agent.name' must be one of"):
+        plan_runs(path, seeds=1)
+    with pytest.raises(ValueError, match="backend"):
+        run_ablation(path, backend="slurm")
+
+
+def test_grid_runs_in_parallel_skips_finished_and_tabulates(tmp_path: Path) -> None:
+    grid = _grid(tmp_path)
+    summary = run_ablation(grid, seeds=1, workers=2, only="proposed")
+    assert (summary["done"], summary["failed"]) == (2, 0), summary
+    again = run_ablation(grid, seeds=1, workers=2, only="proposed")
+    assert (again["done"], again["skipped"]) == (0, 2)
+
+    text = write_table(tmp_path / "runs", tmp_path / "table.md")
+    rows = [line for line in text.splitlines() if line.startswith("| 3x3")]
+    assert len(rows) == 2
+    assert "Proposed + temporal" in text and "0.9980" in text  # the paper's task success beside ours
+    assert (tmp_path / "curves_fast_standard.png").stat().st_size > 0
+
+
+
+def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None:
+    """A stopped grid must not keep training: SIGTERM reaches the running `ncbot train` (resumable, exit 143) and no
+    queued run starts (the thread pool would otherwise drain its queue on shutdown)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    base = write_tiny_config(tmp_path, collector={"total_frames": 10_000_000}, eval={"games": 20, "periodic_games": 10})
+    grid = {"runs_dir": str(tmp_path / "runs"), "suites": {"fast": {"standard": {"config": base.name}}},
+            "grid": {"suite": ["fast"], "game": ["standard"], "agent": ["proposed"], "temporal": [False]}}
+    (tmp_path / "grid.yaml").write_text(yaml.safe_dump(grid))
+    grid_run = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ablate", str(tmp_path / "grid.yaml"),
+                                 "--seeds", "2", "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+    first = tmp_path / "runs" / "fast" / "standard" / "proposed-notemporal" / "seed0"
+    deadline = time.monotonic() + 120
+    while not (first / "scalars").is_dir() and time.monotonic() < deadline:  # the training is under way
+        time.sleep(0.2)
+    assert (first / "scalars").is_dir(), "the first training never started"
+    os.kill(grid_run.pid, signal.SIGTERM)
+    _, err = grid_run.communicate(timeout=90)
+    assert grid_run.returncode == 143, err
+    assert "terminated (SIGTERM)" in (first / "train.log").read_text()  # the child was stopped, not orphaned
+    assert not (first.parent / "seed1").exists()  # the queued run never started
