@@ -45,7 +45,9 @@ def make_policies(
     `action_spec` is the env's unbatched categorical action spec (`env.action_spec_unbatched`).
     """
     greedy = TensorDictSequential(
-        QValues(qnet),  # the same network and parameters, without TensorDictModule's per-call overhead
+        # the same network and parameters, without TensorDictModule's per-call overhead; a recurrent network
+        # (modules/recurrent.py, a TensorDictSequential) runs as it is
+        qnet if isinstance(qnet, TensorDictSequential) else QValues(qnet),
         LookaheadMasks(lookahead, all_negative),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
     )

@@ -139,6 +139,12 @@ class AgentConfig(Section):
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
         Field(default_factory=lambda: [100, 100, 100])
+    # a recurrent Q-network (modules/recurrent.py): the MLP of `hidden`, then a GRU or LSTM of `memory_size` units
+    # whose state runs through each dialogue, learnt from replayed slices of dialogues (buffer.sequence_length);
+    # none = the paper's feed-forward network. Why: the paper names recurrent networks as the comparison its
+    # temporal features leave open
+    memory: Literal["none", "gru", "lstm"] = "none"
+    memory_size: Annotated[int, Field(gt=0, le=MAX_WIDTH)] = 128
 
 
 class CollectorConfig(Section):
@@ -167,6 +173,11 @@ class BufferConfig(Section):
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
+    # agent.memory only (modules/recurrent.py): slices of this many steps of one dialogue are replayed (batch_size
+    # counts their steps and must be a multiple); the first burn_in steps of a slice that starts inside a dialogue
+    # only rebuild the hidden state from the stored one and carry no loss (R2D2's burn-in)
+    sequence_length: Annotated[int, Field(gt=0, le=1_000)] = 16
+    burn_in: Annotated[int, Field(ge=0, le=1_000)] = 4
 
 
 class OptimConfig(Section):
@@ -322,6 +333,8 @@ class RunConfig(Section):
         lr_end = self.schedule.lr_end
         if lr_end is not None and lr_end > self.optim.lr:
             raise ValueError(f"config key 'schedule.lr_end' must be > 0 and <= optim.lr ({self.optim.lr}), got {lr_end}")
+        if self.agent.memory != "none":
+            self._check_memory()
         if self.agent.lookahead is not None:
             from modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
 
@@ -329,6 +342,27 @@ class RunConfig(Section):
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
                                  f"got {self.agent.lookahead!r}")
         return self
+
+    def _check_memory(self) -> None:
+        """What a recurrent agent (agent.memory) cannot be combined with yet, each a one-line reason."""
+        memory, buffer = self.agent.memory, self.buffer
+        if buffer.burn_in >= buffer.sequence_length:
+            raise ValueError(f"config key 'buffer.burn_in' must be < buffer.sequence_length ({buffer.sequence_length}) "
+                             f"with agent.memory={memory}, got {buffer.burn_in}")
+        if buffer.batch_size % buffer.sequence_length:
+            raise ValueError(f"config key 'buffer.batch_size' must be a multiple of buffer.sequence_length "
+                             f"({buffer.sequence_length}) with agent.memory={memory}, got {buffer.batch_size}")
+        unsupported = [
+            ("agent.name", self.agent.name == "uniform", "a learning agent", "the uniform agent has no network"),
+            ("buffer.prioritized", buffer.prioritized, "false", "slices are replayed uniformly"),
+            ("loss.n_step", self.loss.n_step != 1, "1", "the slice's unroll gives the one-step target"),
+            ("optim.precision", self.optim.precision != "fp32", "fp32", "the recurrent unroll runs in float32"),
+            ("selfplay.enabled", self.selfplay.enabled, "false", "snapshots play the user as an MLP"),
+            ("search_targets.enabled", self.search_targets.enabled, "false", "the search reads Q as an MLP"),
+        ]
+        for key, clash, allowed, why in unsupported:
+            if clash:
+                raise ValueError(f"config key '{key}' must be {allowed} with agent.memory={memory} ({why})")
 
     @property
     def lookahead(self) -> str:

@@ -146,6 +146,7 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
 
     `alternate` plays half of the games from each seat (the first half robot-first).
     """
+    from modules.recurrent import memory_env
     from pipelines.run_env import make_run_env, seat_to_first
 
     seat_to_first(seat)
@@ -159,8 +160,9 @@ def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent
             continue
 
         def make_env(batch_size: int, first: str = first, offset: int = offset):
-            return make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=first,
-                                opponent=opponent or config.eval.opponent)
+            env = make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=first,
+                               opponent=opponent or config.eval.opponent)
+            return memory_env(env, policy)  # a recurrent policy's hidden state runs through each game
 
         log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
         per_seat[SEAT_NAMES[first]] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
@@ -184,7 +186,7 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     if search:
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
-        config, policy = load_agent(checkpoint_path)
+        config, policy = load_agent(checkpoint_path, recurrent=True)  # evaluate_agent carries its hidden state
     if mcap_dir is None:
         result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent)
     else:

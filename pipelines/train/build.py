@@ -27,6 +27,7 @@ class TrainingParts:
     multistep: Any  # TorchRL's MultiStepTransform, or None for one-step targets
     teacher: Any = None  # modules.search_targets.SearchTeacher of `search_targets`, or None
     selfplay_pool: Any = None  # pipelines.train.selfplay's snapshot pool of `selfplay`, or None
+    sequence_rows: Any = None  # agent.memory: modules.recurrent.SequenceRows (dialogue id, step, hidden state)
     counters: dict[str, Any] = field(default_factory=lambda: {"frames": 0, "updates": 0, "episodes": 0,
                                                               "wall_offset": 0.0})
     history: list[dict[str, Any]] = field(default_factory=list)
@@ -67,7 +68,8 @@ def learner_settings(config: RunConfig):
     return LearnerSettings(loss_function=loss.loss_function, double_dqn=loss.double_dqn, precision=optim.precision,
                            gamma=loss.gamma, target_update=loss.target_update, target_period=loss.target_period,
                            tau=loss.tau, lr=optim.lr, weight_decay=optim.weight_decay,
-                           max_grad_norm=optim.max_grad_norm)
+                           max_grad_norm=optim.max_grad_norm, memory=config.agent.memory,
+                           sequence_length=config.buffer.sequence_length, burn_in=config.buffer.burn_in)
 
 
 def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False):
@@ -90,7 +92,7 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
     the checkpoint it resumes from, which also seed the env so a resumed run plays new games)."""
     from modules.learner import Learner, make_replay_buffer
     from modules.policy import make_policies
-    from modules.qnet import make_qnet, seeded_init
+    from modules.recurrent import SequenceRows, make_agent_qnet, memory_env
     from modules.symmetry import make_symmetries
     from modules.transitions import make_multistep
     from pipelines.run_env import make_run_env
@@ -102,13 +104,13 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
 
         selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
     env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
-    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
-    seeded_init(qnet, seed)
+    qnet = make_agent_qnet(env.n_features, env.n_actions, config.agent, seed)  # the MLP, or agent.memory's network
     agent = make_policies(
         qnet, env.action_spec_unbatched, config.lookahead,
         eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
         annealing_frames=config.collector.annealing_frames, all_negative=config.agent.all_negative,
     )
+    env = memory_env(env, agent.explore)  # agent.memory: is_init and the hidden state carried by the env
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
     symmetries = make_symmetries(config.buffer.augment, env, seed)
@@ -119,8 +121,10 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
         learner.teacher_weight, learner.teacher_margin = config.search_targets.weight, config.search_targets.margin
     multistep = make_multistep(config.loss.n_step, config.loss.gamma)  # n-step returns when loss.n_step > 1
     buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size, prioritized=config.buffer.prioritized,
-                                alpha=config.buffer.alpha, beta=config.buffer.beta)
-    return TrainingParts(env, qnet, agent, learner, buffer, multistep, teacher, selfplay_pool)
+                                alpha=config.buffer.alpha, beta=config.buffer.beta,
+                                sequence_length=config.buffer.sequence_length if config.agent.memory != "none" else None)
+    sequence_rows = SequenceRows(config.agent.memory) if config.agent.memory != "none" else None
+    return TrainingParts(env, qnet, agent, learner, buffer, multistep, teacher, selfplay_pool, sequence_rows)
 
 
 def restore(parts: TrainingParts, state: dict[str, Any], state_path: Any) -> None:

@@ -81,9 +81,12 @@ class TrainingLoop:
 
         config, parts, counters = self.config, self.parts, self.counters
         loss = config.loss
-        parts.buffer.extend(prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
-                                                bootstrap=loss.bootstrap, lookahead=config.lookahead,
-                                                multistep=parts.multistep))
+        transitions = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
+                                          bootstrap=loss.bootstrap, lookahead=config.lookahead,
+                                          multistep=parts.multistep)
+        if parts.sequence_rows is not None:  # agent.memory: + dialogue id, step, is_init and hidden state
+            transitions = parts.sequence_rows(batch, transitions, counters["frames"] - batch.numel())
+        parts.buffer.extend(transitions)
         if parts.teacher is not None and counters["frames"] >= config.search_targets.start_frames:
             parts.teacher.label(batch)
         if self.mcap_logger is not None:
