@@ -46,7 +46,7 @@ def train_command(
         typer.echo(_results_row(report[seat], seat))
     if report["frames"] == 0:
         typer.echo(f"no learning: a uniform choice inside the {report['lookahead']} masks "
-                   f"({report['train_wall_time_s']:.1f} s of test games)")
+                   f"({report['eval_wall_time_s']:.1f} s of test games)")
         return
     reached = report["time_to_0995_s"]
     typer.echo(f"frames {report['frames']}, updates {report['updates']}, games {report['episodes']}, "
