@@ -56,12 +56,13 @@ def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: 
 
 
 def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
-                       beta: float = 0.4) -> TensorDictReplayBuffer:
+                       beta: float = 0.4, device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
     RandomSampler or, `prioritized`, a proportional one (`modules.prioritized_sampler`: rows drawn by the loss's
-    |TD error|, each with its importance weight `priority_weight`)."""
+    |TD error|, each with its importance weight `priority_weight`). The storage lives on `device` (the learner's:
+    sampled batches need no copy; the uniform sampler draws its indices there)."""
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, priority_key=PRIORITY_KEY,
                                   batch_size=batch_size)
 
 
@@ -132,6 +133,8 @@ class Learner:
             sampled.set(PRIORITY_KEY, batch.get(PRIORITY_KEY))
         loss = loss_td["loss"]
         if labels is not None:
+            if batch.device is not None and labels.device != batch.device:  # the teacher's labels stay on the CPU
+                labels = labels.to(batch.device)
             q_values = self.loss_module.q_values(labels)
             loss = loss + self.teacher_weight * margin_loss(q_values, labels.get(EXPERT_ACTION_KEY),
                                                             labels.get(LABEL_MASK_KEY), self.teacher_margin)

@@ -22,8 +22,10 @@ def check_value_option(value: str | None, search: int | None) -> None:
         raise FileNotFoundError(f"--value {value!r} not found (expected a value.pt written by ncbot train-value)")
 
 
-def load_agent(checkpoint_path):
-    """(config, greedy policy) of a saved agent: the same masks as in training."""
+def load_agent(checkpoint_path, device: str = "cpu"):
+    """(config, greedy policy) of a saved agent: the same masks as in training. `device` (auto | cpu | cuda |
+    cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device)."""
+    from modules.device import resolve_device
     from modules.policy import make_policies
     from modules.qnet import make_qnet
     from pipelines.checkpoint import load_agent_checkpoint
@@ -33,7 +35,11 @@ def load_agent(checkpoint_path):
     qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative)
+    where = resolve_device(device)
+    if where.type != "cpu":
+        qnet.to(where)
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative,
+                             device=where)
     return config, policies.greedy
 
 
