@@ -30,10 +30,11 @@ def available_devices() -> str:
 
 
 def resolve_device(spec: str) -> torch.device:
-    """`train.device` -> a torch.device: auto = CUDA when torch sees a GPU, else cpu. Asking for a GPU this machine
-    does not have is a ValueError naming the key and what is available (the CLI's one line, exit code 2)."""
+    """`train.device` -> a torch.device (a GPU always with its index): auto = the current CUDA GPU when torch sees
+    one, else cpu. Asking for a GPU this machine does not have is a ValueError naming the key and what is available
+    (the CLI's one line, exit code 2)."""
     if spec == "auto":
-        return torch.device("cuda") if torch.cuda.is_available() else CPU
+        return torch.device("cuda", torch.cuda.current_device()) if torch.cuda.is_available() else CPU
     if spec == "cpu":
         return CPU
     if not spec.startswith("cuda"):
@@ -43,7 +44,9 @@ def resolve_device(spec: str) -> torch.device:
     if index >= count:
         raise ValueError(f"config key 'train.device' is {spec!r} but this machine has no such device; available: "
                          f"{available_devices()} (use train.device=cpu or auto)")
-    return torch.device(spec)
+    # with its index: TorchRL's Collector compares devices with != and copies a policy whose parameters are on
+    # "cuda:0" when told "cuda"; every part of the run names the same device
+    return torch.device("cuda", index if ":" in spec else torch.cuda.current_device())
 
 
 def module_device(module: Any) -> torch.device:
