@@ -6,6 +6,12 @@ the Collector moves each step's TensorDict to the policy's device and stores bat
 guided search hand the network a TensorDict on its device and read the results back on the CPU (`on_device`);
 checkpoints always hold CPU tensors (`to_cpu`), so they load on any machine.
 
+Random generators: a generator lives where the tensors it draws are used. The board symmetries' generator (it
+draws per-row indices that gather sampled batches) is made on the run's device; the others draw for the CPU and
+stay there: the env's and its users' (`envs/`), the starting weights (`seeded_init`: the same on every device), the
+search teacher's row picks and the guided search's seeds (the search runs on the CPU), the uniform and look-ahead
+baselines. The replay sampler and epsilon-greedy draw from torch's default generator of their device.
+
 Reproducibility is per device: on the CPU a seed gives bit-identical numbers to a run before this option existed;
 on a GPU the same seed gives the same starting weights (drawn on the CPU, then moved) but its own random streams
 (exploration, replay sampling) and sums in another order, so its numbers differ from the CPU's.
