@@ -60,17 +60,19 @@ def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: 
 
 
 def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
-                       beta: float = 0.4, sequence_length: int | None = None) -> TensorDictReplayBuffer:
+                       beta: float = 0.4, sequence_length: int | None = None,
+                       device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
     RandomSampler or, `prioritized`, a proportional one (`modules.prioritized_sampler`: rows drawn by the loss's
     |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
-    of dialogues (`modules.recurrent.make_sequence_buffer`)."""
+    of dialogues (`modules.recurrent.make_sequence_buffer`). The storage lives on `device` (the learner's: sampled
+    batches need no copy; the uniform sampler draws its indices there)."""
     if sequence_length is not None:
         from modules.recurrent import make_sequence_buffer
 
-        return make_sequence_buffer(size, batch_size, sequence_length)
+        return make_sequence_buffer(size, batch_size, sequence_length, device)
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, priority_key=PRIORITY_KEY,
                                   batch_size=batch_size)
 
 
@@ -147,6 +149,8 @@ class Learner:
             sampled.set(PRIORITY_KEY, batch.get(PRIORITY_KEY))
         loss = loss_td["loss"]
         if labels is not None:
+            if batch.device is not None and labels.device != batch.device:  # the teacher's labels stay on the CPU
+                labels = labels.to(batch.device)
             q_values = self.loss_module.q_values(labels)
             loss = loss + self.teacher_weight * margin_loss(q_values, labels.get(EXPERT_ACTION_KEY),
                                                             labels.get(LABEL_MASK_KEY), self.teacher_margin)

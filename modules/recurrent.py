@@ -143,7 +143,8 @@ def require_feedforward(config, what: str) -> None:
 
 # --- sequence replay --------------------------------------------------------------------------------------------
 
-def make_sequence_buffer(size: int, batch_size: int, sequence_length: int) -> TensorDictReplayBuffer:
+def make_sequence_buffer(size: int, batch_size: int, sequence_length: int,
+                         device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """TorchRL replay buffer whose `SliceSampler` draws `batch_size // sequence_length` slices of one dialogue
     each, padded to `sequence_length` (see module doc)."""
     if batch_size % sequence_length:
@@ -151,7 +152,7 @@ def make_sequence_buffer(size: int, batch_size: int, sequence_length: int) -> Te
                          f"({sequence_length}) with agent.memory")
     sampler = SliceSampler(slice_len=sequence_length, traj_key=EPISODE_KEY, step_key=STEP_KEY, fragmented=True,
                            strict_length=False, pad_output=True, truncated_key=None)
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, batch_size=batch_size)
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, batch_size=batch_size)
 
 
 class SequenceRows:

@@ -22,12 +22,14 @@ def check_value_option(value: str | None, search: int | None) -> None:
         raise FileNotFoundError(f"--value {value!r} not found (expected a value.pt written by ncbot train-value)")
 
 
-def load_agent(checkpoint_path, *, recurrent: bool = False):
-    """(config, greedy policy) of a saved agent: the same masks as in training.
+def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu"):
+    """(config, greedy policy) of a saved agent: the same masks as in training. `device` (auto | cpu | cuda |
+    cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device).
 
     An agent with `agent.memory` needs its env wrapped by `modules.recurrent.memory_env` (`evaluate_agent` does
     it): callers that do so pass `recurrent=True`; for the others (they step their own envs) such an agent is a
     one-line error rather than a KeyError on `is_init` mid-game."""
+    from modules.device import resolve_device
     from modules.policy import make_policies
     from modules.recurrent import make_agent_qnet
     from pipelines.checkpoint import load_agent_checkpoint
@@ -41,7 +43,11 @@ def load_agent(checkpoint_path, *, recurrent: bool = False):
     qnet = make_agent_qnet(data["n_features"], data["n_actions"], config.agent)  # agent.memory's network or the MLP
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative)
+    where = resolve_device(device)
+    if where.type != "cpu":
+        qnet.to(where)
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative,
+                             device=where)
     return config, policies.greedy
 
 

@@ -10,13 +10,14 @@ for torch.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
 
 from fileio.yaml_file import read_yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from pipelines.config_errors import validation_line
 
@@ -46,6 +47,7 @@ EveryFrames = Annotated[int, Field(gt=0, le=MAX_FRAMES)]  # a period in env fram
 MAX_SEED = 2**32 - 1
 MAX_GAMES = 10_000_000  # test games of one evaluation: hours of CPU already
 Fraction = Annotated[Number, Field(ge=0.0, le=1.0)]
+DEVICE_PATTERN = re.compile(r"auto|cpu|cuda(:[0-9]{1,3})?")  # train.device
 
 
 class Section(BaseModel):
@@ -233,6 +235,19 @@ class TrainConfig(Section):
     max_games: Annotated[int, Field(gt=0, le=10**9)] | None = None
     eval_every_frames: EveryFrames = 10_000  # periodic greedy evaluation (logged with its wall time)
     num_threads: Annotated[int, Field(gt=0, le=1_024)] = 1  # torch threads: small tensors are fastest on one thread
+    # where the networks, loss, target network, optimiser and replay storage live: auto (CUDA when torch sees a GPU,
+    # else cpu) | cpu | cuda | cuda:N; the env always runs on the CPU. A seed's numbers are reproducible per device
+    # (a GPU draws its own random streams and sums in another order): modules/device.py, docs/device.md
+    device: str = "auto"
+
+    @field_validator("device")
+    @classmethod
+    def _device_spelling(cls, value: str) -> str:
+        """auto | cpu | cuda | cuda:N, checked here without torch; whether the machine has it: at the run's start."""
+        if not DEVICE_PATTERN.fullmatch(value):
+            raise ValueError(f"config key 'train.device' must be auto, cpu, cuda or cuda:N (N a GPU index), "
+                             f"got {value!r}")
+        return value
 
 
 class EvalConfig(Section):

@@ -138,6 +138,8 @@ def ablate_command(
     only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
                                           "(default: a local instance); every node must see the runs folder."),
+    gpus_per_run: float = typer.Option(1.0, "--gpus-per-run", min=0.01, max=8.0,
+                                       help="With --backend ray: GPUs each CUDA run asks for (a fraction shares one)."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
     from pipelines.train.ablate import run_ablation
@@ -145,7 +147,8 @@ def ablate_command(
     if out is not None:
         check_writable_dir(out, "--out")
 
-    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address)
+    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address,
+                           gpus_per_run=gpus_per_run)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:

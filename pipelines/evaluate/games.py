@@ -97,13 +97,17 @@ def summarise(records: GameRecords) -> EvalResult:
 
 @torch.no_grad()
 def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None) -> GameRecords:
-    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game."""
+    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game. A policy
+    whose network lives on a GPU reads each step there and hands its action back on the CPU (the env's device)."""
     from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from modules.device import on_device
 
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
     parts: list[GameRecords] = []
     remaining = games
+    act = on_device(policy)
     while remaining > 0:
         batch = min(remaining, MAX_EVAL_BATCH)
         env = make_env(batch)
@@ -119,7 +123,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
                 if hasattr(policy, "searching"):  # a searching policy spends no search on uncounted games
                     policy.searching = counting
                 slot_negative |= counting & all_moves_negative(td.get("action_mask"), td.get("lookahead_reward"), env.cells)
-                td = policy(td)
+                td = act(td)
                 td, next_root = env.step_and_maybe_reset(td)
                 if logger is not None:
                     logger.record_steps(td, env=env, **(log_kwargs or {}))

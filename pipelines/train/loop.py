@@ -179,8 +179,10 @@ class TrainingLoop:
         config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
         if not history or history[-1]["frames"] != counters["frames"]:
             self.evaluate()
+        from modules.device import to_cpu
+
         final = {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
-                 "n_actions": parts.env.n_actions, "qnet": parts.qnet.state_dict(), "frames": counters["frames"],
+                 "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
                  "updates": counters["updates"], "episodes": counters["episodes"], "run_id": self.run_id}
         atomic_save(final, self.out_dir / FINAL_NAME)
         report: dict[str, Any] = {
