@@ -157,7 +157,7 @@ def test_several_sessions_at_once_and_idle_sessions_are_closed_with_their_log(tm
 def test_serve_cli_rejects_bad_input_with_one_line(tmp_path):
     bad_yaml = tmp_path / "conditions.yaml"
     bad_yaml.write_text("base: office\nlight_intensity: [0.3, 0.5]\nglitter: 3\n")
-    for args in (["--checkpoint", str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
+    for args in ([str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
                  ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"]):
         result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "serve", *args],
                                 capture_output=True, text=True, timeout=60)
