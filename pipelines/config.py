@@ -375,10 +375,22 @@ def config_from_dict(data: dict[str, Any]) -> RunConfig:
         raise ValueError(validation_line(error, RunConfig)) from None
 
 
+def shipped_config(path: str | Path) -> Path:
+    """`path`, or for a missing `pipelines/configs/...` path the config of that name shipped in the installed
+    package: the README's `ncbot train pipelines/configs/default.yaml` then works outside a clone (a wheel install)."""
+    path = Path(path)
+    parts = path.parts
+    if not path.exists() and len(parts) > 2 and parts[:2] == ("pipelines", "configs"):
+        shipped = Path(__file__).resolve().parent.joinpath(*parts[1:])
+        if shipped.is_file():
+            return shipped
+    return path
+
+
 def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:
     """Read a YAML config, apply overrides and validate it."""
     expected = "a YAML file of config sections, e.g. pipelines/configs/default.yaml"
-    data = read_yaml(path, "config file", expected)
+    data = read_yaml(shipped_config(path), "config file", expected)
     if data is None:
         raise ValueError(f"config file {str(path)!r} is empty; expected {expected} (an empty mapping {{}} means "
                          "every default)")

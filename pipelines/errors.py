@@ -74,6 +74,12 @@ def one_line(error: BaseException) -> str | None:
     """The one line for an expected failure, or None when `error` is a bug that deserves a traceback."""
     import yaml
 
+    from pipelines.extras import extra_line
+
+    missing = extra_line(error)  # an optional extra (pyproject.toml) that is not installed
+    if missing is not None:
+        return missing
+
     if isinstance(error, UnicodeDecodeError):  # before ValueError: it is one, but names no file
         return (f"input is not UTF-8 text (byte 0x{error.object[error.start]:02x} at position {error.start}); "
                 "expected a text file such as a YAML config")

@@ -35,7 +35,8 @@ def get_render_system():
     try:
         import sapien
     except ImportError as error:  # pragma: no cover - sapien is a declared dependency
-        raise SimulatorUnavailable(f"sapien is not installed ({error}); run `bash scripts/setup.sh`") from error
+        raise SimulatorUnavailable(f"sapien is not installed ({error}); install the robot extra: "
+                                   "pip install 'ncbot[robot]' (or run `bash scripts/setup.sh`)") from error
     sapien.render.set_log_level("off")
     try:
         _RENDER_SYSTEM = sapien.render.RenderSystem()

@@ -2,7 +2,8 @@
 # Set up (idempotent), train the default agent, evaluate it, print the results row.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+# base: torch and ncbot's base install are all that training and evaluating need (no robot, speech, browser)
+bash scripts/setup.sh base
 out="${1:-runs/default}"
 # --overwrite: the main job is re-runnable; it replaces an earlier run in $out (ncbot train refuses by default)
 ncbot train pipelines/configs/default.yaml --out "$out" --overwrite

@@ -1,10 +1,18 @@
 #!/usr/bin/env bash
-# One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root):
-# the software Vulkan driver SAPIEN renders with, the TTS engines the robot speaks with (flite, espeak-ng),
-# headless Chromium for the browser tests,
-# the CPU build of torch from local disk, and ncbot itself (pocketsphinx, the recogniser, comes from PyPI with it).
+# One-time, idempotent set-up of a fresh machine of this kind (Debian 12, Python 3.11, CPU only, root).
+#   bash scripts/setup.sh        full (the tests, CI): the software Vulkan driver SAPIEN renders with, the TTS engines
+#                                the robot speaks with (flite, espeak-ng), headless Chromium for the browser tests,
+#                                the CPU build of torch from local disk and ncbot with every extra (`.[all]`)
+#   bash scripts/setup.sh base   the main job (train, evaluate): the CPU build of torch and ncbot's base install only
+# Both install the tested versions (constraints.txt).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+mode="${1:-full}"
+case "$mode" in
+  full) extras="[all]" ;;
+  base) extras="" ;;
+  *) printf '[setup] unknown mode %q; expected full (default) or base\n' "$mode" >&2; exit 2 ;;
+esac
 
 log() { printf '[setup] %s\n' "$*"; }
 
@@ -58,8 +66,8 @@ install_python() {
     log "installing torch==2.13.0 (CPU build from local disk)"
     python -m pip install -q torch==2.13.0
   fi
-  log "installing ncbot and its dependencies"
-  python -m pip install -q -e ".[dev]"
+  log "installing ncbot${extras} and its dependencies (tested versions: constraints.txt)"
+  python -m pip install -q -c constraints.txt -e ".${extras}"
   # sapien depends on opencv-python (GUI build); both install the cv2 module into the same folder.
   # Keep only the headless build importable: drop the GUI wheel, then reinstall headless over it.
   if python -m pip show -q opencv-python >/dev/null 2>&1; then
@@ -68,8 +76,10 @@ install_python() {
   fi
 }
 
-install_lavapipe
-install_tts
-install_chromium
+if [ "$mode" = full ]; then
+  install_lavapipe
+  install_tts
+  install_chromium
+fi
 install_python
-log "done"
+log "done ($mode)"

@@ -1,6 +1,6 @@
 """What the robot's Ultimate losses are: short tactics a k-ply look-ahead would have seen, or strategy.
 
-Reads the lost eval games of an MCAP log (`ncbot eval CKPT --mcap DIR`), replays each game's moves with the exact
+Reads the lost eval games of an MCAP log (`ncbot eval CKPT --out DIR`), replays each game's moves with the exact
 bitboard engine and, at the robot's last decisions, finds every move after which the user can FORCE a win within
 k plies (k = 1, 3, 5; ``modules.deep_lookahead.losing_moves``). Each loss is classed by the robot's LAST decision
 that still had a move escaping a 5-ply forced loss ("the last escape"):

@@ -136,15 +136,28 @@ def resume_advice(argv: list[str]) -> str:
 
 
 def click_exceptions():
-    """The exception classes of the click that typer runs on (typer 0.29 vendors its own copy as typer._click)."""
+    """The exception classes of the click that typer runs on, through typer's public API only.
+
+    recent typer vendors its own click (the private typer._click), older typer runs on click: either way the
+    public `typer.BadParameter` is that click's BadParameter, so ClickException is found on its MRO, and the
+    no-arguments help is recognised by its class name, as typer itself does (typer/rich_utils.py).
+    """
     import types
 
-    try:
-        from typer._click import exceptions
-    except ImportError:  # older typer: plain click
-        from click import exceptions
-    return types.SimpleNamespace(Exit=typer.Exit, Abort=typer.Abort, ClickException=exceptions.ClickException,
-                                 NoArgsIsHelpError=exceptions.NoArgsIsHelpError)
+    click_exception = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+    no_args = type("NoArgsIsHelpError", (Exception,), {})
+    for cls in _subclasses(click_exception):
+        if cls.__name__ == "NoArgsIsHelpError":
+            no_args = cls
+    return types.SimpleNamespace(Exit=typer.Exit, Abort=typer.Abort, ClickException=click_exception,
+                                 NoArgsIsHelpError=no_args)
+
+
+def _subclasses(cls: type) -> list[type]:
+    found = []
+    for sub in cls.__subclasses__():
+        found += [sub, *_subclasses(sub)]
+    return found
 
 
 def threading_is_main() -> bool:

@@ -11,6 +11,7 @@ from typing import Optional
 
 import typer
 
+from pipelines.extras import require
 from pipelines.outputs import check_writable_file
 from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
@@ -107,6 +108,7 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
                                                                "--max-episodes)"),
              max_episodes: int = typer.Option(200, min=1, help="cap on exported episodes")) -> None:
     """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
+    require("rerun", "rerun", what="ncbot logs to-rerun")
     from logs.rerun_export import export_to_rerun, parse_episode_spec
 
     check_writable_file(output, "--out", (".rrd",))

@@ -12,6 +12,7 @@ from typing import Optional
 
 import typer
 
+from pipelines.extras import require
 from pipelines.outputs import check_writable_dir, check_writable_file
 
 MAX_PIXELS = 4096  # camera width/height bound: a 4K frame; 100000 x 100000 would need 30 GB (docs/reliability.md)
@@ -102,6 +103,11 @@ def play(
         raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
         raise ValueError("--wait-probability and --nudge-probability must be in [0, 1]")
+    require("robot", "sapien", what="ncbot robot play")
+    if speech == "real":
+        require("speech", "pocketsphinx", what="ncbot robot play --speech real")
+    if rrd:
+        require("rerun", "rerun", what="ncbot robot play --rrd")
     import torch
 
     from robot_sim.human import HumanConfig
@@ -161,6 +167,8 @@ def serve(
     if idle_seconds <= 0:
         raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
     check_writable_dir(out, "--out")
+    require("robot", "sapien", what="ncbot robot serve")
+    require("serve", "fastapi", "uvicorn", "websockets", what="ncbot robot serve")
     import torch
 
     from pipelines.serve.app import serve as run_server
@@ -204,6 +212,7 @@ def render(
     if view not in ("mouth", "overview"):
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
     check_writable_file(output, "--out", IMAGE_SUFFIXES)
+    require("robot", "sapien", what="ncbot robot render")
     from envs.rules import make_game
     from robot_sim.conditions import load_conditions
     from robot_sim.render_system import SimulatorUnavailable

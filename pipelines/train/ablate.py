@@ -185,14 +185,14 @@ def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str,
 
 def check_backend(backend: str, workers: int, address: str | None = None) -> None:
     """One-line ValueError for a backend, worker count or address that cannot run (before anything is planned)."""
-    from pipelines.train.ray_backend import ray_available
+    from pipelines.extras import require
 
     if backend not in ("local", "ray"):
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
     if address is not None and backend != "ray":
         raise ValueError(f"--address {address} needs --backend ray (it is the Ray cluster's HOST:PORT)")
-    if backend == "ray" and not ray_available():
-        raise ValueError("backend 'ray' needs the optional extra: pip install 'ncbot[ray]' (ray is not importable)")
+    if backend == "ray":
+        require("ray", "ray", what="--backend ray")
     if not 0 < workers <= 256:
         raise ValueError(f"--workers must be a positive number of parallel runs (at most 256), got {workers}")
 

@@ -1,6 +1,6 @@
 """OpenSpiel's bots as opponents: the rules agree game for game, moves translate both ways, mismatches refuse.
 
-Skipped only when the optional package open_spiel is missing (``pip install -e '.[dev]'`` installs it).
+Skipped only when the optional package open_spiel is missing (``pip install -e '.[all]'`` or ``'.[openspiel]'`` installs it).
 """
 from __future__ import annotations
 

@@ -81,7 +81,7 @@ def test_branch_table_enumerates_every_digit_sequence_once() -> None:
     assert len({tuple(row) for row in digits.tolist()}) == 945
     assert int(digits[:, 0].max()) == 8 and int(digits[:, 4].max()) == 0
     assert BranchUser("robot").branches == 8 * 6 * 4 * 2
-    with pytest.raises(ValueError, match="unknown seat 'middle'"):
+    with pytest.raises(ValueError, match="first must be one of robot, human, got 'middle'"):
         BranchUser("middle")
 
 
@@ -124,7 +124,7 @@ def test_cli_exhaustive_json_and_bad_input(tmp_path: Path) -> None:
         assert row["branches"] == branches and row["dialogue_seeds"] == [0]
         assert row["win"] + row["draw"] + row["loss"] == pytest.approx(1.0)
         assert row["task_success"] == pytest.approx(row["win"] + row["draw"])
-    table = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "1", "--seat", "second")
+    table = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "1", "--first", "human")
     assert table.returncode == 0 and "| second | 945 |" in table.stdout and "| first |" not in table.stdout
     bad = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "0")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "dialogue-seeds" in bad.stderr

@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# CI: build ncbot's wheel, install it with the BASE dependencies only into a clean venv and run the main job's
+# commands (shortened) from an empty folder. Catches what the editable install of the tests cannot: a module or a
+# data file (configs, weights, URDF, dialogues) missing from the wheel, a base command that imports an optional
+# extra, a dependency the base install lacks.
+#
+#   bash scripts/check_wheel.sh [WORK_DIR]     (default: a temporary folder, removed afterwards)
+#
+# The venv gets torch==2.13.0 first (the CPU build from local disk: a plain torch requirement would pull the CUDA
+# build), then PyPI's `envs` package, then the wheel with -c constraints.txt. `envs` is there on purpose: ncbot's
+# top-level packages (envs, modules, pipelines, ...) still share names with other PyPI packages, and the check says
+# so. Until they move under an `ncbot` namespace that clash is an expected failure (XFAIL, reported, not fatal);
+# NCBOT_STRICT_NAMESPACE=1 makes it fatal (switch it on in .ci/run once the namespace lands).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+repo=$PWD
+log() { printf '[check_wheel] %s\n' "$*"; }
+fail() { printf '[check_wheel] FAIL: %s\n' "$*" >&2; exit 1; }
+
+if [ -n "${1:-}" ]; then work=$(mkdir -p "$1" && cd "$1" && pwd); else work=$(mktemp -d); trap 'rm -rf "$work"' EXIT; fi
+started=$(date +%s)
+stamp() { printf '%ss' $(( $(date +%s) - started )); }
+
+# 1. the wheel, built from a copy of the tracked (and new, not ignored) files: no build/ or egg-info leftovers
+log "building the wheel"
+mkdir -p "$work/src" "$work/dist"
+git ls-files -z --cached --others --exclude-standard | tar --null -T - -cf - | tar -xf - -C "$work/src"
+python -m pip wheel -q --no-deps -w "$work/dist" "$work/src"
+wheel=$(ls "$work"/dist/ncbot-*.whl)
+log "built $(basename "$wheel") ($(du -h "$wheel" | cut -f1)) at $(stamp)"
+
+# 2. the package data the commands read must be in the wheel (every tracked one, except the vision reports: docs)
+python - "$wheel" "$repo" <<'EOF'
+import subprocess, sys, zipfile
+wheel, repo = sys.argv[1:]
+names = set(zipfile.ZipFile(wheel).namelist())
+packages = ("fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
+tracked = subprocess.run(["git", "-C", repo, "ls-files", *packages], capture_output=True, text=True, check=True).stdout.split()
+wanted = [p for p in tracked if not p.startswith("vision/reports/") and "/__pycache__/" not in p]
+missing = [p for p in wanted if p not in names]
+configs = sorted(p for p in names if p.startswith("pipelines/configs/"))
+print(f"[check_wheel] wheel holds {len(configs)} configs under pipelines/configs/ "
+      f"(default.yaml: {'pipelines/configs/default.yaml' in names}); "
+      f"{len(wanted) - len(missing)}/{len(wanted)} tracked package files")
+if missing:
+    sys.exit("[check_wheel] FAIL: missing from the wheel: " + ", ".join(missing))
+EOF
+
+# 3. a clean venv: torch first, the foreign `envs`, then the wheel's base install at the tested versions
+log "creating the venv"
+python -m venv "$work/venv"
+py="$work/venv/bin/python"
+"$py" -m pip install -q torch==2.13.0
+log "torch installed at $(stamp)"
+"$py" -m pip install -q envs
+"$py" -m pip install -q -c constraints.txt "$wheel"
+log "base install done at $(stamp): venv $(du -sh "$work/venv" | cut -f1)"
+"$py" -m pip check >/dev/null || fail "pip check: $("$py" -m pip check)"
+
+# 4. the base install holds no optional extra
+for dist in sapien pocketsphinx fastapi uvicorn websockets httpx rerun-sdk selenium ray open_spiel opencv-python; do
+  if "$py" -m pip show -q "$dist" >/dev/null 2>&1; then fail "the base install pulled in $dist (an extra's package)"; fi
+done
+log "no extra installed (sapien, pocketsphinx, fastapi, uvicorn, websockets, httpx, rerun-sdk, selenium, ray, open_spiel, opencv-python)"
+
+# 5. the main job's commands, shortened, from an empty folder (nothing of the clone on the path)
+ncbot="$work/venv/bin/ncbot"
+rm -rf "$work/empty" && mkdir -p "$work/empty" && cd "$work/empty"
+where=$(env -u PYTHONPATH "$py" -c "import pipelines; print(pipelines.__file__)")
+case "$where" in "$work/venv/"*) ;; *) fail "pipelines comes from $where, not from the installed wheel" ;; esac
+# the README's path: no pipelines/ folder here, so ncbot reads the config shipped in the wheel
+config=pipelines/configs/default.yaml
+env -u PYTHONPATH "$ncbot" version
+env -u PYTHONPATH "$ncbot" train "$config" --out run collector.total_frames=4096 collector.init_random_frames=512 \
+  eval.games=50 eval.periodic_games=50 train.eval_every_frames=2048 checkpoint.every_frames=2048 >train.log 2>&1 \
+  || { tail -20 train.log; fail "ncbot train"; }
+tail -1 train.log
+env -u PYTHONPATH "$ncbot" eval run/checkpoint.pt --games 50 --first robot | tail -1
+env -u PYTHONPATH "$ncbot" logs inspect run | tail -1
+# a command of a missing extra: one line naming the pip command, exit 2
+set +e; line=$(env -u PYTHONPATH "$ncbot" robot render -o mouth.png 2>&1); code=$?; set -e
+[ "$code" = 2 ] && [ "$(printf '%s\n' "$line" | wc -l)" = 1 ] && [[ "$line" == *"pip install 'ncbot[robot]'"* ]] \
+  || fail "ncbot robot render without [robot]: expected one line and exit 2, got exit $code: $line"
+log "ncbot robot render without [robot]: $line"
+log "main-job commands ran from an empty folder at $(stamp)"
+
+# 6. the name clash with PyPI's `envs` (expected until the packages move under an `ncbot` namespace)
+ours=$(env -u PYTHONPATH "$py" -c "import envs; print('ncbot' if hasattr(envs, 'make_env') else 'foreign')")
+if env -u PYTHONPATH "$py" -c "import os; os.environ['NCBOT_PROBE'] = '7'; from envs import env; assert env('NCBOT_PROBE', var_type='integer') == 7" 2>/dev/null; then
+  log "XPASS: PyPI's envs package works beside ncbot (import envs -> $ours): make this check strict"
+else
+  msg="PyPI's envs package is shadowed: import envs -> $ours envs (ncbot's wheel overwrote envs/__init__.py); expected until the ncbot namespace lands"
+  if [ "${NCBOT_STRICT_NAMESPACE:-0}" = 1 ]; then fail "$msg"; fi
+  log "XFAIL: $msg"
+fi
+log "done in $(stamp)"

@@ -1,0 +1,91 @@
+"""Optional extras (pyproject.toml): without one, its commands stop with ONE line naming the pip command, exit 2,
+and the base packages import without any optional dependency.
+
+A missing extra is simulated in a subprocess by `sys.modules[name] = None` (import raises ModuleNotFoundError and
+importlib.util.find_spec answers None, as for a package that is not installed), so the tests run on the full
+set-up too.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pipelines.extras import MissingExtra, OPTIONAL_MODULES, extra_line, require
+
+ROOT = Path(__file__).resolve().parents[2]
+BASE_PACKAGES = ("fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
+#: modules that exist only for an extra and may import it at the top (only that extra's commands import them)
+EXTRA_ONLY_MODULES = {"pipelines.serve.app"}
+
+
+def _run_without(blocked: list[str], code: str, cwd: Path) -> subprocess.CompletedProcess:
+    prelude = "import sys\nfor name in %r:\n    sys.modules[name] = None\n" % (blocked,)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-c", prelude + code], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=120)
+
+
+def _ncbot_without(blocked: list[str], args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    return _run_without(blocked, f"from pipelines.cli.app import main\nmain({args!r})\n", cwd)
+
+
+def _assert_one_line(result: subprocess.CompletedProcess, extra: str) -> None:
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    assert f"pip install 'ncbot[{extra}]'" in lines[0], lines[0]
+
+
+def test_robot_render_without_the_robot_extra_is_one_line(tmp_path):
+    result = _ncbot_without(["sapien"], ["robot", "render", "-o", str(tmp_path / "mouth.png")], tmp_path)
+    _assert_one_line(result, "robot")
+    assert "ncbot robot render" in result.stderr and "sapien" in result.stderr
+    assert not (tmp_path / "mouth.png").exists()
+
+
+def test_logs_to_rerun_without_the_rerun_extra_is_one_line(tmp_path):
+    result = _ncbot_without(["rerun"], ["logs", "to-rerun", str(tmp_path), "-o", str(tmp_path / "run.rrd")], tmp_path)
+    _assert_one_line(result, "rerun")
+    assert "rerun-sdk" in result.stderr
+
+
+def test_robot_serve_without_the_serve_extra_is_one_line(tmp_path):
+    result = _ncbot_without(["fastapi", "uvicorn"], ["robot", "serve", "--out", str(tmp_path / "study")], tmp_path)
+    _assert_one_line(result, "serve")
+
+
+def test_base_packages_import_without_any_optional_dependency(tmp_path):
+    code = f"""
+import importlib, pkgutil
+failed = []
+for package in {BASE_PACKAGES!r}:
+    for info in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
+        if info.name in {sorted(EXTRA_ONLY_MODULES)!r}:
+            continue
+        try:
+            importlib.import_module(info.name)
+        except Exception as error:
+            failed.append(f"{{info.name}}: {{error!r}}")
+print("\\n".join(failed))
+"""
+    result = _run_without(sorted(OPTIONAL_MODULES), code, tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "", "modules that need an optional dependency at import:\n" + result.stdout
+
+
+def test_require_and_the_error_boundary_name_the_extra(monkeypatch):
+    from pipelines.errors import one_line
+
+    monkeypatch.setitem(sys.modules, "pyspiel", None)
+    with pytest.raises(MissingExtra, match=r"pip install 'ncbot\[openspiel\]'"):
+        require("openspiel", "pyspiel", what="openspiel-mcts opponents")
+    # raised deeper, where no entry point checked first: the same one line
+    error = ModuleNotFoundError("No module named 'pyspiel'", name="pyspiel")
+    assert "pip install 'ncbot[openspiel]'" in one_line(error)
+    # a base dependency that is missing is a broken install, not an extra: no advice to install an extra
+    assert extra_line(ModuleNotFoundError("No module named 'yaml'", name="yaml")) is None
