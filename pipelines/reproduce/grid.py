@@ -25,7 +25,8 @@ from fileio import atomic_write_text
 
 PAPER_CONFIGS = Path(__file__).parents[1] / "configs" / "paper"
 PARTS = ("table", "vision", "budget", "all")
-AGENTS = ("dqn_original", "dqn_variant", "proposed")
+# the paper's three agents and the uniform choice inside Proposed's masks (no learning: what learning adds)
+AGENTS = ("uniform", "dqn_original", "dqn_variant", "proposed")
 
 
 @dataclass(frozen=True)

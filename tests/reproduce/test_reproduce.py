@@ -21,13 +21,14 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
     configs, out, runs = write_paper_configs(tmp_path, 256), tmp_path / "results", tmp_path / "runs"
     result = reproduce("all", TINY, out=out, runs=runs, workers=2, command="ncbot reproduce all --budget tiny",
                        configs=configs)
-    assert (result["runs"]["done"], result["runs"]["failed"]) == (4, 0), result["runs"]
+    assert (result["runs"]["done"], result["runs"]["failed"]) == (5, 0), result["runs"]
     for name in ("paper_table.md", "paper_claims.md", "data_budget.md"):
         text = (out / name).read_text()
         assert "TINY BUDGET (test)" in text and "ncbot reproduce all --budget tiny" in text, name
     assert (out / "data_budget_games.png").stat().st_size > 0 and (out / "data_budget_dialogues.png").stat().st_size > 0
     table = (out / "paper_table.md").read_text()
     assert "| 3x3 (100) | DQN-Original | paper | 1 |" in table
+    assert "| 3x3 (100) | Uniform in the masks (no learning) | paper | 1 | 0 |" in table  # no learning: 0 frames
     budget = result["budget_report"]
     assert {r["dialogues"] for r in budget["dialogues"]} == {1, 2, 4, 8, 12, 24}
     # the dialogue-budget agents: 2 subsets at k = 2, their test games read back per k (3x3 only)
@@ -42,23 +43,26 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
     assert budget["vision"] == [] and "no vision points" in budget["vision_note"]
     for run in (runs / "tiny").glob("paper/standard/*/seed0"):
         saved = json.loads((run / "eval.json").read_text())
+        if run.parent.name.startswith("uniform"):
+            assert saved["frames"] == 0 and saved["first"]["games"] == 20
+            continue
         # the budget's games cap or the config's frames, whichever first; the budget's test games
         assert (saved["episodes"] >= 4 or saved["frames"] >= 256) and saved["frames"] <= 256 + 64
         assert saved["first"]["games"] == 20
     again = reproduce("budget", TINY, out=out, runs=runs, workers=1, configs=configs)
-    assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 4)  # resumable: finished runs skipped
+    assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 5)  # resumable: finished runs skipped
     assert (again["dialogue_runs"]["done"], again["dialogue_runs"]["skipped"]) == (0, 2)
-    # --report-only: no run starts; all 4 of the budget's runs are done, so the table is not PARTIAL
+    # --report-only: no run starts; all 5 of the budget's runs are done, so the table is not PARTIAL
     report = reproduce("table", TINY, out=tmp_path / "report", runs=runs, report_only=True)
-    assert "runs" not in report and (report["table"]["finished_runs"], report["table"]["planned_runs"]) == (4, 4)
+    assert "runs" not in report and (report["table"]["finished_runs"], report["table"]["planned_runs"]) == (5, 5)
     assert "PARTIAL" not in (tmp_path / "report" / "paper_table.md").read_text()
     # one run's result gone (as if still training): PARTIAL, counted, and still no run starts
     (runs / "tiny" / "paper" / "standard" / "proposed-temporal" / "seed0" / "eval.json").unlink()
     partial = reproduce("table", TINY, out=tmp_path / "partial", runs=runs, report_only=True)
-    assert (partial["table"]["finished_runs"], partial["table"]["planned_runs"]) == (3, 4)
+    assert (partial["table"]["finished_runs"], partial["table"]["planned_runs"]) == (4, 5)
     for name in ("paper_table.md", "paper_claims.md"):
         text = (tmp_path / "partial" / name).read_text()
-        assert "TINY BUDGET (test)" in text and "PARTIAL: 3 of the budget's 4 runs finished" in text, name
+        assert "TINY BUDGET (test)" in text and "PARTIAL: 4 of the budget's 5 runs finished" in text, name
     assert not (runs / "tiny" / "paper" / "standard" / "proposed-temporal" / "seed0" / "eval.json").exists()
 
 
