@@ -195,7 +195,9 @@ class GuidedMCTS:
         if self._reader is not None:
             return self._reader(x)[moves].tolist()
         with torch.no_grad():
-            return self.qnet(torch.from_numpy(x).unsqueeze(0))[0][moves].tolist()
+            from modules.device import module_device
+
+            return self.qnet(torch.from_numpy(x).unsqueeze(0).to(module_device(self.qnet)))[0][moves].tolist()
 
     def expand(self, node: Node, moves: list[int], q: list[float] | None = None) -> float:
         """Set the node's moves and priors; the Q-value estimate v_Q in [0, 1] for the side to move.
@@ -298,8 +300,12 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
         self.decisions, self.cpu_seconds = 0, 0.0
         self.root_values: dict[int, dict[int, float]] = {}  # row -> the search's root values, of the last call
 
+    policy_device = "cpu"  # reads and writes CPU TensorDicts; its greedy network runs where it lives
+
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        tensordict = self.greedy(tensordict)
+        from modules.device import on_device
+
+        tensordict = on_device(self.greedy)(tensordict)
         cells = self.search.cells
         legal = tensordict.get(AVAILABLE_KEY)[:, :cells]
         playing = legal.any(-1)

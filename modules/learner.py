@@ -35,6 +35,10 @@ class LearnerSettings:
     lr: float
     weight_decay: float
     max_grad_norm: float
+    # agent.memory (modules/recurrent.py): a recurrent network learnt from slices of dialogues
+    memory: str = "none"
+    sequence_length: int = 16
+    burn_in: int = 0
 
 
 def scheduled_lr(frames: int, lr: float, lr_end: float | None, total_frames: int) -> float:
@@ -56,12 +60,19 @@ def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: 
 
 
 def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False, alpha: float = 0.6,
-                       beta: float = 0.4) -> TensorDictReplayBuffer:
+                       beta: float = 0.4, sequence_length: int | None = None,
+                       device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
     RandomSampler or, `prioritized`, a proportional one (`modules.prioritized_sampler`: rows drawn by the loss's
-    |TD error|, each with its importance weight `priority_weight`)."""
+    |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
+    of dialogues (`modules.recurrent.make_sequence_buffer`). The storage lives on `device` (the learner's: sampled
+    batches need no copy; the uniform sampler draws its indices there)."""
+    if sequence_length is not None:
+        from modules.recurrent import make_sequence_buffer
+
+        return make_sequence_buffer(size, batch_size, sequence_length, device)
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size), sampler=sampler, priority_key=PRIORITY_KEY,
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, priority_key=PRIORITY_KEY,
                                   batch_size=batch_size)
 
 
@@ -94,8 +105,14 @@ class Learner:
     @classmethod
     def build(cls, qnet: TensorDictModule, settings: LearnerSettings,
               symmetries: BoardSymmetries | None = None) -> "Learner":
-        loss_module = make_loss(qnet, loss_function=settings.loss_function, double_dqn=settings.double_dqn,
-                                precision=settings.precision, gamma=settings.gamma)
+        if settings.memory != "none":  # slices of dialogues through the recurrent network (modules/recurrent.py)
+            from modules.recurrent import make_sequence_loss
+
+            loss_module = make_sequence_loss(qnet, settings, symmetries)
+            symmetries = None  # the loss turns whole slices
+        else:
+            loss_module = make_loss(qnet, loss_function=settings.loss_function, double_dqn=settings.double_dqn,
+                                    precision=settings.precision, gamma=settings.gamma)
         updater = make_target_updater(loss_module, settings.target_update, settings.target_period, settings.tau)
         # fused Adam: one kernel for all parameters instead of a loop of small ops (CPU supports it in torch >= 2.4)
         optimizer = torch.optim.Adam(loss_module.parameters(), lr=settings.lr, weight_decay=settings.weight_decay,
@@ -132,6 +149,8 @@ class Learner:
             sampled.set(PRIORITY_KEY, batch.get(PRIORITY_KEY))
         loss = loss_td["loss"]
         if labels is not None:
+            if batch.device is not None and labels.device != batch.device:  # the teacher's labels stay on the CPU
+                labels = labels.to(batch.device)
             q_values = self.loss_module.q_values(labels)
             loss = loss + self.teacher_weight * margin_loss(q_values, labels.get(EXPERT_ACTION_KEY),
                                                             labels.get(LABEL_MASK_KEY), self.teacher_margin)

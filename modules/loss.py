@@ -11,7 +11,7 @@ the target network scores it. The target network is `value_network` on TorchRL's
 to a copy of it, `target_value_network`), run by the TD(0) value estimator, refreshed in place by `HardUpdate` (every
 C updates, the paper) or `SoftUpdate`.
 
-`precision="bf16"` runs the Q-network's products in bfloat16 under CPU autocast while weights, gradients and the
+`precision="bf16"` runs the Q-network's products in bfloat16 under autocast on the network's device while weights, gradients and the
 loss stay float32 (docs/learner-speed.md).
 """
 from __future__ import annotations
@@ -106,6 +106,9 @@ class CompetitiveDQNLoss(LossModule):
         else:
             target = self.value_network
         self.__dict__["target_value_network"] = target
+        # autocast follows the parameters' device (bf16 products on the CPU's AVX512_BF16/AMX or a GPU's tensor cores)
+        first = next(iter(self.value_network.parameters()), None)
+        self.__dict__["autocast_type"] = first.device.type if first is not None else "cpu"
         if self._value_estimator is not None:
             self._value_estimator.__dict__["value_network"] = target  # as TorchRL stores it: not a submodule
 
@@ -142,10 +145,11 @@ class CompetitiveDQNLoss(LossModule):
                                            terminated=keys.terminated, steps_to_next_obs=keys.steps_to_next_obs)
 
     def _matmul_precision(self):
-        """bf16: CPU autocast runs the Linear layers' products in bfloat16 (AVX512_BF16 / AMX do them ~2x faster
-        than float32); parameters, their gradients and everything after the Q-values stay float32."""
+        """bf16: autocast on the parameters' device runs the Linear layers' products in bfloat16 (on the CPU,
+        AVX512_BF16 / AMX do them ~2x faster than float32); parameters, their gradients and everything after the
+        Q-values stay float32."""
         if self.precision == "bf16":
-            return torch.autocast("cpu", dtype=torch.bfloat16)
+            return torch.autocast(self.autocast_type, dtype=torch.bfloat16)
         return nullcontext()
 
     def _double_dqn_next_value(self, tensordict: TensorDictBase) -> torch.Tensor | None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import torch
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.data import TensorSpec
 from torchrl.modules import EGreedyModule
@@ -39,13 +40,17 @@ def make_policies(
     eps_end: float = 0.005,
     annealing_frames: int = 10_000,
     all_negative: str = "available",
+    device: torch.device | str | None = None,
 ) -> AgentPolicies:
     """Chain the Q-network with the look-ahead masks, a masked argmax and an epsilon-greedy layer.
 
-    `action_spec` is the env's unbatched categorical action spec (`env.action_spec_unbatched`).
+    `action_spec` is the env's unbatched categorical action spec (`env.action_spec_unbatched`). `device`: where
+    the Q-network lives when it is not the CPU (the epsilon-greedy layer's schedule and spec go there too).
     """
     greedy = TensorDictSequential(
-        QValues(qnet),  # the same network and parameters, without TensorDictModule's per-call overhead
+        # the same network and parameters, without TensorDictModule's per-call overhead; a recurrent network
+        # (modules/recurrent.py, a TensorDictSequential) runs as it is
+        qnet if isinstance(qnet, TensorDictSequential) else QValues(qnet),
         LookaheadMasks(lookahead, all_negative),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),
     )
@@ -55,5 +60,6 @@ def make_policies(
         eps_end=eps_end,
         annealing_num_steps=max(1, int(annealing_frames)),
         action_mask_key=EXPLORE_MASK_KEY,
+        device=None if device is None or torch.device(device).type == "cpu" else device,  # None: today's CPU call
     )
     return AgentPolicies(greedy=greedy, explore=TensorDictSequential(greedy, egreedy), egreedy=egreedy)

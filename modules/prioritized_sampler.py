@@ -37,7 +37,7 @@ class ProportionalSampler(Sampler):
         self._set_new(index)
 
     def extend(self, index: torch.Tensor) -> None:
-        self._set_new(torch.as_tensor(index).reshape(-1))
+        self._set_new(torch.as_tensor(index).to("cpu").reshape(-1))
 
     def sample(self, storage: Any, batch_size: int) -> tuple[torch.Tensor, dict]:
         size = len(storage)
@@ -51,9 +51,10 @@ class ProportionalSampler(Sampler):
 
     def update_priority(self, index: int | torch.Tensor, priority: float | torch.Tensor, *,
                         storage: Any = None) -> None:
-        raw = torch.as_tensor(priority, dtype=torch.float64).detach().reshape(-1) + self.eps
+        # priorities live on the CPU whatever the storage's device (a GPU run's |TD errors| and indices come back)
+        raw = torch.as_tensor(priority).detach().to("cpu", torch.float64).reshape(-1) + self.eps
         self._max_priority = max(self._max_priority, float(raw.max()))
-        self._priority[torch.as_tensor(index).reshape(-1)] = raw.pow(self.alpha)
+        self._priority[torch.as_tensor(index).to("cpu").reshape(-1)] = raw.pow(self.alpha)
 
     def _empty(self) -> None:
         self._priority.zero_()

@@ -54,8 +54,9 @@ class MLPReader:
         layers: list[list] = []
         for module in net:
             if isinstance(module, nn.Linear):
-                weight = module.weight.detach().numpy().T.astype(np.float32, copy=True)
-                layers.append([weight, module.bias.detach().numpy().astype(np.float32, copy=True), False])
+                # .cpu(): a network on a GPU is read from a CPU copy of its weights (a no-op on the CPU)
+                weight = module.weight.detach().cpu().numpy().T.astype(np.float32, copy=True)
+                layers.append([weight, module.bias.detach().cpu().numpy().astype(np.float32, copy=True), False])
             elif isinstance(module, nn.ReLU) and layers and not layers[-1][2]:
                 layers[-1][2] = True
             else:

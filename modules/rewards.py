@@ -26,7 +26,7 @@ def outcome_rewards(transitions: TensorDictBase, loss_reward: float = -5.0) -> t
     before = transitions.get("outcome").long()
     after = transitions.get(("next", "outcome")).long()
     ended = (before == OUTCOME_NONE) & (after != OUTCOME_NONE)
-    reward = torch.zeros(after.shape, dtype=torch.float32)
+    reward = torch.zeros(after.shape, dtype=torch.float32, device=after.device)
     reward = torch.where(ended & (after == OUTCOME_ROBOT_WON), REWARD_WIN, reward)
     reward = torch.where(ended & (after == OUTCOME_DRAW), REWARD_DRAW, reward)
     reward = torch.where(ended & (after == OUTCOME_HUMAN_WON), float(loss_reward), reward)

@@ -65,6 +65,8 @@ class SearchTeacher:
     @torch.no_grad()
     def label(self, batch: TensorDictBase) -> int:
         """Search up to ``rows_per_batch`` random candidate rows of a collected batch; store their labels."""
+        if batch.device is not None and batch.device.type != "cpu":  # a GPU run's batch: the search runs on the CPU
+            batch = batch.to("cpu")
         rows = self.candidates(batch)
         if rows.numel() == 0:
             return 0

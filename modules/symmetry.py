@@ -44,7 +44,8 @@ class BoardSymmetries:
     `action_map[g]` sends an action to its image; `action_index[g]` gathers a per-action mask into its image.
     """
 
-    def __init__(self, feature_names: Sequence[str], cells: int, n_actions: int, seed: int = 0) -> None:
+    def __init__(self, feature_names: Sequence[str], cells: int, n_actions: int, seed: int = 0,
+                 device: torch.device | str = "cpu") -> None:
         side = round(cells ** 0.5)
         if side * side != cells or side not in (3, 9):
             raise ValueError(f"board symmetries need a 3x3 or 9x9 board, got {cells} cells")
@@ -63,16 +64,19 @@ class BoardSymmetries:
         self.action_map[:, :cells] = image
         self.action_index = torch.arange(n_actions).repeat(8, 1)
         self.action_index[:, :cells] = preimage
-        self.generator = torch.Generator().manual_seed(seed)
+        # on the device of the sampled batches they turn: the draws and the gathers stay there
+        self.feature_index, self.action_map, self.action_index = (
+            self.feature_index.to(device), self.action_map.to(device), self.action_index.to(device))
+        self.generator = torch.Generator(device=device).manual_seed(seed)
 
     @classmethod
-    def from_env(cls, env, seed: int = 0) -> "BoardSymmetries":
+    def from_env(cls, env, seed: int = 0, device: torch.device | str = "cpu") -> "BoardSymmetries":
         """The symmetries of a dialogue env's observation and action layout."""
-        return cls(env.feature_names, env.cells, env.n_actions, seed)
+        return cls(env.feature_names, env.cells, env.n_actions, seed, device)
 
     def draw(self, rows: int) -> torch.Tensor:
         """(rows,) int64 symmetry indices, uniform over the 8, from this object's own generator (reproducible)."""
-        return torch.randint(0, 8, (rows,), generator=self.generator)
+        return torch.randint(0, 8, (rows,), generator=self.generator, device=self.generator.device)
 
     def observations(self, observation: torch.Tensor, which: torch.Tensor) -> torch.Tensor:
         return observation.gather(1, self.feature_index.index_select(0, which))
@@ -97,8 +101,8 @@ class BoardSymmetries:
         self.generator.set_state(state["generator"])
 
 
-def make_symmetries(augment: str, env, seed: int) -> BoardSymmetries | None:
+def make_symmetries(augment: str, env, seed: int, device: torch.device | str = "cpu") -> BoardSymmetries | None:
     """`buffer.augment`: None for `none`, the env's board symmetries for `d4`."""
     if augment not in AUGMENT_CHOICES:
         raise ValueError(f"unknown buffer.augment {augment!r}; expected one of {', '.join(AUGMENT_CHOICES)}")
-    return BoardSymmetries.from_env(env, seed) if augment == "d4" else None
+    return BoardSymmetries.from_env(env, seed, device) if augment == "d4" else None

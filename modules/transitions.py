@@ -68,5 +68,5 @@ def prepare_transitions(batch: TensorDictBase, *, reward: str, loss_reward: floa
     windows = multistep.inv(transitions)
     if windows is None:  # the rows are still shorter than one window: nothing to emit yet
         rows = transitions.shape[0]
-        windows = transitions[:, :0].set(STEPS_KEY, torch.ones(rows, 0, dtype=torch.long))
+        windows = transitions[:, :0].set(STEPS_KEY, torch.ones(rows, 0, dtype=torch.long, device=transitions.device))
     return windows.select(*BUFFER_KEYS, STEPS_KEY).reshape(-1)

@@ -22,18 +22,32 @@ def check_value_option(value: str | None, search: int | None) -> None:
         raise FileNotFoundError(f"--value {value!r} not found (expected a value.pt written by ncbot train-value)")
 
 
-def load_agent(checkpoint_path):
-    """(config, greedy policy) of a saved agent: the same masks as in training."""
+def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu"):
+    """(config, greedy policy) of a saved agent: the same masks as in training. `device` (auto | cpu | cuda |
+    cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device).
+
+    An agent with `agent.memory` needs its env wrapped by `modules.recurrent.memory_env` (`evaluate_agent` does
+    it): callers that do so pass `recurrent=True`; for the others (they step their own envs) such an agent is a
+    one-line error rather than a KeyError on `is_init` mid-game."""
+    from modules.device import resolve_device
     from modules.policy import make_policies
-    from modules.qnet import make_qnet
+    from modules.recurrent import make_agent_qnet
     from pipelines.checkpoint import load_agent_checkpoint
     from torchrl.data import Categorical
 
     config, data = load_agent_checkpoint(checkpoint_path)  # keys, config and weight shapes checked: one-line errors
-    qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
+    if not recurrent:
+        from modules.recurrent import require_feedforward
+
+        require_feedforward(config, "this command")
+    qnet = make_agent_qnet(data["n_features"], data["n_actions"], config.agent)  # agent.memory's network or the MLP
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
-    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative)
+    where = resolve_device(device)
+    if where.type != "cpu":
+        qnet.to(where)
+    policies = make_policies(qnet, Categorical(data["n_actions"]), config.lookahead, all_negative=config.agent.all_negative,
+                             device=where)
     return config, policies.greedy
 
 
@@ -66,7 +80,11 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     check_value_option(value, search)
-    config, greedy = load_agent(checkpoint)
+    config, greedy = load_agent(checkpoint, recurrent=True)  # the ladder plays it through evaluate_agent
+    if lookahead is not None or search:
+        from modules.recurrent import require_feedforward
+
+        require_feedforward(config, "--search" if search else "--lookahead")
     if lookahead is not None:
         config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
         from torchrl.data import Categorical
@@ -109,7 +127,10 @@ class AgentOpponent:
         from modules.qnet import make_qnet
         from pipelines.checkpoint import load_agent_checkpoint
 
+        from modules.recurrent import require_feedforward
+
         config, data = load_agent_checkpoint(checkpoint)
+        require_feedforward(config, "opponent 'agent:CHECKPOINT'")
         if config.env.game != game:
             raise ValueError(f"agent checkpoint {checkpoint!r} plays {config.env.game}, not {game}")
         self.qnet = make_qnet(data["n_features"], data["n_actions"], config.agent.hidden)
@@ -185,7 +206,9 @@ def guided_search(config, greedy, simulations: int, free_move: str | None = None
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""
     from modules.guided_mcts import GuidedMCTS, TurnFeatures
+    from modules.recurrent import require_feedforward
 
+    require_feedforward(config, "the Q-guided search")
     free_move = free_move or config.env.free_move
     value_net = None
     if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent

@@ -136,7 +136,12 @@ def _require(data: dict[str, Any], keys: dict[str, Any], path: Path, expected: s
 
 def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
     """The Q-network weights match the sizes the config builds; ValueError naming the first mismatch."""
-    expected = qnet_shapes(data["n_features"], data["n_actions"], list(config.agent.hidden))
+    if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/recurrent.py
+        from modules.recurrent import recurrent_qnet_shapes
+
+        expected = recurrent_qnet_shapes(data["n_features"], data["n_actions"], config.agent)
+    else:
+        expected = qnet_shapes(data["n_features"], data["n_actions"], list(config.agent.hidden))
     weights = data["qnet"]
     if set(weights) != set(expected):
         missing = sorted(set(expected) - set(weights)) or sorted(set(weights) - set(expected))

@@ -10,13 +10,14 @@ for torch.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
 
 from fileio.yaml_file import read_yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from pipelines.config_errors import validation_line
 
@@ -46,6 +47,7 @@ EveryFrames = Annotated[int, Field(gt=0, le=MAX_FRAMES)]  # a period in env fram
 MAX_SEED = 2**32 - 1
 MAX_GAMES = 10_000_000  # test games of one evaluation: hours of CPU already
 Fraction = Annotated[Number, Field(ge=0.0, le=1.0)]
+DEVICE_PATTERN = re.compile(r"auto|cpu|cuda(:[0-9]{1,3})?")  # train.device
 
 
 class Section(BaseModel):
@@ -139,6 +141,12 @@ class AgentConfig(Section):
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
         Field(default_factory=lambda: [100, 100, 100])
+    # a recurrent Q-network (modules/recurrent.py): the MLP of `hidden`, then a GRU or LSTM of `memory_size` units
+    # whose state runs through each dialogue, learnt from replayed slices of dialogues (buffer.sequence_length);
+    # none = the paper's feed-forward network. Why: the paper names recurrent networks as the comparison its
+    # temporal features leave open
+    memory: Literal["none", "gru", "lstm"] = "none"
+    memory_size: Annotated[int, Field(gt=0, le=MAX_WIDTH)] = 128
 
 
 class CollectorConfig(Section):
@@ -167,6 +175,11 @@ class BufferConfig(Section):
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
+    # agent.memory only (modules/recurrent.py): slices of this many steps of one dialogue are replayed (batch_size
+    # counts their steps and must be a multiple); the first burn_in steps of a slice that starts inside a dialogue
+    # only rebuild the hidden state from the stored one and carry no loss (R2D2's burn-in)
+    sequence_length: Annotated[int, Field(gt=0, le=1_000)] = 16
+    burn_in: Annotated[int, Field(ge=0, le=1_000)] = 4
 
 
 class OptimConfig(Section):
@@ -222,6 +235,19 @@ class TrainConfig(Section):
     max_games: Annotated[int, Field(gt=0, le=10**9)] | None = None
     eval_every_frames: EveryFrames = 10_000  # periodic greedy evaluation (logged with its wall time)
     num_threads: Annotated[int, Field(gt=0, le=1_024)] = 1  # torch threads: small tensors are fastest on one thread
+    # where the networks, loss, target network, optimiser and replay storage live: auto (CUDA when torch sees a GPU,
+    # else cpu) | cpu | cuda | cuda:N; the env always runs on the CPU. A seed's numbers are reproducible per device
+    # (a GPU draws its own random streams and sums in another order): modules/device.py, docs/device.md
+    device: str = "auto"
+
+    @field_validator("device")
+    @classmethod
+    def _device_spelling(cls, value: str) -> str:
+        """auto | cpu | cuda | cuda:N, checked here without torch; whether the machine has it: at the run's start."""
+        if not DEVICE_PATTERN.fullmatch(value):
+            raise ValueError(f"config key 'train.device' must be auto, cpu, cuda or cuda:N (N a GPU index), "
+                             f"got {value!r}")
+        return value
 
 
 class EvalConfig(Section):
@@ -311,6 +337,8 @@ class RunConfig(Section):
         lr_end = self.schedule.lr_end
         if lr_end is not None and lr_end > self.optim.lr:
             raise ValueError(f"config key 'schedule.lr_end' must be > 0 and <= optim.lr ({self.optim.lr}), got {lr_end}")
+        if self.agent.memory != "none":
+            self._check_memory()
         if self.agent.lookahead is not None:
             from modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
 
@@ -318,6 +346,27 @@ class RunConfig(Section):
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
                                  f"got {self.agent.lookahead!r}")
         return self
+
+    def _check_memory(self) -> None:
+        """What a recurrent agent (agent.memory) cannot be combined with yet, each a one-line reason."""
+        memory, buffer = self.agent.memory, self.buffer
+        if buffer.burn_in >= buffer.sequence_length:
+            raise ValueError(f"config key 'buffer.burn_in' must be < buffer.sequence_length ({buffer.sequence_length}) "
+                             f"with agent.memory={memory}, got {buffer.burn_in}")
+        if buffer.batch_size % buffer.sequence_length:
+            raise ValueError(f"config key 'buffer.batch_size' must be a multiple of buffer.sequence_length "
+                             f"({buffer.sequence_length}) with agent.memory={memory}, got {buffer.batch_size}")
+        unsupported = [
+            ("agent.name", self.agent.name == "uniform", "a learning agent", "the uniform agent has no network"),
+            ("buffer.prioritized", buffer.prioritized, "false", "slices are replayed uniformly"),
+            ("loss.n_step", self.loss.n_step != 1, "1", "the slice's unroll gives the one-step target"),
+            ("optim.precision", self.optim.precision != "fp32", "fp32", "the recurrent unroll runs in float32"),
+            ("selfplay.enabled", self.selfplay.enabled, "false", "snapshots play the user as an MLP"),
+            ("search_targets.enabled", self.search_targets.enabled, "false", "the search reads Q as an MLP"),
+        ]
+        for key, clash, allowed, why in unsupported:
+            if clash:
+                raise ValueError(f"config key '{key}' must be {allowed} with agent.memory={memory} ({why})")
 
     @property
     def lookahead(self) -> str:

@@ -121,7 +121,7 @@ def cases() -> list[tuple[str, list[str]]]:
         add(("ladder: bad --opponents", ["ladder", "{ckpt}", "--games", "1", "--opponents", value, "--out", "{tmp}/l"]))
     for value in ["k9", "x", ""]:
         add(("ladder: bad --lookahead", ["ladder", "{ckpt}", "--games", "1", "--lookahead", value]))
-    for option, value in (("--first", "nobody"), ("--seat", "third"), ("--first", "")):
+    for option, value in (("--first", "nobody"), ("--first", "third"), ("--first", "")):
         add(("eval: bad seat", ["eval", "{ckpt}", "--games", "1", option, value]))
         add(("play: bad seat", ["play", option, value, "--no-log"]))
     for out_path in ["{text.txt}", "{under_file}"]:

@@ -61,7 +61,7 @@ def classify(plies: list[tuple[str, int]], last: int, free_move: str = "anywhere
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("log", help="MCAP file or folder of `ncbot eval --mcap`")
+    parser.add_argument("log", help="MCAP file or folder of `ncbot eval --out`")
     parser.add_argument("--last", type=int, default=6, help="robot decisions looked at, from the end (k5 is slow)")
     args = parser.parse_args()
     lost = [e["episode"] for e in read_episodes(args.log) if e.get("outcome") == "loss" and e.get("phase") == "eval"]

@@ -48,7 +48,7 @@ def train_command(
         typer.echo(_results_row(report[seat], seat))
     if report["frames"] == 0:
         typer.echo(f"no learning: a uniform choice inside the {report['lookahead']} masks "
-                   f"({report['train_wall_time_s']:.1f} s of test games)")
+                   f"({report['eval_wall_time_s']:.1f} s of test games)")
         return
     reached = report["time_to_0995_s"]
     typer.echo(f"frames {report['frames']}, updates {report['updates']}, games {report['episodes']}, "
@@ -142,6 +142,8 @@ def ablate_command(
     only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
                                           "(default: a local instance); every node must see the runs folder."),
+    gpus_per_run: float = typer.Option(1.0, "--gpus-per-run", min=0.01, max=8.0,
+                                       help="With --backend ray: GPUs each CUDA run asks for (a fraction shares one)."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
     from pipelines.train.ablate import run_ablation
@@ -150,7 +152,7 @@ def ablate_command(
         check_writable_dir(out, "--out")
 
     summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address,
-                           overrides=list(overrides or []))
+                           overrides=list(overrides or []), gpus_per_run=gpus_per_run)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:

@@ -96,13 +96,17 @@ def summarise(records: GameRecords) -> EvalResult:
 
 @torch.no_grad()
 def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None) -> GameRecords:
-    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game."""
+    """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game. A policy
+    whose network lives on a GPU reads each step there and hands its action back on the CPU (the env's device)."""
     from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from modules.device import on_device
 
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
     parts: list[GameRecords] = []
     remaining = games
+    act = on_device(policy)
     while remaining > 0:
         batch = min(remaining, MAX_EVAL_BATCH)
         env = make_env(batch)
@@ -118,7 +122,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
                 if hasattr(policy, "searching"):  # a searching policy spends no search on uncounted games
                     policy.searching = counting
                 slot_negative |= counting & all_moves_negative(td.get("action_mask"), td.get("lookahead_reward"), env.cells)
-                td = policy(td)
+                td = act(td)
                 td, next_root = env.step_and_maybe_reset(td)
                 if logger is not None:
                     logger.record_steps(td, env=env, **(log_kwargs or {}))
@@ -146,6 +150,7 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
     `alternate` plays half of the games robot-first, then half human-first; `seats` then holds each half under
     "robot_" + its `run_env.robot_seat` name.
     """
+    from modules.recurrent import memory_env
     from pipelines.run_env import check_first, make_run_env, robot_seat
 
     check_first(first)
@@ -159,8 +164,9 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
             continue
 
         def make_env(batch_size: int, opener: str = opener, offset: int = offset):
-            return make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=opener,
-                                opponent=opponent or config.eval.opponent)
+            env = make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=opener,
+                               opponent=opponent or config.eval.opponent)
+            return memory_env(env, policy)  # a recurrent policy's hidden state runs through each game
 
         log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
         per_seat["robot_" + robot_seat(opener)] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
@@ -184,7 +190,7 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     if search:
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
-        config, policy = load_agent(checkpoint_path)
+        config, policy = load_agent(checkpoint_path, recurrent=True)  # evaluate_agent carries its hidden state
     if mcap_dir is None:
         result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent)
     else:

@@ -38,6 +38,20 @@ class PlannedRun:
     def finished(self) -> bool:
         return (self.run_dir / "eval.json").is_file()
 
+    def settings(self) -> tuple[str, int, str]:
+        """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it
+        resumes, else its config and overrides (what a Ray task asks for: pipelines/train/ray_backend.py)."""
+        from pipelines.config import config_from_dict, load_config
+
+        saved = self.run_dir / "config.yaml"
+        if "--resume" in self.command() and saved.is_file():
+            from fileio.yaml_file import read_yaml
+
+            config = config_from_dict(read_yaml(saved, "run config", "the config.yaml ncbot train wrote"))
+        else:
+            config = load_config(self.config, self.overrides)
+        return self.name, config.train.num_threads, config.train.device
+
 
 def load_grid(path: str | Path) -> dict[str, Any]:
     """The ablation grid, read through the one safe YAML loader and checked shape by shape (one line each)."""
@@ -198,11 +212,12 @@ def check_backend(backend: str, workers: int, address: str | None = None) -> Non
 
 
 def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local", address: str | None = None,
-                 runs_dir: str | Path | None = None, desc: str = "ablate") -> list[str]:
+                 runs_dir: str | Path | None = None, desc: str = "ablate", gpus_per_run: float = 1.0) -> list[str]:
     """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names.
 
     Ray (pipelines/train/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
-    every node must see ``runs_dir`` at the same absolute path (checked before any run starts).
+    every node must see ``runs_dir`` at the same absolute path (checked before any run starts). Each Ray task asks for
+    its run's `train.num_threads` CPUs and, when it runs on CUDA, ``gpus_per_run`` GPUs (a fraction shares one).
     """
     from pipelines.progress import progress_bar
     from pipelines.train.ray_backend import run_on_ray
@@ -233,14 +248,15 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
         outside = [run.name for run in absolute if root not in run.run_dir.parents]
         if outside:
             raise ValueError(f"run {outside[0]} is not under the runs folder {root} that the Ray nodes share")
-        run_on_ray(absolute, _run_local, workers=workers, address=address, runs_dir=root, on_done=done)
+        run_on_ray(absolute, _run_local, workers=workers, address=address, runs_dir=root, on_done=done,
+                   settings=PlannedRun.settings, gpus_per_run=gpus_per_run)
     bar.close()
     return failed
 
 
 def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
                  out: str | Path | None = None, only: str | None = None, address: str | None = None,
-                 overrides: list[str] | None = None) -> dict[str, Any]:
+                 overrides: list[str] | None = None, gpus_per_run: float = 1.0) -> dict[str, Any]:
     """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder.
 
     ``only``: keep the runs whose name holds this text; a filter that keeps none is a ValueError naming a few runs.
@@ -255,6 +271,7 @@ def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, bac
         planned = kept
     todo = [run for run in planned if not run.finished]
     runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
-    failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir)
+    failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir,
+                          gpus_per_run=gpus_per_run)
     return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
             "failed_runs": failed, "runs_dir": str(runs_dir)}

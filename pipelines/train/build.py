@@ -27,6 +27,8 @@ class TrainingParts:
     multistep: Any  # TorchRL's MultiStepTransform, or None for one-step targets
     teacher: Any = None  # modules.search_targets.SearchTeacher of `search_targets`, or None
     selfplay_pool: Any = None  # pipelines.train.selfplay's snapshot pool of `selfplay`, or None
+    sequence_rows: Any = None  # agent.memory: modules.recurrent.SequenceRows (dialogue id, step, hidden state)
+    device: torch.device = torch.device("cpu")  # of the networks, loss, optimiser and replay storage (train.device)
     counters: dict[str, Any] = field(default_factory=lambda: {"frames": 0, "updates": 0, "episodes": 0,
                                                               "wall_offset": 0.0})
     history: list[dict[str, Any]] = field(default_factory=list)
@@ -67,10 +69,12 @@ def learner_settings(config: RunConfig):
     return LearnerSettings(loss_function=loss.loss_function, double_dqn=loss.double_dqn, precision=optim.precision,
                            gamma=loss.gamma, target_update=loss.target_update, target_period=loss.target_period,
                            tau=loss.tau, lr=optim.lr, weight_decay=optim.weight_decay,
-                           max_grad_norm=optim.max_grad_norm)
+                           max_grad_norm=optim.max_grad_norm, memory=config.agent.memory,
+                           sequence_length=config.buffer.sequence_length, burn_in=config.buffer.burn_in)
 
 
-def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False):
+def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: int, *, keeps_views: bool = False,
+                   device: torch.device | str = "cpu"):
     """TorchRL's Collector as the training loop uses it (and bench/learner_throughput.py measures it).
 
     Per-step overhead is most of a frame at the paper's 8-frame batches (docs/learner-speed.md): with device "cpu"
@@ -78,19 +82,26 @@ def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: i
     is used up before the next is collected (the buffer copies it, the MCAP log packs it into rows of its own), so
     it may hand out its own storage instead of a clone, unless the consumer `keeps_views` (n-step's
     MultiStepTransform keeps views of the last steps); nothing reads ("collector", "traj_ids").
+
+    On a GPU `device`, the env stays on the CPU (a table-driven simulator) while the policy runs on the GPU and the
+    batches are stored there, next to the replay storage: env_device cpu, policy_device and storing_device `device`.
     """
     from torchrl.collectors import Collector
 
-    return Collector(env, policy, frames_per_batch=frames_per_batch, total_frames=total_frames, device="cpu",
+    device = torch.device(device)
+    where = {"device": "cpu"} if device.type == "cpu" else \
+        {"env_device": "cpu", "policy_device": device, "storing_device": device}
+    return Collector(env, policy, frames_per_batch=frames_per_batch, total_frames=total_frames, **where,
                      auto_register_policy_transforms=False, return_same_td=not keeps_views, track_traj_ids=False)
 
 
 def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts:
     """Env, Q-network, policies, learner, search teacher and replay buffer of a run (`frames_done`: the frames of
     the checkpoint it resumes from, which also seed the env so a resumed run plays new games)."""
+    from modules.device import resolve_device
     from modules.learner import Learner, make_replay_buffer
     from modules.policy import make_policies
-    from modules.qnet import make_qnet, seeded_init
+    from modules.recurrent import SequenceRows, make_agent_qnet, memory_env
     from modules.symmetry import make_symmetries
     from modules.transitions import make_multistep
     from pipelines.run_env import make_run_env
@@ -102,16 +113,20 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
 
         selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
     env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
-    qnet = make_qnet(env.n_features, env.n_actions, config.agent.hidden)
-    seeded_init(qnet, seed)
+    qnet = make_agent_qnet(env.n_features, env.n_actions, config.agent, seed)  # the MLP, or agent.memory's network
+    # (its starting weights are drawn on the CPU: the same on every device)
+    device = resolve_device(config.train.device)
+    if device.type != "cpu":
+        qnet.to(device)
     agent = make_policies(
         qnet, env.action_spec_unbatched, config.lookahead,
         eps_init=config.collector.eps_init, eps_end=config.collector.eps_end,
-        annealing_frames=config.collector.annealing_frames, all_negative=config.agent.all_negative,
+        annealing_frames=config.collector.annealing_frames, all_negative=config.agent.all_negative, device=device,
     )
+    env = memory_env(env, agent.explore)  # agent.memory: is_init and the hidden state carried by the env
 
     # --- loss, target network, optimiser, replay buffer ------------------------------------------------------------
-    symmetries = make_symmetries(config.buffer.augment, env, seed)
+    symmetries = make_symmetries(config.buffer.augment, env, seed, device)
     learner = Learner.build(qnet, learner_settings(config), symmetries)
     teacher = make_teacher(config, agent.greedy, seed)  # search_targets: labels of the Q-guided search, or None
     learner.teacher = teacher
@@ -119,8 +134,11 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
         learner.teacher_weight, learner.teacher_margin = config.search_targets.weight, config.search_targets.margin
     multistep = make_multistep(config.loss.n_step, config.loss.gamma)  # n-step returns when loss.n_step > 1
     buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size, prioritized=config.buffer.prioritized,
-                                alpha=config.buffer.alpha, beta=config.buffer.beta)
-    return TrainingParts(env, qnet, agent, learner, buffer, multistep, teacher, selfplay_pool)
+                                alpha=config.buffer.alpha, beta=config.buffer.beta,
+                                sequence_length=config.buffer.sequence_length if config.agent.memory != "none" else None,
+                                device=device)
+    sequence_rows = SequenceRows(config.agent.memory) if config.agent.memory != "none" else None
+    return TrainingParts(env, qnet, agent, learner, buffer, multistep, teacher, selfplay_pool, sequence_rows, device)
 
 
 def restore(parts: TrainingParts, state: dict[str, Any], state_path: Any) -> None:
@@ -132,9 +150,12 @@ def restore(parts: TrainingParts, state: dict[str, Any], state_path: Any) -> Non
         parts.agent.egreedy.load_state_dict(state["egreedy"])
         if state.get("buffer") is not None:
             parts.buffer.load_state_dict(state["buffer"])
+            _storage_to(parts.buffer, parts.device)
         if parts.teacher is not None and state.get("teacher") is not None:
             parts.teacher.load_state_dict(state["teacher"])
         torch.set_rng_state(state["rng"])
+        if state.get("cuda_rng") is not None and parts.device.type == "cuda":
+            torch.cuda.set_rng_state(state["cuda_rng"], parts.device)
     except (RuntimeError, KeyError, TypeError, ValueError) as error:  # the checkpoint's parts do not fit this config
         raise ValueError(f"checkpoint {str(state_path)!r} does not fit the run's config "
                          f"({str(error).splitlines()[0][:160]})") from None
@@ -143,10 +164,22 @@ def restore(parts: TrainingParts, state: dict[str, Any], state_path: Any) -> Non
     parts.history = list(state["history"])
 
 
+def _storage_to(buffer: Any, device: torch.device) -> None:
+    """A replay storage loaded from a (CPU) checkpoint onto the run's device: TorchRL fills an empty storage with
+    the checkpoint's own tensors, on the CPU."""
+    storage = buffer.storage
+    if device.type != "cpu" and getattr(storage, "_storage", None) is not None:
+        storage._storage = storage._storage.to(device)
+
+
 def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_time: float) -> dict[str, Any]:
-    """What a periodic checkpoint holds: everything `restore` loads back."""
+    """What a periodic checkpoint holds: everything `restore` loads back, every tensor on the CPU (a GPU run's
+    checkpoint loads on any machine)."""
+    from modules.device import to_cpu
+
     counters, teacher = parts.counters, parts.teacher
-    return {
+    cuda_rng = {"cuda_rng": torch.cuda.get_rng_state(parts.device)} if parts.device.type == "cuda" else {}
+    return to_cpu({
         "config": config.to_dict(), "n_features": parts.env.n_features, "n_actions": parts.env.n_actions,
         "qnet": parts.qnet.state_dict(), "learner": parts.learner.state_dict(),
         "egreedy": parts.agent.egreedy.state_dict(),
@@ -154,8 +187,8 @@ def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_ti
         "teacher": teacher.state_dict(keep_labels=config.checkpoint.save_buffer) if teacher is not None else None,
         "rng": torch.get_rng_state(), "history": parts.history, "run_id": run_id,
         "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
-        "wall_time": wall_time,
-    }
+        "wall_time": wall_time, **cuda_rng,
+    })
 
 
 def check_teacher_value(config: RunConfig) -> None:

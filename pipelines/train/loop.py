@@ -81,9 +81,12 @@ class TrainingLoop:
 
         config, parts, counters = self.config, self.parts, self.counters
         loss = config.loss
-        parts.buffer.extend(prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
-                                                bootstrap=loss.bootstrap, lookahead=config.lookahead,
-                                                multistep=parts.multistep))
+        transitions = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
+                                          bootstrap=loss.bootstrap, lookahead=config.lookahead,
+                                          multistep=parts.multistep)
+        if parts.sequence_rows is not None:  # agent.memory: + dialogue id, step, is_init and hidden state
+            transitions = parts.sequence_rows(batch, transitions, counters["frames"] - batch.numel())
+        parts.buffer.extend(transitions)
         if parts.teacher is not None and counters["frames"] >= config.search_targets.start_frames:
             parts.teacher.label(batch)
         if self.mcap_logger is not None:
@@ -177,8 +180,10 @@ class TrainingLoop:
         config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
         if not history or history[-1]["frames"] != counters["frames"]:
             self.evaluate()
+        from modules.device import to_cpu
+
         final = {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
-                 "n_actions": parts.env.n_actions, "qnet": parts.qnet.state_dict(), "frames": counters["frames"],
+                 "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
                  "updates": counters["updates"], "episodes": counters["episodes"], "run_id": self.run_id}
         atomic_save(final, self.out_dir / FINAL_NAME)
         report: dict[str, Any] = {

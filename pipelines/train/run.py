@@ -51,6 +51,9 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
     from pipelines.outputs import check_free_space, check_writable_dir
     from pipelines.run_folder import RunFolder
 
+    from modules.device import resolve_device
+
+    resolve_device(config.train.device)  # before the run folder is claimed: no GPU here is one line, nothing written
     check_teacher_value(config)  # before the run folder is claimed: a bad path must not leave a started run
     check_writable_dir(out_dir, "--resume" if resume else "--out")
     check_free_space(out_dir, checkpoint_bytes(config, *env_sizes(config)), "a checkpoint of this run")
@@ -97,7 +100,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     collector = None
     if remaining != 0:
         collector = make_collector(parts.env, parts.agent.explore, batch_frames, remaining,
-                                   keeps_views=parts.multistep is not None)
+                                   keeps_views=parts.multistep is not None, device=parts.device)
 
     mcap_logger = _open_mcap(config, out_dir)
     loop = TrainingLoop(config, parts, seed=seed, run_id=run.run_id, out_dir=out_dir, started=started,

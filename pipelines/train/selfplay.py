@@ -50,7 +50,7 @@ class SnapshotPool(Opponent):
     def add(self, qnet: nn.Module) -> None:
         """Freeze a copy of ``qnet`` (a TensorDictModule or a plain module) into the pool."""
         self.features.check_reads(getattr(qnet, "module", qnet))
-        module = copy.deepcopy(getattr(qnet, "module", qnet)).eval()
+        module = copy.deepcopy(getattr(qnet, "module", qnet)).eval().cpu()  # the user's moves are made in the CPU env
         for parameter in module.parameters():
             parameter.requires_grad_(False)
         self.snapshots.append(module)

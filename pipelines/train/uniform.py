@@ -31,7 +31,8 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
         result = evaluate_agent(config, policy, games=config.eval.games, first=first, seed=seed + 2 * EVAL_SEED_OFFSET,
                                 agent_name="uniform")
         report[robot_seat(first)] = result.to_dict()
-    report["train_wall_time_s"] = round(time.monotonic() - started, 2)
+    report["train_wall_time_s"] = 0.0  # nothing is trained
+    report["eval_wall_time_s"] = round(time.monotonic() - started, 2)
     report["history"] = []
     atomic_write_text(json.dumps(report, indent=2) + "\n", run.path / "eval.json")
     return report

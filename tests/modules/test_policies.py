@@ -71,7 +71,8 @@ def test_original_uses_available_actions_for_both() -> None:
 def test_unknown_lookahead_names_the_choices() -> None:
     with pytest.raises(ValueError, match="one_step"):
         LookaheadMasks("two_step_magic")
-    assert set(AGENT_LOOKAHEAD) == {"dqn_original", "dqn_variant", "proposed"}
+    assert set(AGENT_LOOKAHEAD) == {"dqn_original", "dqn_variant", "proposed", "uniform"}
+    assert AGENT_LOOKAHEAD["uniform"] == AGENT_LOOKAHEAD["proposed"]  # no learning inside Proposed's masks
 
 
 class FixedQ(nn.Module):

@@ -1,0 +1,257 @@
+"""agent.memory (modules/recurrent.py) with real TorchRL parts: the hidden state runs through a dialogue and
+restarts with the next, replayed slices stay inside one dialogue, the loss unrolls them as the actor stepped,
+a tiny recurrent run trains, checkpoints and evaluates, and memory none changes nothing."""
+from __future__ import annotations
+
+import json
+import types
+from pathlib import Path
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from envs import make_env
+from modules.loss import make_target_updater
+from modules.policy import make_policies
+from modules.recurrent import (
+    EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
+    make_sequence_buffer, memory_env,
+)
+from modules.transitions import LOSS_KEYS, prepare_transitions
+from pipelines.checkpoint import load_checkpoint
+from pipelines.config import load_config
+from pipelines.train.build import make_collector
+from pipelines.train.run import train
+from tests.learning_helpers import ncbot, write_tiny_config
+
+torch.set_num_threads(1)
+
+MEMORY = {"buffer": {"sequence_length": 8, "burn_in": 2}}
+
+
+def _agent(memory: str = "gru", hidden=(16,), size: int = 8):
+    return types.SimpleNamespace(hidden=list(hidden), memory=memory, memory_size=size)
+
+
+def _network(memory: str = "gru", game: str = "standard", **env_options):
+    env = make_env(game=game, batch_size=(4,), seed=0, first="alternate", **env_options)
+    qnet = make_agent_qnet(env.n_features, env.n_actions, _agent(memory), seed=0)
+    return env, qnet
+
+
+def _steps(qnet, observations: torch.Tensor, first_is_init: bool = True) -> torch.Tensor:
+    """Q-values of `qnet` stepped one observation at a time (acting mode), carrying its state; (T, A)."""
+    state_keys = [key for key in qnet.in_keys if key not in ("observation", IS_INIT_KEY)]
+    td = TensorDict({"observation": observations[:1], IS_INIT_KEY: torch.tensor([[first_is_init]])}, batch_size=[1])
+    out = []
+    for t in range(observations.shape[0]):
+        td.set("observation", observations[t:t + 1])
+        qnet(td)
+        out.append(td.get("action_value")[0].clone())
+        td.set(IS_INIT_KEY, torch.tensor([[False]]))
+        for key in state_keys:
+            td.set(key, td.get(("next", key)))
+    return torch.stack(out)
+
+
+@pytest.mark.parametrize("memory", ["gru", "lstm"])
+def test_history_changes_q_and_a_new_game_resets_it(memory: str) -> None:
+    env, qnet = _network(memory)
+    generator = torch.Generator().manual_seed(1)
+    x = torch.rand(1, env.n_features, generator=generator)
+    history_a = torch.rand(3, env.n_features, generator=generator)
+    history_b = torch.rand(3, env.n_features, generator=generator)
+    with torch.no_grad():
+        after_a = _steps(qnet, torch.cat([history_a, x]))[-1]
+        after_b = _steps(qnet, torch.cat([history_b, x]))[-1]
+        fresh = _steps(qnet, x)[-1]
+        # the same observation after two different histories: different Q-values (the state is carried) ...
+        assert not torch.allclose(after_a, after_b)
+        assert not torch.allclose(after_a, fresh)
+        # ... and is_init on it makes the history irrelevant: the zero state of a new game
+        state_keys = [key for key in qnet.in_keys if key not in ("observation", IS_INIT_KEY)]
+        td = TensorDict({"observation": history_a[:1], IS_INIT_KEY: torch.tensor([[True]])}, batch_size=[1])
+        qnet(td)
+        carried = TensorDict({"observation": x, IS_INIT_KEY: torch.tensor([[True]]),
+                              **{key: td.get(("next", key)) for key in state_keys}}, batch_size=[1])
+        assert torch.allclose(qnet(carried).get("action_value")[0], fresh)
+
+
+def test_batched_env_partial_resets_mark_is_init_and_restart_the_state() -> None:
+    """In the real batched env (games ending at different steps), the collector's data carries is_init on the first
+    step of every dialogue, the hidden state there is zero, and within a dialogue each step starts from the state
+    the previous step left."""
+    env, qnet = _network("gru")
+    policies = make_policies(qnet, env.action_spec_unbatched, "one_step", eps_init=0.3)
+    env = memory_env(env, policies.explore)
+    collector = make_collector(env, policies.explore, 4 * 20, 4 * 40)
+    rows, config, frames, batches = SequenceRows("gru"), load_config(_tiny_path(), []), 0, []
+    for part in collector:  # two batches: dialogues running across the batch boundary keep their id and count on
+        tagged = rows(part, _transitions(part, config), frames)
+        frames += part.numel()
+        assert torch.equal(tagged.get(STEP_KEY), part.get("turn").reshape(-1))  # the env's own count of acts
+        batches.append((part.clone(), tagged.get(EPISODE_KEY).reshape(4, -1)))
+    collector.shutdown()
+    batch = torch.cat([part for part, _ in batches], dim=1)
+    episode = torch.cat([ids for _, ids in batches], dim=1)
+    assert torch.equal(episode[:, 1:] != episode[:, :-1], batch.get(IS_INIT_KEY).squeeze(-1)[:, 1:])
+    assert len(set(episode.flatten().tolist())) == int(batch.get(IS_INIT_KEY).sum())  # one id per dialogue
+    is_init = batch.get(IS_INIT_KEY).squeeze(-1)
+    done = batch.get(("next", "done")).squeeze(-1)
+    assert bool(is_init[:, 0].all())
+    assert int(is_init[:, 1:].sum()) >= 4, "expected several dialogues per env row"
+    assert torch.equal(is_init[:, 1:], done[:, :-1])  # a new dialogue right after each ending one, row by row
+    state, next_state = batch.get("recurrent_state"), batch.get(("next", "recurrent_state"))
+    assert float(state[is_init].abs().max()) == 0.0
+    carried = ~is_init[:, 1:]
+    assert torch.equal(state[:, 1:][carried], next_state[:, :-1][carried])
+    assert float(state[~is_init].abs().max()) > 0.0
+
+
+def _filled_buffer(game: str = "standard", lookahead: str = "one_step", memory: str = "gru", batches: int = 6,
+                   length: int = 8, batch_size: int = 64, **env_options):
+    env, qnet = _network(memory, game, **env_options)
+    policies = make_policies(qnet, env.action_spec_unbatched, lookahead, eps_init=0.5)
+    env = memory_env(env, policies.explore)
+    config = load_config(_tiny_path(), [])  # its loss section: which bootstrap mask the transitions carry
+    config.agent.lookahead = lookahead
+    rows = SequenceRows(memory)
+    buffer = make_sequence_buffer(5000, batch_size, length)
+    collector = make_collector(env, policies.explore, 4 * 16, 4 * 16 * batches)
+    frames = 0
+    for batch in collector:
+        buffer.extend(rows(batch, _transitions(batch, config), frames))
+        frames += batch.numel()
+    collector.shutdown()
+    return qnet, buffer, config
+
+
+def _transitions(batch, config):
+    loss = config.loss
+    return prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward, bootstrap=loss.bootstrap,
+                               lookahead=config.lookahead)
+
+
+_TINY: Path | None = None
+
+
+def _tiny_path() -> Path:
+    global _TINY
+    if _TINY is None:
+        import tempfile
+
+        _TINY = write_tiny_config(Path(tempfile.mkdtemp()))
+    return _TINY
+
+
+def test_sampled_slices_never_cross_a_dialogue_boundary() -> None:
+    _, buffer, _ = _filled_buffer(batches=8)
+    length = 8
+    for _ in range(20):
+        sample = buffer.sample().reshape(-1, length)
+        real = sample.get(VALID_KEY)
+        episode, step = sample.get(EPISODE_KEY), sample.get(STEP_KEY)
+        assert bool((episode == episode[:, :1]).all())  # padding repeats the last real step: same dialogue
+        # real steps are consecutive steps of that dialogue, and each next observation is the next step's one
+        assert bool(((step[:, 1:] - step[:, :-1] == 1) | ~real[:, 1:]).all())
+        assert bool((real[:, :-1] | ~real[:, 1:]).all())  # padding only at the end
+        following = real[:, 1:]
+        assert torch.equal(sample.get(("next", "observation"))[:, :-1][following],
+                           sample.get("observation")[:, 1:][following])
+        # a dialogue's end is the slice's last real step
+        done = sample.get(("next", "done")).squeeze(-1)
+        assert not bool((done[:, :-1] & following).any())
+        stored_init = sample.get(IS_INIT_KEY).squeeze(-1)
+        assert bool(stored_init[:, 0].all()) and not bool((stored_init[:, 1:] & following).any())
+    # short dialogues come whole and padded: some slices start at the dialogue's first step
+    assert bool((sample.get(STEP_KEY)[:, 0] == 0).any())
+
+
+def test_the_loss_unrolls_a_slice_as_the_actor_stepped_it() -> None:
+    """Recurrent mode over a slice from its stored state gives the Q-values the acting network gave step by step."""
+    qnet, buffer, _ = _filled_buffer(batches=4)
+    sample = buffer.sample().reshape(-1, 8)
+    loss = SequenceDQNLoss(qnet, sequence_length=8)
+    row = int(torch.nonzero(sample.get(VALID_KEY).all(-1))[0])
+    observations = sample.get("observation")[row]
+    with torch.no_grad():
+        unrolled = loss._unroll(observations.unsqueeze(0), {"recurrent_state": sample.get("recurrent_state")[row, 0:1]})[0]
+        td = TensorDict({"observation": observations[:1], IS_INIT_KEY: torch.tensor([[False]]),
+                         "recurrent_state": sample.get("recurrent_state")[row, 0:1]}, batch_size=[1])
+        stepped = []
+        for t in range(8):
+            td.set("observation", observations[t:t + 1])
+            qnet(td)
+            stepped.append(td.get("action_value")[0].clone())
+            td.set("recurrent_state", td.get(("next", "recurrent_state")))
+    assert torch.allclose(unrolled, torch.stack(stepped), atol=1e-5)
+
+
+@pytest.mark.parametrize("game,lookahead,memory,temporal", [
+    ("standard", "none", "gru", True), ("standard", "variant", "lstm", False), ("standard", "one_step", "gru", False),
+    ("standard", "k2", "lstm", True), ("ultimate", "one_step", "gru", False), ("ultimate", "k2", "lstm", True),
+])
+def test_updates_run_with_every_mask_game_and_feature_set(game: str, lookahead: str, memory: str,
+                                                          temporal: bool) -> None:
+    qnet, buffer, _ = _filled_buffer(game, lookahead, memory, batches=3, temporal=temporal)
+    loss = SequenceDQNLoss(qnet, sequence_length=8, burn_in=2, double_dqn=memory == "lstm")
+    loss.set_keys(**LOSS_KEYS)
+    loss.make_value_estimator(gamma=0.9)
+    updater = make_target_updater(loss, "hard", 2)
+    optimizer = torch.optim.Adam(loss.parameters(), lr=1e-3)
+    before = [p.detach().clone() for p in qnet.parameters()]
+    for _ in range(3):
+        out = loss(buffer.sample())
+        assert torch.isfinite(out["loss"])
+        optimizer.zero_grad()
+        out["loss"].backward()
+        optimizer.step()
+        updater.step()
+    assert any(not torch.equal(a, b) for a, b in zip(before, qnet.parameters()))  # the acting network learnt
+
+
+def test_tiny_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
+    config = load_config(write_tiny_config(tmp_path, **MEMORY), ["agent.memory=gru", "buffer.augment=d4"])
+    run = tmp_path / "run"
+    report = train(config, run)
+    assert report["updates"] > 0 and report["first"]["games"] == 60
+    final = load_checkpoint(run / "checkpoint.pt")  # weights_only=True
+    assert torch.load(run / "checkpoint.pt", weights_only=True)["config"]["agent"]["memory"] == "gru"
+    assert any(".gru." in key for key in final["qnet"])
+    result = ncbot("eval", str(run / "checkpoint.pt"), "--games", "40", "--json")
+    assert result.returncode == 0, result.stderr
+    numbers = json.loads(result.stdout)
+    assert numbers["games"] == 40 and 0.0 <= numbers["task_success"] <= 1.0
+    from pipelines.agents import load_agent, load_robot
+
+    with pytest.raises(ValueError, match="agent.memory=gru"):  # e.g. ncbot play: it steps its own env
+        load_agent(run / "checkpoint.pt")
+    with pytest.raises(ValueError, match="agent.memory=gru"):
+        load_robot(str(run / "checkpoint.pt"), search=4)
+
+
+def test_memory_refuses_what_reads_the_network_as_an_mlp(tmp_path: Path) -> None:
+    path = write_tiny_config(tmp_path, **MEMORY)
+    with pytest.raises(ValueError, match="buffer.prioritized"):
+        load_config(path, ["agent.memory=gru", "buffer.prioritized=true"])
+    with pytest.raises(ValueError, match="multiple of buffer.sequence_length"):
+        load_config(path, ["agent.memory=lstm", "buffer.batch_size=30"])
+    with pytest.raises(ValueError, match="burn_in"):
+        load_config(path, ["agent.memory=gru", "buffer.burn_in=8"])
+    load_config(path, ["buffer.prioritized=true", "buffer.batch_size=30"])  # memory none: as before
+
+
+# eval.json of the tiny config with augment d4 and prioritised replay, trained by the code before agent.memory
+# existed (main at a19b48d, `ncbot train tiny.yaml`): memory none must give exactly these numbers
+BEFORE_MEMORY = {"first": {"win": 0.9166666666666666, "draw": 0.06666666666666667, "loss": 0.016666666666666666},
+                 "second": {"win": 0.7166666666666667, "draw": 0.2, "loss": 0.08333333333333333},
+                 "history": [0.95, 0.95]}
+
+
+def test_memory_none_gives_the_numbers_from_before(tmp_path: Path) -> None:
+    config = load_config(write_tiny_config(tmp_path, buffer={"augment": "d4", "prioritized": True}), [])
+    report = train(config, tmp_path / "run")
+    for seat in ("first", "second"):
+        assert {key: report[seat][key] for key in ("win", "draw", "loss")} == BEFORE_MEMORY[seat]
+    assert [record["task_success"] for record in report["history"]] == BEFORE_MEMORY["history"]
