@@ -54,8 +54,21 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
     return path
 
 
+def _spans_decades(values: Sequence[float]) -> bool:
+    """Whether the positive finite values cover more than one decade (a log axis then shows the shape)."""
+    import math
+
+    kept = [v for v in values if isinstance(v, (int, float)) and math.isfinite(v) and v > 0]
+    return bool(kept) and max(kept) / min(kept) > 10
+
+
 def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLike, title: str = "") -> Path:
-    """Periodic-evaluation metrics and training loss, over env frames (left) and wall time (right)."""
+    """Periodic-evaluation metrics and training loss, over env frames (left) and wall time (right), as a PNG."""
+    return save_figure(learning_curve_figure(history, title), path)
+
+
+def learning_curve_figure(history: Sequence[dict[str, Any]], title: str = ""):
+    """The figure of `plot_learning_curve`: task success per seat where the history has them."""
     plt = pyplot()
     fig, axes = plt.subplots(len(CURVES), 2, figsize=(10, 9), sharex="col")
     frames = [h["frames"] for h in history]
@@ -71,12 +84,14 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
             ax.grid(alpha=0.3)
             if col == 0:
                 ax.set_ylabel(label)
-            if key == "train_loss":
-                from matplotlib.ticker import LogLocator
+            if key == "train_loss" and _spans_decades(lines["both seats"]):
+                from matplotlib.ticker import LogLocator, NullFormatter
 
+                # a loss over several decades: log scale, labels on whole decades only (they never overlap);
+                # within a decade the linear axis reads better
                 ax.set_yscale("log")
-                ax.yaxis.set_major_locator(LogLocator(numticks=4))  # a few decades: labels never overlap
-                ax.yaxis.set_minor_formatter(lambda *_: "")
+                ax.yaxis.set_major_locator(LogLocator(numticks=5))
+                ax.yaxis.set_minor_formatter(NullFormatter())
             if key == "task_success":
                 ax.axhline(0.995, color="grey", linestyle="--", linewidth=0.8)
                 if len(lines) > 1:
@@ -85,7 +100,7 @@ def plot_learning_curve(history: Sequence[dict[str, Any]], path: str | os.PathLi
     axes[-1, 0].set_xlabel("env frames (robot actions)")
     axes[-1, 1].set_xlabel("wall time (s, shared 2-core machine)")
     fig.suptitle(title or "learning curve (greedy evaluation vs random user)")
-    return save_figure(fig, path)
+    return fig
 
 
 SEAT_PANELS = (("robot_first", "task success, robot first"), ("robot_second", "task success, robot second"))

@@ -105,3 +105,23 @@ def test_anneal_epsilon_is_torchrl_step_bit_for_bit(eps_init: float, eps_end: fl
         anneal_epsilon(ours, 8)
         assert torch.equal(torchrl_steps.eps, ours.eps)
     assert float(ours.eps) == pytest.approx(eps_end)
+
+
+def test_learning_curve_shows_both_seats_and_a_readable_loss_axis(tmp_path: Path) -> None:
+    from pipelines.plots import learning_curve_figure, pyplot
+
+    history = [{"frames": 1000 * i, "wall_time": float(i), "task_success": 0.9, "avg_reward": 0.1,
+                "avg_length": 10.0, "train_loss": 1.6 + 0.1 * (i % 3),
+                "seats": {"robot_first": {"task_success": 0.95}, "robot_second": {"task_success": 0.85}}}
+               for i in range(1, 6)]
+    within = learning_curve_figure(history)
+    across = learning_curve_figure([dict(h, train_loss=10.0 ** i) for i, h in enumerate(history)])
+    across.canvas.draw()
+    success = within.axes[2]  # row 1 (task success), left column
+    assert [line.get_label() for line in success.get_lines()][:2] == ["robot first", "robot second"]
+    assert within.axes[6].get_yscale() == "linear"  # a loss inside one decade: linear, every tick labelled
+    assert across.axes[6].get_yscale() == "log"
+    labels = [t.get_text() for t in across.axes[6].get_yticklabels() if t.get_text()]
+    assert 0 < len(labels) <= 7  # whole decades only: labels that cannot overlap
+    for fig in (within, across):
+        pyplot().close(fig)
