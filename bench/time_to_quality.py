@@ -148,8 +148,10 @@ def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int |
     from pipelines.evaluate.games import evaluate_agent
 
     config, policy = load_guided_agent(snapshot["path"], search, seed, value) if search else load_agent(snapshot["path"])
-    return {seat: evaluate_agent(config, policy, games=games, seat=seat, seed=seed).task_success
-            for seat in ("first", "second")}
+    from pipelines.run_env import robot_seat
+
+    return {robot_seat(first): evaluate_agent(config, policy, games=games, first=first, seed=seed).task_success
+            for first in ("robot", "human")}
 
 
 def exact_ours(snapshot: dict[str, Any]) -> dict[str, float]:

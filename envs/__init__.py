@@ -24,8 +24,7 @@ def make_env(
     """Build the batched dialogue game env (a TorchRL ``EnvBase`` with batch size ``(B,)``).
 
     ``first``: robot|human|alternate|random, who makes the first game move (default robot; ``alternate`` flips per
-    game slot every episode, ``random`` draws per game). The old spelling ``starts=`` still works with a
-    DeprecationWarning. Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
+    game slot every episode, ``random`` draws per game). Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
     object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
     uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100), ``hearing`` None (the
     words said, at those uniform confidences) or an object with ``hear(utterances, generator)`` that decides what

@@ -13,7 +13,7 @@ except the action count. See docs/env.md for rewards, features and every key.
 
 This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
 specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
-``envs.env_speed``. Who opens is the option ``first`` (``env.first``); ``starts`` is its deprecated spelling.
+``envs.env_speed``. Who opens is the option ``first`` (``env.first``).
 
 The paper's ambiguous readings are options (defaults = this project's first reading; the paper configs set the
 readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
@@ -24,7 +24,6 @@ k example dialogues (the data-budget curve), with the whole set's vocabulary so 
 """
 from __future__ import annotations
 
-import warnings
 from typing import Any
 
 import torch
@@ -47,7 +46,6 @@ from envs.env_options import (
 from envs.env_speed import DialogueState, FastProcHooks, paste_rows
 from envs.misread import MisreadBoard
 
-STARTS_CHOICES = FIRST_CHOICES  # the deprecated spelling's name, kept for old imports
 ILLEGAL_ACT_REWARD = REWARD_ILLEGAL  # the paper's penalty for a repeated move, applied to every refused act (ours)
 USER = HUMAN  # the simulated user sits in the human seat
 
@@ -73,7 +71,6 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         opponent: Any = "random",
         asr_confidence: tuple[float, float] = (0.0, 1.0),
         max_actions: int = 100,
-        starts: str | None = None,
         taken_squares: str = "never",
         misread_rate: float | None = None,
         win_set: str = "wins_and_threats",
@@ -86,7 +83,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         batch = check_batch(batch_size)
         check_game(game)
         check_free_move(free_move)
-        first = first_of(first, starts)
+        first = first_of(first)
         low, high = check_confidence(asr_confidence)
         if not isinstance(max_actions, int) or max_actions < 1:
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
@@ -122,12 +119,6 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         self._all_games = torch.arange(batch)
         self._init_state(batch)
         self.set_seed(int(seed))
-
-    @property
-    def starts(self) -> str:
-        """Deprecated spelling of ``first`` (who opens the game)."""
-        warnings.warn("env.starts is deprecated: use env.first (same values)", DeprecationWarning, stacklevel=2)
-        return self.first
 
     # ------------------------------------------------------------------ construction helpers
     def _init_state(self, batch: int) -> None:

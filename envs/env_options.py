@@ -2,14 +2,13 @@
 from __future__ import annotations
 
 import inspect
-import warnings
 from typing import Any
 
 from envs.core import FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
 
-# starts: deprecated spelling of first; taken_squares (with misread_rate), win_set, about_to and dialogues: the
+# taken_squares (with misread_rate), win_set, about_to and dialogues: the
 # paper's readings (envs.core, docs/env.md "Readings", docs/reproduction.md)
-OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "starts", "taken_squares", "misread_rate",
+OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "taken_squares", "misread_rate",
                 "win_set", "about_to", "dialogues", "hearing", "dialogue_subset", "threat_features")
 
 
@@ -49,13 +48,8 @@ def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tup
     return opponent, params
 
 
-def first_of(first: str, starts: str | None) -> str:
-    """The ``first`` option, also accepting the deprecated ``starts`` (with a warning naming the new spelling)."""
-    if starts is not None:
-        warnings.warn(f"starts={starts!r} is deprecated: use first={starts!r} (same values)", DeprecationWarning, stacklevel=5)
-        if first != "robot" and first != starts:
-            raise ValueError(f"first={first!r} and the deprecated starts={starts!r} disagree: pass first only")
-        first = starts
+def first_of(first: str) -> str:
+    """The ``first`` option (who opens the game), checked."""
     if first not in FIRST_CHOICES:
         raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {first!r}")
     return first

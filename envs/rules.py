@@ -132,12 +132,11 @@ class _Game:
         return f"{COLUMN_LETTERS[cell % self.size]}{cell // self.size + 1}"
 
     def parse_cell(self, text: str) -> int:
-        """Inverse of ``cell_name`` (case and spaces ignored; "2b" is accepted too); ValueError if not a cell."""
+        """Inverse of ``cell_name`` (case and spaces ignored); ValueError if not a cell. Every cell a person types or
+        reads is written this one way (docs/design.md, CLI conventions)."""
         cleaned = "".join(str(text).split()).lower()
         letters = COLUMN_LETTERS[: self.size]
         digits = "0123456789"  # ASCII only: "²".isdigit() is True but int("²") fails
-        if len(cleaned) == 2 and cleaned[1] in letters and cleaned[0] in digits:
-            cleaned = cleaned[1] + cleaned[0]
         if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1] in digits:
             row = int(cleaned[1]) - 1
             if 0 <= row < self.size:

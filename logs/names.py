@@ -7,10 +7,16 @@ reader can show a dialogue from the file alone (they are stored as MCAP metadata
 from __future__ import annotations
 
 import json
+import math
+import re
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+
+from envs.core import COLUMN_LETTERS  # light: plain constants
+
+_GRIDLOC = re.compile(r"gridloc=(\d+)")
 
 
 @dataclass
@@ -49,7 +55,21 @@ class NameTables:
                    table("feature_names"), utterances)
 
     def action_name(self, act: int) -> str:
-        return self.action_names[act] if 0 <= act < len(self.action_names) else f"act{act}"
+        """The act's name as a person reads it: GameMove(b2), not the dialogue data's GameMove(gridloc=4)."""
+        if not 0 <= act < len(self.action_names):
+            return f"act{act}"
+        return self.readable(self.action_names[act])
+
+    def readable(self, name: str) -> str:
+        """An act name with its cell as a person reads it: GameMove(gridloc=4) -> GameMove(b2)."""
+        return _GRIDLOC.sub(lambda match: self.cell_name(int(match.group(1))), name)
+
+    def cell_name(self, cell: int) -> str:
+        """Cell index -> its name on the board (b2 style, as ``envs.rules`` ``cell_name``); the board size follows
+        from the number of move acts (9 or 81)."""
+        moves = sum(1 for name in self.action_names if _GRIDLOC.search(name)) or 9
+        size = math.isqrt(moves)
+        return f"{COLUMN_LETTERS[cell % size]}{cell // size + 1}" if 0 <= cell < size * size else str(cell)
 
     def template(self, act: int) -> str:
         return self.templates[act] if 0 <= act < len(self.templates) else ""

@@ -49,11 +49,11 @@ def format_episode(record: EpisodeRecord, names: NameTables, max_q: int = 8) -> 
         for turn in turns_by_step.get(index, []):
             who = "ROBOT" if turn["speaker"] == "robot" else "USER "
             text = turn.get("text") or ""
-            detail = turn.get("act_name", "")
+            detail = names.readable(turn.get("act_name", ""))
             if turn.get("command"):
                 detail += f" [{turn['command']}]"
             if turn.get("move", -1) is not None and int(turn.get("move", -1)) >= 0:
-                detail += f" move={turn['move']}"
+                detail += f" move={names.cell_name(int(turn['move']))}"
             if turn.get("words"):
                 detail += " words=" + ", ".join(f"{word}:{conf:.2f}" for word, conf in turn["words"])
             lines.append(f"  {who}: {text}  ({detail.strip()})" if text else f"  {who}: ({detail.strip()})")

@@ -54,9 +54,15 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
     """Load an ncbot checkpoint safely (`weights_only=True`); one-line errors for missing or corrupt files."""
     path = Path(path)
     if path.is_dir():
+        if not (path / FINAL_NAME).is_file():
+            raise FileNotFoundError(f"run folder {str(path)!r} holds no {FINAL_NAME} (expected a checkpoint .pt or a "
+                                    "run folder of a finished ncbot train)")
         path = path / FINAL_NAME
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint {str(path)!r} not found (expected a .pt file written by ncbot train)")
+    if path.suffix != ".pt":
+        hint = " (a run config: train it with ncbot train FILE)" if path.suffix in (".yaml", ".yml") else ""
+        raise ValueError(f"{str(path)!r} is not a checkpoint{hint}; expected a checkpoint .pt or a run folder")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError:  # weights_only refused a pickled object: never run, never loaded

@@ -255,19 +255,8 @@ class EvalConfig(Section):
 
     games: Annotated[int, Field(gt=0, le=MAX_GAMES)] = 3000  # final evaluation
     periodic_games: Annotated[int, Field(gt=0, le=MAX_GAMES)] = 500  # each periodic evaluation during training
-    # who opens the test games: robot | human | alternate (older configs and checkpoints say seat: first|second)
-    first: Literal["robot", "human", "alternate"] = "alternate"
+    first: Literal["robot", "human", "alternate"] = "alternate"  # who opens the test games
     opponent: str = "random"
-
-    @model_validator(mode="before")
-    @classmethod
-    def _old_seat_spelling(cls, data: Any) -> Any:
-        """`seat: first|second|alternate` (the robot's seat) is the old spelling of `first: robot|human|alternate`."""
-        if isinstance(data, dict) and "seat" in data and "first" not in data:
-            data = dict(data)
-            seat = data.pop("seat")
-            data["first"] = {"first": "robot", "second": "human"}.get(seat, seat)
-        return data
 
 
 class LoggerConfig(Section):
@@ -456,6 +445,8 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConf
                          "every default)")
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of sections (env, agent, ...)")
+    if "grid" in data and "suites" in data:
+        raise ValueError(f"{str(path)!r} is an ablation grid, not a run config: run ncbot ablate {path}")
     return config_from_dict(apply_overrides(data, overrides or []))
 
 

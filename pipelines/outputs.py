@@ -27,6 +27,9 @@ def check_writable_dir(path: str | os.PathLike, option: str) -> Path:
     base = nearest_existing(path)
     if not base.is_dir():
         raise NotADirectoryError(f"{option} {str(path)!r} cannot be created: {str(base)!r} is a file, not a folder")
+    if _virtual(base):
+        raise PermissionError(f"{option} {str(path)!r} is not writable: {str(base)!r} is on a virtual file system "
+                              "(such as /proc or /sys) that holds no files; expected a writable folder")
     if not os.access(base, os.W_OK | os.X_OK):
         reason = "is on a read-only file system" if _read_only(base) else "is not writable by you"
         raise PermissionError(f"{option} {str(path)!r} cannot be written: {str(base)!r} {reason}; "
@@ -46,6 +49,14 @@ def check_writable_file(path: str | os.PathLike, option: str, suffixes: tuple[st
     return path
 
 
+def _virtual(path: Path) -> bool:
+    """A kernel file system (/proc, /sys): no blocks at all, so no file can be written there, even by root."""
+    try:
+        return os.statvfs(path).f_blocks == 0
+    except OSError:
+        return False
+
+
 def _read_only(path: Path) -> bool:
     try:
         return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
@@ -60,6 +71,8 @@ def check_free_space(path: str | os.PathLike, needed: int, what: str) -> None:
     except OSError:
         return
     free = stats.f_bavail * stats.f_frsize
+    if stats.f_blocks == 0:  # a virtual file system: not full, not writable (check_writable_dir says so)
+        return
     if free < needed:
         raise OSError(errno.ENOSPC, f"{what} needs about {needed / 2**20:.1f} MiB but {str(path)!r} has "
                       f"{free / 2**20:.1f} MiB free; free some space or choose another --out")

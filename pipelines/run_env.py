@@ -1,14 +1,14 @@
 """One place that turns the `env` section of a run config into `envs.make_env(...)` calls.
 
-Training, periodic evaluation and `ncbot eval` all build their envs here, so a seat or opponent means the same
-thing everywhere.
+Training, periodic evaluation and `ncbot eval` all build their envs here, so who opens (`first`) or an opponent
+means the same thing everywhere.
 """
 from __future__ import annotations
 
 from functools import lru_cache
 from typing import Any
 
-SEATS = {"first": "robot", "second": "human", "alternate": "alternate"}
+FIRST_CHOICES = ("robot", "human", "alternate")  # who opens test games (`--first`, `eval.first`)
 
 
 def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | None = None,
@@ -61,9 +61,22 @@ def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[
     return ChannelHearing(model, dialogue.utterance_texts, dialogue.words, snr_db, noise)
 
 
-def seat_to_first(seat: str) -> str:
-    """`--seat first|second|alternate` (the robot's seat) -> the env's `first` option."""
-    try:
-        return SEATS[seat]
-    except KeyError:
-        raise ValueError(f"unknown seat {seat!r}; expected one of {', '.join(SEATS)}") from None
+def check_first(first: str, allowed: tuple[str, ...] = FIRST_CHOICES, name: str = "first") -> str:
+    """`first` (who opens: robot | human | ...) checked against the values a command takes."""
+    if first not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {first!r}")
+    return first
+
+
+def robot_seat(first: str) -> str:
+    """Who opens (`first`: robot | human) -> the robot's seat as results files name it: "first" | "second".
+
+    The one translation between the two spellings. Everything a user types or a config holds says who opens with
+    `first` (`--first robot|human`, `env.first`, `eval.first`); only results keep keys by the robot's seat, "first"
+    and "second": eval.json, the `ncbot train` table, ladder rows and `ncbot eval --exhaustive` results. Those keys
+    stay as they are because results files already written (and the tools that read them) depend on them.
+    """
+    seats = {"robot": "first", "human": "second"}
+    if first not in seats:
+        raise ValueError(f"first must be robot or human, got {first!r}")
+    return seats[first]

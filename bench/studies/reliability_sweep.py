@@ -105,8 +105,8 @@ def cases() -> list[tuple[str, list[str]]]:
         add(("eval: bad checkpoint", ["eval", f"{{{bad}}}", "--games", "1"]))
         add(("ladder: bad checkpoint", ["ladder", f"{{{bad}}}", "--games", "1", "--out", "{tmp}/l"]))
         add(("eval --exhaustive: bad checkpoint", ["eval", f"{{{bad}}}", "--exhaustive"]))
-        add(("robot play: bad checkpoint", ["robot", "play", "--checkpoint", f"{{{bad}}}"]))
-        add(("play: bad checkpoint", ["play", "--checkpoint", f"{{{bad}}}", "--no-log"]))
+        add(("robot play: bad checkpoint", ["robot", "play", f"{{{bad}}}"]))
+        add(("play: bad checkpoint", ["play", f"{{{bad}}}", "--no-log"]))
         add(("match: bad agent opponent", ["match", f"agent:{{{bad}}}", "random", "--games", "1"]))
     for value in BAD_NUMBERS:
         add(("eval: bad --games", ["eval", "{ckpt}", "--games", value]))
@@ -121,13 +121,13 @@ def cases() -> list[tuple[str, list[str]]]:
         add(("ladder: bad --opponents", ["ladder", "{ckpt}", "--games", "1", "--opponents", value, "--out", "{tmp}/l"]))
     for value in ["k9", "x", ""]:
         add(("ladder: bad --lookahead", ["ladder", "{ckpt}", "--games", "1", "--lookahead", value]))
-    for option, value in (("--first", "nobody"), ("--seat", "third"), ("--first", "")):
+    for option, value in (("--first", "nobody"), ("--first", "third"), ("--first", "")):
         add(("eval: bad seat", ["eval", "{ckpt}", "--games", "1", option, value]))
         add(("play: bad seat", ["play", option, value, "--no-log"]))
     for out_path in ["{text.txt}", "{under_file}"]:
-        add(("eval: bad --mcap", ["eval", "{ckpt}", "--games", "1", "--mcap", out_path]))
+        add(("eval: bad --out", ["eval", "{ckpt}", "--games", "1", "--out", out_path]))
         add(("ladder: bad --out", ["ladder", "{ckpt}", "--games", "1", "--out", out_path]))
-        add(("play: bad --log-dir", ["play", "--log-dir", out_path]))
+        add(("play: bad --out", ["play", "--out", out_path]))
         add(("ablate: bad --out", ["ablate", "{grid.yaml}", "--out", out_path]))
     add(("play: bad --game", ["play", "--game", "chess", "--no-log"]))
     add(("play: bad --free-move", ["play", "--free-move", "nowhere", "--no-log"]))
@@ -170,8 +170,8 @@ def cases() -> list[tuple[str, list[str]]]:
         add((f"vision {args[0]}: bad option", ["vision", *args]))
     # robot
     for args in (["render", "-o", "{a_folder}"], ["render", "-o", "{tmp}/x.xyz"], ["render", "-o", "{under_file}.png"],
-                 ["render", "-o", "{tmp}/m.png", "--marks", "x4,o4"], ["render", "-o", "{tmp}/m.png", "--marks", "z9"],
-                 ["render", "-o", "{tmp}/m.png", "--marks", "x99"], ["render", "-o", "{tmp}/m.png", "--view", "side"],
+                 ["render", "-o", "{tmp}/m.png", "--marks", "xb2,ob2"], ["render", "-o", "{tmp}/m.png", "--marks", "z9"],
+                 ["render", "-o", "{tmp}/m.png", "--marks", "xj9"], ["render", "-o", "{tmp}/m.png", "--view", "side"],
                  ["render", "-o", "{tmp}/m.png", "--width", "100000"], ["render", "-o", "{tmp}/m.png", "--height", "0"],
                  ["render", "-o", "{tmp}/m.png", "--frames", "0"],
                  ["play", "--width", "100000", "--height", "100000"], ["play", "--games", "0"],

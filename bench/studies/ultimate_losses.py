@@ -1,6 +1,6 @@
 """What the robot's Ultimate losses are: short tactics a k-ply look-ahead would have seen, or strategy.
 
-Reads the lost eval games of an MCAP log (`ncbot eval CKPT --mcap DIR`), replays each game's moves with the exact
+Reads the lost eval games of an MCAP log (`ncbot eval CKPT --out DIR`), replays each game's moves with the exact
 bitboard engine and, at the robot's last decisions, finds every move after which the user can FORCE a win within
 k plies (k = 1, 3, 5; ``modules.deep_lookahead.losing_moves``). Each loss is classed by the robot's LAST decision
 that still had a move escaping a 5-ply forced loss ("the last escape"):
@@ -61,7 +61,7 @@ def classify(plies: list[tuple[str, int]], last: int, free_move: str = "anywhere
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("log", help="MCAP file or folder of `ncbot eval --mcap`")
+    parser.add_argument("log", help="MCAP file or folder of `ncbot eval --out`")
     parser.add_argument("--last", type=int, default=6, help="robot decisions looked at, from the end (k5 is slow)")
     args = parser.parse_args()
     lost = [e["episode"] for e in read_episodes(args.log) if e.get("outcome") == "loss" and e.get("phase") == "eval"]

@@ -33,17 +33,38 @@ app = typer.Typer(
 )
 
 
+def ncbot_version() -> str:
+    """The installed package's version, else (a source checkout run as `python -m pipelines.cli`) pyproject's."""
+    from importlib.metadata import PackageNotFoundError, version as installed_version
+    from pathlib import Path
+
+    try:
+        return installed_version("ncbot")
+    except PackageNotFoundError:
+        import tomllib
+
+        pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+        return tomllib.loads(pyproject.read_text(encoding="utf-8"))["project"]["version"]
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"ncbot {ncbot_version()}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def root() -> None:
+def root(
+    _version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                  help="Print the ncbot version and exit."),
+) -> None:
     """ncbot: a Pepper robot that learns to play Noughts & Crosses with people."""
 
 
 @app.command()
 def version() -> None:
-    """Print the installed ncbot version."""
-    from importlib.metadata import version as installed_version
-
-    typer.echo(f"ncbot {installed_version('ncbot')}")
+    """Print the ncbot version (as ncbot --version)."""
+    typer.echo(f"ncbot {ncbot_version()}")
 
 
 for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
@@ -68,9 +89,10 @@ def main(args: list[str] | None = None) -> None:
     # torch warns about the pickle protocol of a file its safe loader is about to refuse: the refusal is the line
     warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
     command = typer.main.get_command(app)
+    argv = list(sys.argv[1:] if args is None else args)
     code = 0
     try:
-        with command.make_context("ncbot", list(sys.argv[1:] if args is None else args)) as context:
+        with command.make_context("ncbot", argv) as context:
             command.invoke(context)
     except click.Exit as done:  # --help, typer.Exit(n)
         code = done.exit_code
@@ -82,12 +104,10 @@ def main(args: list[str] | None = None) -> None:
         print(f"ncbot: error: {squeeze(usage.format_message())}{where}", file=sys.stderr)
         code = usage.exit_code
     except (KeyboardInterrupt, click.Abort):
-        print("\nncbot: interrupted (Ctrl-C); a run folder can be continued with ncbot train --resume DIR",
-              file=sys.stderr)
+        print(f"\nncbot: interrupted (Ctrl-C){resume_advice(argv)}", file=sys.stderr)
         code = 130
     except Terminated:
-        print("ncbot: terminated (SIGTERM); a run folder can be continued with ncbot train --resume DIR",
-              file=sys.stderr)
+        print(f"ncbot: terminated (SIGTERM){resume_advice(argv)}", file=sys.stderr)
         code = 143
     except Exception as error:  # noqa: BLE001 - the boundary: sorted into expected failures and bugs
         line = one_line(error)
@@ -103,6 +123,16 @@ def main(args: list[str] | None = None) -> None:
             print(f"ncbot: error: {line}", file=sys.stderr)
             code = 2
     sys.exit(code)
+
+
+def resume_advice(argv: list[str]) -> str:
+    """What to run to go on after an interrupted command, for the commands whose work can be continued."""
+    command = next((arg for arg in argv if not arg.startswith("-")), "")
+    return {
+        "train": "; continue the run with ncbot train --resume DIR",
+        "ablate": "; run the same ncbot ablate command again to go on: it skips the finished runs",
+        "reproduce": "; run the same ncbot reproduce command again to go on: it skips the finished runs",
+    }.get(command, "")
 
 
 def click_exceptions():

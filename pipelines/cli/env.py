@@ -29,9 +29,17 @@ def describe(
     temporal: bool = typer.Option(True, "--temporal/--no-temporal", help="include the temporal features"),
 ) -> None:
     """Print the feature table (index, key, meaning) and the action table (index, act, template, command)."""
+    import re
+
     from envs import make_env
+    from envs.rules import make_game
 
     env = make_env(game, temporal=temporal)
+    rules = make_game(game)
+
+    def readable(name: str) -> str:  # GameMove(gridloc=4) -> GameMove(b2): cells as the board names them
+        return re.sub(r"gridloc=(\d+)", lambda match: rules.cell_name(int(match.group(1))), name)
+
     typer.echo(f"{game} game: {env.n_features} features, {env.n_actions} actions, vocabulary of {len(env.words)} words\n")
     typer.echo("FEATURES (the sorted key-value memory as a vector)")
     typer.echo(f"{'index':>5}  {'key':<18} meaning")
@@ -42,7 +50,7 @@ def describe(
     for index, name in enumerate(env.action_names):
         line = env.describe_action(index)
         template, _, command = line.partition(" [")
-        typer.echo(f"{index:>5}  {name:<26} {template:<40} [{command}")
+        typer.echo(f"{index:>5}  {readable(name):<26} {template:<40} [{command}")
 
 
 def register(app: typer.Typer) -> None:

@@ -14,11 +14,13 @@ from pipelines.agents import check_value_option  # light: pathlib only
 from pipelines.config import MAX_GAMES, MAX_SEED  # light: pydantic and yaml, no torch
 from pipelines.outputs import check_writable_dir, check_writable_file  # light: os and pathlib only
 
+CHECKPOINT_HELP = "A checkpoint .pt written by ncbot train, or its run folder."
+
 
 def train_command(
     config: Optional[str] = typer.Argument(None, help="YAML run config, e.g. pipelines/configs/default.yaml."),
     overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides, e.g. optim.lr=0.0005."),
-    out: Optional[str] = typer.Option(None, "--out", help="Run folder (default runs/<config name>)."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Run folder (default runs/<config name>)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed (overrides train.seed)."),
     episodes: Optional[int] = typer.Option(None, "--episodes", help="Stop after N training games instead of frames."),
     resume: Optional[str] = typer.Option(None, "--resume", help="Continue the run in this folder from its last checkpoint."),
@@ -68,26 +70,25 @@ def _results_row(result: dict, seat: str) -> str:
 
 
 def eval_command(
-    checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
+    checkpoint: str = typer.Argument(..., help=CHECKPOINT_HELP),
     games: int = typer.Option(3000, "--games", max=MAX_GAMES, help="Number of greedy test games."),
     opponent: str = typer.Option("random", "--opponent", help="Simulated user's move policy (envs.opponents name)."),
-    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot | human | alternate (default alternate)."),
-    seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling of --first: first | second | alternate."),
+    first: str = typer.Option("alternate", "--first", help="Who opens: robot | human | alternate (half the games each)."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object with the metrics."),
-    mcap: Optional[str] = typer.Option(None, "--mcap", help="Also log the test games to MCAP in this folder."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Also log the test games to MCAP in this folder."),
     search: Optional[int] = typer.Option(None, "--search", max=100_000, help="Game moves by MCTS guided by the Q-network, N simulations."),
     exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
-    from pipelines.cli.first import ROBOT_SEAT, resolve_first
+    from pipelines.run_env import check_first, robot_seat
 
-    seat = ROBOT_SEAT[resolve_first(first, seat, allowed=("robot", "human", "alternate"), default="alternate")]
+    check_first(first, name="--first")
     check_value_option(value, search)
-    if mcap is not None:
-        check_writable_dir(mcap, "--mcap")
+    if out is not None:
+        check_writable_dir(out, "--out")
     import torch
 
     from pipelines.evaluate.games import evaluate_checkpoint
@@ -95,23 +96,23 @@ def eval_command(
 
     torch.set_num_threads(1)
     if exhaustive:
-        _exhaustive_eval(checkpoint, seat, seed, dialogue_seeds, as_json)
+        _exhaustive_eval(checkpoint, first, seed, dialogue_seeds, as_json)
         return
     register_agent_opponent()  # --opponent agent:CKPT / qmcts:N:CKPT
-    result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, seat=seat, seed=seed, mcap_dir=mcap,
+    result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, first=first, seed=seed, mcap_dir=out,
                                  search=search, value=value)
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
     else:
         typer.echo(_results_header())
-        typer.echo(_results_row(result.to_dict(), seat))
+        typer.echo(_results_row(result.to_dict(), "alternate" if first == "alternate" else robot_seat(first)))
 
 
-def _exhaustive_eval(checkpoint: str, seat: str, seed: int, dialogue_seeds: int, as_json: bool) -> None:
+def _exhaustive_eval(checkpoint: str, first: str, seed: int, dialogue_seeds: int, as_json: bool) -> None:
     """`ncbot eval --exhaustive`: exact win/draw/loss per seat and the lost games, if any."""
     from pipelines.evaluate.exact import exact_checkpoint
 
-    results = exact_checkpoint(checkpoint, seat=seat, seed=seed, dialogue_seeds=dialogue_seeds)
+    results = exact_checkpoint(checkpoint, first=first, seed=seed, dialogue_seeds=dialogue_seeds)
     if as_json:
         typer.echo(json.dumps({result.seat: result.to_dict() for result in results}))
         return
@@ -131,10 +132,13 @@ def _exhaustive_eval(checkpoint: str, seat: str, seed: int, dialogue_seeds: int,
 
 def ablate_command(
     config: str = typer.Argument(..., help="Ablation grid YAML, e.g. pipelines/configs/ablation.yaml."),
+    overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides applied to every run of "
+                                                    "the grid, e.g. collector.total_frames=20000 (finished runs in the "
+                                                    "runs folder are skipped: give another --out for other values)."),
     seeds: int = typer.Option(3, "--seeds", help="Seeds per grid cell."),
     workers: int = typer.Option(2, "--workers", help="Runs in parallel."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray."),
-    out: Optional[str] = typer.Option(None, "--out", help="Runs folder (default from the grid file)."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Runs folder (default from the grid file)."),
     only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
                                           "(default: a local instance); every node must see the runs folder."),
@@ -148,7 +152,7 @@ def ablate_command(
         check_writable_dir(out, "--out")
 
     summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address,
-                           gpus_per_run=gpus_per_run)
+                           overrides=list(overrides or []), gpus_per_run=gpus_per_run)
     typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:
@@ -157,7 +161,7 @@ def ablate_command(
 
 def table_command(
     runs_dir: str = typer.Argument(..., help="Folder of runs written by ncbot ablate."),
-    out: Optional[str] = typer.Option(None, "--out", help="Markdown table to write (default RUNS_DIR/table.md)."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Markdown table to write (default RUNS_DIR/table.md)."),
     claims: Optional[str] = typer.Option(None, "--claims", help="Markdown claims table to write (default paper_claims.md beside --out)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object {command, rows, claims} instead of the markdown (files are still written)."),
 ) -> None:
@@ -177,7 +181,7 @@ def table_command(
 
 
 def train_value_command(
-    out: str = typer.Argument(..., help="Folder for positions.pt, value.pt, value.json and value.png."),
+    out: str = typer.Option(..., "--out", "-o", help="Folder for positions.pt, value.pt, value.json and value.png."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids (the agent's env.free_move)."),
     positions: int = typer.Option(100_000, "--positions", max=10_000_000, help="Labelled positions to generate."),
     simulations: int = typer.Option(300, "--simulations", max=100_000, help="UCT playouts behind each label."),
@@ -191,7 +195,7 @@ def train_value_command(
         sizes = [int(h) for h in hidden.split(",") if h.strip()]
     except ValueError:
         raise ValueError(f"--hidden must be comma-separated layer sizes such as 256,256, got {hidden!r}") from None
-    check_writable_dir(out, "OUT")
+    check_writable_dir(out, "--out")
     import torch
 
     from pipelines.train.value_training import train_value

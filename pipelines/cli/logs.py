@@ -82,12 +82,12 @@ def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
 
 @logs_app.command("curve")
 def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
-                   output: Path = typer.Option(..., "-o", "--output", help="PNG file to write"),
+                   output: Path = typer.Option(..., "--out", "-o", help="PNG file to write"),
                    window: int = typer.Option(200, min=1, help="moving-average window over training episodes")) -> None:
     """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
     from logs.curve import plot_learning_curve
 
-    check_writable_file(output, "-o", (".png",))
+    check_writable_file(output, "--out", (".png",))
 
     series = plot_learning_curve(path, output, window, progress=progress_bar)
     for label, entry in series.items():
@@ -103,7 +103,7 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
 
 @logs_app.command("to-rerun")
 def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
-             output: Path = typer.Option(..., "-o", "--output", help=".rrd file to write"),
+             output: Path = typer.Option(..., "--out", "-o", help=".rrd file to write"),
              episodes: Optional[str] = typer.Option(None, help="ids and ranges, e.g. '3,7,10-12' (default: the last "
                                                                "--max-episodes)"),
              max_episodes: int = typer.Option(200, min=1, help="cap on exported episodes")) -> None:
@@ -111,7 +111,7 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
     require("rerun", "rerun", what="ncbot logs to-rerun")
     from logs.rerun_export import export_to_rerun, parse_episode_spec
 
-    check_writable_file(output, "-o", (".rrd",))
+    check_writable_file(output, "--out", (".rrd",))
 
     counts = export_to_rerun(path, output, parse_episode_spec(episodes), max_episodes, progress=progress_bar)
     typer.echo(f"wrote {output} ({counts['bytes']} bytes): {counts['episodes']} episodes, {counts['steps']} steps, "

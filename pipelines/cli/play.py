@@ -12,49 +12,48 @@ from pipelines.outputs import check_writable_dir
 
 
 def play_command(
-    game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate (default: the checkpoint's, else standard)."),
-    checkpoint: Optional[str] = typer.Option(None, "--checkpoint", help="checkpoint.pt of a trained agent; without it "
-                                             "the robot uses the look-ahead masks alone, choosing at random inside them."),
-    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default) | human (you draw the first mark)."),
-    seat: Optional[str] = typer.Option(None, "--seat", hidden=True, help="Old spelling: your seat, first | second."),
+    checkpoint: Optional[str] = typer.Argument(None, help="A checkpoint .pt written by ncbot train, or its run folder "
+                                               "(its game is played); without it the robot uses the look-ahead masks "
+                                               "alone, choosing at random inside them."),
+    game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate, without a checkpoint (default standard)."),
+    first: str = typer.Option("robot", "--first", help="Who opens: robot | human (you draw the first mark)."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the robot's random choices (look-ahead policy) and the env."),
-    log_dir: str = typer.Option("runs/play", "--log-dir", help="Folder for the MCAP log of the game."),
+    out: str = typer.Option("runs/play", "--out", "-o", help="Folder for the MCAP log of the game."),
     no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
 ) -> None:
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None and game not in ("standard", "ultimate"):
         raise ValueError(f"--game must be standard or ultimate, got {game!r}")
-    from pipelines.cli.first import resolve_first
+    from pipelines.run_env import check_first
 
-    first = resolve_first(first, seat, allowed=("robot", "human"), default="robot", seat_is_robot=False)
-    seat = "first" if first == "human" else "second"  # play_dialogue takes the person's seat
+    check_first(first, ("robot", "human"), "--first")
     if free_move is not None and free_move not in ("anywhere", "open_subgrids"):
         raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
     if not no_log:
-        check_writable_dir(log_dir, "--log-dir")
+        check_writable_dir(out, "--out")
     from pipelines.evaluate.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
 
     try:
-        summary = play_dialogue(game=game, checkpoint=checkpoint, seat=seat, free_move=free_move, seed=seed,
-                                log_dir=None if no_log else log_dir)
+        summary = play_dialogue(game=game, checkpoint=checkpoint, first=first, free_move=free_move, seed=seed,
+                                log_dir=None if no_log else out)
     except QuitGame:
         typer.echo("\nGame stopped. Goodbye!")
         return
     except KeyboardInterrupt:
         typer.echo("\nGame interrupted (Ctrl-C). Goodbye!")
         raise typer.Exit(130)
-    where = "" if no_log else f"; logged to {log_dir}"
+    where = "" if no_log else f"; logged to {out}"
     typer.echo(f"Result: {summary['outcome']} after {summary['actions']} robot actions{where}.")
 
 
 def ladder_command(
-    checkpoint: str = typer.Argument(..., help="checkpoint.pt written by ncbot train (or its run folder)."),
+    checkpoint: str = typer.Argument(..., help="A checkpoint .pt written by ncbot train, or its run folder."),
     games: int = typer.Option(200, "--games", max=MAX_GAMES, help="Games per opponent and seat."),
     opponents: Optional[str] = typer.Option(None, "--opponents", help="Comma-separated opponent names; default: "
                                             "random,rule,minimax (3x3) or random,rule,mcts:10,mcts:100,mcts:300."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
-    out: Optional[str] = typer.Option(None, "--out", help="Folder for ladder.md, ladder.json and ladder.png "
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Folder for ladder.md, ladder.json and ladder.png "
                                       "(default: beside the checkpoint)."),
     baseline: bool = typer.Option(False, "--baseline", help="Also play the agent's look-ahead masks alone (random "
                                   "inside them) on the same games: what did learning add?"),

@@ -11,8 +11,9 @@ def reproduce_command(
     part: str = typer.Argument("all", help="table | vision | budget | all."),
     budget: str = typer.Option(..., "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full (the paper's protocol, resumable)."),
     workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
-    out: str = typer.Option("results", "--out", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md and PNGs."),
-    runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget)."),
+    out: str = typer.Option("results", "--out", "-o", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md and PNGs."),
+    runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget): "
+                              "a working folder, apart from --out, because runs are large and resumed while reports are small and shared."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
     address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
                                           "(default: a local instance); every node must see --runs at the same path."),

@@ -39,16 +39,38 @@ def _simulator_unavailable(error: Exception) -> None:
     raise typer.Exit(2)
 
 
+CHECKPOINT_HELP = ("A checkpoint .pt written by ncbot train, or its run folder (its game is played); without it the "
+                   "look-ahead filter alone plays.")
+GAME_HELP = "standard (3x3) or ultimate (9x9), without a checkpoint (a checkpoint plays its own game)."
+
+
+def game_and_agent(checkpoint: Optional[Path], game: Optional[str]):
+    """(game, checkpoint file or None, (config, policy) or None): the game is the checkpoint's where one is given."""
+    from robot_sim.scene import check_game
+
+    if checkpoint is None:
+        game = game or "standard"
+        check_game(game)
+        return game, None, None
+    from pipelines.agents import load_agent
+    from pipelines.checkpoint import FINAL_NAME
+
+    agent = load_agent(checkpoint)  # a missing file, a run folder without checkpoint.pt, a foreign file: one line
+    trained = agent[0].env.game
+    if game is not None and game != trained:
+        raise ValueError(f"--game {game} does not match the checkpoint, which plays {trained}; drop --game")
+    return trained, checkpoint / FINAL_NAME if checkpoint.is_dir() else checkpoint, agent
+
+
 @robot_app.command("play")
 def play(
-    game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)."),
-    checkpoint: Optional[Path] = typer.Option(None, help="Trained agent (checkpoint.pt); default: look-ahead filter alone."),
-    games: int = typer.Option(1, min=1, max=10_000, help="Games to play."),
+    checkpoint: Optional[Path] = typer.Argument(None, help=CHECKPOINT_HELP),
+    game: Optional[str] = typer.Option(None, help=GAME_HELP),
+    games: int = typer.Option(1, help="Games to play (1 to 10000)."),
     seed: int = typer.Option(0, help="Seed of the env, the simulated human and the robot's marks."),
-    out: Optional[Path] = typer.Option(None, help="Folder for the MCAP log, PNG snapshots and report.json."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for the MCAP log, PNG snapshots and report.json."),
     rrd: bool = typer.Option(False, help="Also export the run to OUT/run.rrd (rerun)."),
-    first: Optional[str] = typer.Option(None, "--first", help="Who opens: robot (default), human, alternate, random."),
-    starts: Optional[str] = typer.Option(None, "--starts", hidden=True, help="Old spelling of --first."),
+    first: str = typer.Option("robot", "--first", help="Who opens: robot, human, alternate, random."),
     opponent: str = typer.Option("random", help="The simulated human's opponent model (random, rule, minimax, mcts:N)."),
     width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Mouth camera width (pixels)."),
     height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Mouth camera height (pixels)."),
@@ -65,17 +87,13 @@ def play(
     as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
-    if first is not None and starts is not None:
-        raise ValueError("give --first only (--starts is its old spelling)")
-    if starts is not None:
-        typer.echo(f"ncbot: note: --starts {starts} is the old spelling of --first {starts}", err=True)
-    first = starts or first or "robot"
-    if first not in ("robot", "human", "alternate", "random"):
-        raise ValueError(f"--first must be one of robot, human, alternate, random, got {first!r}")
+    from pipelines.run_env import check_first
+
+    check_first(first, ("robot", "human", "alternate", "random"), "--first")
+    if not 1 <= games <= 10_000:
+        raise ValueError(f"--games must be a number of games from 1 to 10000, got {games}")
     if out is None and rrd:
         raise ValueError("--rrd needs --out DIR (the recording is exported from the run's MCAP log)")
-    if checkpoint is not None and not checkpoint.is_file():
-        raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
     check_meshes(meshes)
     if out is not None:
         check_writable_dir(out, "--out")
@@ -98,13 +116,10 @@ def play(
     from robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
+    game, checkpoint, agent = game_and_agent(checkpoint, game)
     policy, agent_name = None, "lookahead"
-    if checkpoint is not None:
-        from pipelines.agents import load_agent
-
-        agent_config, policy = load_agent(checkpoint)
-        if agent_config.env.game != game:
-            raise ValueError(f"checkpoint {checkpoint} was trained on {agent_config.env.game!r}, not {game!r}; pass --game {agent_config.env.game}")
+    if agent is not None:
+        agent_config, policy = agent
         agent_name = f"{agent_config.agent.name}:{checkpoint}"
     config = RobotPlayConfig(
         game=game, games=games, seed=seed, first=first, camera_width=width, camera_height=height,
@@ -128,11 +143,11 @@ def play(
 
 @robot_app.command("serve")
 def serve(
-    game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)."),
-    checkpoint: Optional[Path] = typer.Option(None, help="Trained agent (checkpoint.pt); default: look-ahead filter alone."),
+    checkpoint: Optional[Path] = typer.Argument(None, help=CHECKPOINT_HELP),
+    game: Optional[str] = typer.Option(None, help=GAME_HELP),
     host: str = typer.Option("127.0.0.1", help="Address to listen on (loopback by default; a study on a LAN needs 0.0.0.0)."),
     port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
-    out: Path = typer.Option(Path("runs/study"), help="Folder for the sessions' MCAP logs (one session-<id>/ each)."),
+    out: Path = typer.Option(Path("runs/study"), "--out", "-o", help="Folder for the sessions' MCAP logs (one session-<id>/ each)."),
     width: int = typer.Option(320, help="Mouth camera width (pixels)."),
     height: int = typer.Option(240, help="Mouth camera height (pixels)."),
     idle_seconds: float = typer.Option(300.0, help="Close a session (and finish its log) after this long without a message."),
@@ -145,16 +160,13 @@ def serve(
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
     from robot_sim.conditions import load_conditions
-    from robot_sim.scene import check_game
 
-    check_game(game)
     load_conditions(conditions)  # a bad preset or file: one line now, not a failed game later
     if answer_seconds <= 0:
         raise ValueError(f"--answer-seconds must be positive; got {answer_seconds}")
-    if checkpoint is not None and not checkpoint.is_file():
-        raise FileNotFoundError(f"checkpoint {checkpoint} does not exist; expected a checkpoint.pt from `ncbot train`")
     if idle_seconds <= 0:
         raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
+    check_writable_dir(out, "--out")
     require("robot", "sapien", what="ncbot robot serve")
     require("serve", "fastapi", "uvicorn", "websockets", what="ncbot robot serve")
     import torch
@@ -164,24 +176,28 @@ def serve(
     from robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
+    game, checkpoint, _ = game_and_agent(checkpoint, game)  # a checkpoint of either game serves its own game
     config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
                          camera_width=width, camera_height=height, idle_seconds=idle_seconds,
                          max_sessions=max_sessions, audio=audio, seed=seed, conditions=conditions,
                          answer_seconds=answer_seconds, parallel=parallel)
-    typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})", err=True)
+    def listening() -> None:
+        typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})",
+                   err=True)
+
     try:
-        run_server(config, host=host, port=port)
+        run_server(config, host=host, port=port, on_listening=listening)
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
 
 
 @robot_app.command("render")
 def render(
-    output: Path = typer.Option(Path("mouth.png"), "-o", "--output", help="PNG to write."),
+    output: Path = typer.Option(Path("mouth.png"), "--out", "-o", help="PNG to write."),
     game: str = typer.Option("standard", help="standard or ultimate sheet."),
     width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Camera width."),
     height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Camera height."),
-    marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'x4,o0,x8' (mark and cell)."),
+    marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'xb2,oa1,xc3' (mark, then the cell as on the board)."),
     seed: int = typer.Option(0, help="Seed of the hand-drawn marks and of the conditions."),
     frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
     view: str = typer.Option("mouth", help="mouth (the robot's CameraBottom) or overview (third person, for people)."),
@@ -195,8 +211,9 @@ def render(
 
     if view not in ("mouth", "overview"):
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
-    check_writable_file(output, "-o", IMAGE_SUFFIXES)
+    check_writable_file(output, "--out", IMAGE_SUFFIXES)
     require("robot", "sapien", what="ncbot robot render")
+    from envs.rules import make_game
     from robot_sim.conditions import load_conditions
     from robot_sim.render_system import SimulatorUnavailable
     from robot_sim.scene import PepperScene, SceneConfig
@@ -210,14 +227,19 @@ def render(
         _simulator_unavailable(error)
     rng = np.random.default_rng(seed)
     taken: set[int] = set()
+    rules = make_game(game)
     for token in filter(None, (t.strip() for t in marks.split(","))):
-        if token[0] not in MARK_OF_PLAYER or not token[1:].isascii() or not token[1:].isdigit() \
-                or int(token[1:]) >= scene.grid ** 2:
-            raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell in [0, {scene.grid ** 2}), e.g. x4")
-        if int(token[1:]) in taken:
-            raise ValueError(f"mark {token!r} puts a second mark on cell {token[1:]}; expected one mark per cell")
-        taken.add(int(token[1:]))
-        scene.canvas.draw(MarkSpec(int(token[1:]), MARK_OF_PLAYER[token[0]], int(rng.integers(2**31)),
+        try:
+            if token[0].lower() not in MARK_OF_PLAYER:
+                raise ValueError
+            cell = rules.parse_cell(token[1:])
+        except ValueError:
+            raise ValueError(f"mark {token!r} is not understood; expected x or o followed by a cell such as "
+                             f"{rules.cell_name(rules.size + 1)} (column letter, row number), e.g. xb2") from None
+        if cell in taken:
+            raise ValueError(f"mark {token!r} puts a second mark on {rules.cell_name(cell)}; expected one mark per cell")
+        taken.add(cell)
+        scene.canvas.draw(MarkSpec(cell, MARK_OF_PLAYER[token[0].lower()], int(rng.integers(2**31)),
                                     scene.conditions.ink_bgr), 1.0)
     grab = scene.render if view == "mouth" else (lambda: scene.render_overview(width, height))
     frame = grab()
@@ -237,14 +259,14 @@ def render(
 
 @robot_app.command("urdf")
 def urdf(
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="Where to write (default: the packaged robot_sim/assets/pepper.urdf)."),
+    output: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to write (default: the packaged robot_sim/assets/pepper.urdf)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes named after the links (<Link>.dae)."),
 ) -> None:
     """Write the primitive Pepper URDF (optionally with licensed meshes swapped in for the primitives)."""
     from robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
 
     if output is not None:
-        check_writable_file(output, "-o", (".urdf",))
+        check_writable_file(output, "--out", (".urdf",))
     check_meshes(meshes)
 
     path = write_pepper_urdf(output or PACKAGED_URDF, meshes)

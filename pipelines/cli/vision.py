@@ -104,7 +104,7 @@ def classify(images: list[Path] = typer.Argument(..., help="Crops of one cell ea
 
 
 @vision_app.command()
-def train(out: Optional[Path] = typer.Option(None, help="Where to write the weights (default: the shipped file)."),
+def train(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to write the weights (default: the shipped file)."),
           cells: int = typer.Option(24_000, min=30, help="Generated cells (60% noisy)."),
           frames3: int = typer.Option(700, min=0, help="Generated 3x3 photos whose cells the reader cuts."),
           frames9: int = typer.Option(120, min=0, help="Generated 9x9 photos whose cells the reader cuts."),
@@ -161,7 +161,7 @@ def train(out: Optional[Path] = typer.Option(None, help="Where to write the weig
 
 
 @vision_app.command("eval")
-def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for the markdown, PNG and JSON reports."),
+def evaluate(out: Path = typer.Option(Path("runs/vision"), "--out", "-o", help="Directory for the markdown, PNG and JSON reports."),
              what: str = typer.Option("paper,cells,reading,recogniser",
                                       help="Comma list of: paper, cells, reading, recogniser, harsh."),
              frames: int = typer.Option(100, min=1, help="Photos per grid size and style for 'reading' and 'harsh'."),
@@ -224,19 +224,20 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), help="Directory for t
 
 @vision_app.command()
 def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
-             out: Path = typer.Option(..., help="Output directory (PNG files + labels.jsonl)."),
+             out: Path = typer.Option(..., "--out", "-o", help="Output directory (PNG files + labels.jsonl)."),
              n: int = typer.Option(20, min=1, max=100_000, help="Number of cells / frames (sequence: one sequence)."),
              seed: int = typer.Option(0, help="Data seed."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
              grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
              hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
              style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey."),
-             conditions: str = typer.Option("clean", help="frames/sequence: photo conditions, clean or harsh "
-                                                           "(shadow, colour cast, dim, lens, blur, JPEG).")) -> None:
+             quality: str = typer.Option("clean", "--quality", help="frames/sequence: photo quality, clean or harsh "
+                                                                   "(shadow, colour cast, dim, lens, blur, JPEG); not "
+                                                                   "`ncbot robot --conditions`, the simulated room.")) -> None:
     """Write generated data to disk to look at or to feed other tools."""
     import cv2
 
-    from vision.data.conditions import check_conditions
+    from vision.data.conditions import CONDITIONS
     from vision.sheet import check_grid
     from vision.strokes import STYLES
 
@@ -246,7 +247,8 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     if kind not in ("cells", "frames", "sequence"):
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
     check_grid(grid)
-    check_conditions(conditions)
+    if quality not in CONDITIONS:
+        raise ValueError(f"--quality must be one of {', '.join(CONDITIONS)}; got {quality!r}")
     check_writable_dir(out, "--out")
     out.mkdir(parents=True, exist_ok=True)
     records = []
@@ -263,7 +265,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         from vision.data.frames import make_frame
 
         for i in range(n):
-            frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=conditions)
+            frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=quality)
             name = f"frame_{grid}x{grid}_{seed + i}.png"
             cv2.imwrite(str(out / name), frame.image)
             records.append({"image": name, "cells": frame.board, "hand": hand,
@@ -271,7 +273,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     else:
         from vision.data.sequences import make_move_sequence
 
-        seq = make_move_sequence(grid, seed, styles=styles, conditions=conditions)
+        seq = make_move_sequence(grid, seed, styles=styles, conditions=quality)
         for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):
             name = f"seq_{seed}_{i:03d}.png"
             cv2.imwrite(str(out / name), image)

@@ -26,9 +26,8 @@ from pipelines.evaluate.games import OUTCOME_DRAW, OUTCOME_ROBOT_WON, play_games
 
 USER_MARK = 2
 CELLS = 9
-# free squares the random user chooses among before each of its moves, by the robot's seat
-USER_CHOICES = {"first": (8, 6, 4, 2), "second": (9, 7, 5, 3, 1)}
-SEATS = ("first", "second")
+# free squares the random user chooses among before each of its moves, by who opens
+USER_CHOICES = {"robot": (8, 6, 4, 2), "human": (9, 7, 5, 3, 1)}
 
 
 def branch_digits(radices: tuple[int, ...]) -> torch.Tensor:
@@ -51,11 +50,11 @@ class BranchUser:
 
     name = "branches"
 
-    def __init__(self, seat: str) -> None:
-        if seat not in USER_CHOICES:
-            raise ValueError(f"unknown seat {seat!r}; expected one of {', '.join(SEATS)}")
-        self.radices = torch.tensor(USER_CHOICES[seat])
-        self.digits = branch_digits(USER_CHOICES[seat])
+    def __init__(self, first: str) -> None:
+        if first not in USER_CHOICES:
+            raise ValueError(f"first must be one of {', '.join(USER_CHOICES)}, got {first!r}")
+        self.radices = torch.tensor(USER_CHOICES[first])
+        self.digits = branch_digits(USER_CHOICES[first])
 
     @property
     def branches(self) -> int:
@@ -123,21 +122,22 @@ class ExactResult:
         return asdict(self)
 
 
-def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactResult:
-    """Enumerate every user-move branch of one seat under each dialogue draw; see the module doc."""
-    from pipelines.run_env import make_run_env, seat_to_first
+def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactResult:
+    """Enumerate every user-move branch with ``first`` (robot | human) opening, under each dialogue draw; see the
+    module doc. The result's ``seat`` is the robot's (``run_env.robot_seat``)."""
+    from pipelines.run_env import make_run_env, robot_seat
 
     if config.env.game != "standard":
         raise ValueError(f"exact evaluation enumerates 3x3 games only; this agent plays {config.env.game!r}")
     if not dialogue_seeds:
         raise ValueError("exact evaluation needs at least one dialogue seed")
     wins, draws, losses, lengths, losing = [], [], [], [], []
-    user = BranchUser(seat)  # stateless: the same branch table under every dialogue draw
+    user = BranchUser(first)  # stateless: the same branch table under every dialogue draw
     for seed in dialogue_seeds:
         recorder = MoveRecorder(user.branches)
 
         def make_env(batch_size: int, seed: int = seed, user: BranchUser = user):
-            return make_run_env(config.env, batch_size=batch_size, seed=seed, first=seat_to_first(seat), opponent=user)
+            return make_run_env(config.env, batch_size=batch_size, seed=seed, first=first, opponent=user)
 
         records = play_games(make_env, policy, user.branches, logger=recorder)
         outcomes, length = records.outcomes, records.lengths
@@ -148,23 +148,25 @@ def exact_seat(config, policy, seat: str, dialogue_seeds: list[int]) -> ExactRes
         lengths.append(float(length.double().mean()))
         losing.extend(recorder.line(row) for row in lost_games.nonzero().squeeze(1).tolist())
     mean = lambda values: sum(values) / len(values)  # noqa: E731
-    return ExactResult(seat=seat, branches=user.branches, dialogue_seeds=list(dialogue_seeds),
+    return ExactResult(seat=robot_seat(first), branches=user.branches, dialogue_seeds=list(dialogue_seeds),
                        win=mean(wins), draw=mean(draws), loss=mean(losses), task_success=mean(wins) + mean(draws),
                        worst_loss=max(losses), avg_length=mean(lengths), losing_lines=sorted(set(losing)))
 
 
-def exact_checkpoint(checkpoint_path, *, seat: str = "alternate", seed: int = 0,
+def exact_checkpoint(checkpoint_path, *, first: str = "alternate", seed: int = 0,
                      dialogue_seeds: int = 8) -> list[ExactResult]:
-    """`ncbot eval --exhaustive`: exact results per seat (`alternate` = both seats) for a saved 3x3 agent.
+    """`ncbot eval --exhaustive`: exact results per seat for a saved 3x3 agent; `first` robot | human | alternate
+    (both, robot-first then human-first).
 
     Dialogue draws use env seeds seed, seed + 1, ..., seed + dialogue_seeds - 1.
     """
     from pipelines.agents import load_agent
 
-    if seat not in (*SEATS, "alternate"):
-        raise ValueError(f"unknown seat {seat!r}; expected one of first, second, alternate")
+    from pipelines.run_env import check_first
+
+    check_first(first)
     if dialogue_seeds < 1:
         raise ValueError(f"--dialogue-seeds must be a positive number of dialogue draws, got {dialogue_seeds}")
     config, policy = load_agent(checkpoint_path)
     seeds = [seed + offset for offset in range(dialogue_seeds)]
-    return [exact_seat(config, policy, one, seeds) for one in (SEATS if seat == "alternate" else (seat,))]
+    return [exact_seat(config, policy, one, seeds) for one in (("robot", "human") if first == "alternate" else (first,))]

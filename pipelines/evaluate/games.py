@@ -16,7 +16,6 @@ from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa
 from modules.mask_rules import all_moves_negative
 
 MAX_EVAL_BATCH = 4096
-SEAT_NAMES = {"robot": "robot_first", "human": "robot_second"}  # env.first -> the seat's name in results
 
 
 @dataclass
@@ -144,39 +143,40 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
     return GameRecords.cat(parts)
 
 
-def evaluate_agent(config, policy, *, games: int, seat: str, seed: int, opponent: str | None = None,
+def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponent: str | None = None,
                    logger=None, agent_name: str | None = None) -> EvalResult:
-    """Greedy games of a built policy from one seat (first | second | alternate) against `opponent`.
+    """Greedy games of a built policy against `opponent`; `first` (robot | human | alternate) says who opens.
 
-    `alternate` plays half of the games from each seat (the first half robot-first).
+    `alternate` plays half of the games robot-first, then half human-first; `seats` then holds each half under
+    "robot_" + its `run_env.robot_seat` name.
     """
     from modules.recurrent import memory_env
-    from pipelines.run_env import make_run_env, seat_to_first
+    from pipelines.run_env import check_first, make_run_env, robot_seat
 
-    seat_to_first(seat)
+    check_first(first)
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
-    split = {"first": [("robot", games)], "second": [("human", games)],
-             "alternate": [("robot", (games + 1) // 2), ("human", games // 2)]}[seat]
+    split = {"robot": [("robot", games)], "human": [("human", games)],
+             "alternate": [("robot", (games + 1) // 2), ("human", games // 2)]}[first]
     per_seat: dict[str, GameRecords] = {}
-    for offset, (first, count) in enumerate(split):
+    for offset, (opener, count) in enumerate(split):
         if count == 0:
             continue
 
-        def make_env(batch_size: int, first: str = first, offset: int = offset):
-            env = make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=first,
+        def make_env(batch_size: int, opener: str = opener, offset: int = offset):
+            env = make_run_env(config.env, batch_size=batch_size, seed=seed + offset, first=opener,
                                opponent=opponent or config.eval.opponent)
             return memory_env(env, policy)  # a recurrent policy's hidden state runs through each game
 
         log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
-        per_seat[SEAT_NAMES[first]] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
+        per_seat["robot_" + robot_seat(opener)] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
     result = summarise(GameRecords.cat(list(per_seat.values())))
     if len(per_seat) > 1:
         result.seats = {name: summarise(records).to_dict() for name, records in per_seat.items()}
     return result
 
 
-def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", seat: str = "alternate",
+def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", first: str = "alternate",
                         seed: int = 0, mcap_dir=None, search: int | None = None, value: str | None = None) -> EvalResult:
     """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`).
 
@@ -192,12 +192,12 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     else:
         config, policy = load_agent(checkpoint_path, recurrent=True)  # evaluate_agent carries its hidden state
     if mcap_dir is None:
-        result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent)
+        result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent)
     else:
         from logs import EpisodeLogger
 
         with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
-            result = evaluate_agent(config, policy, games=games, seat=seat, seed=seed, opponent=opponent,
+            result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,
                                     logger=logger)
     if search:
         result.search_decisions = policy.decisions

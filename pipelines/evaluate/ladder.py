@@ -23,7 +23,7 @@ DEFAULT_LADDERS = {
     "standard": ["random", "rule", "minimax"],
     "ultimate": ["random", "rule", "mcts:10", "mcts:100", "mcts:300"],
 }
-SEATS = ("first", "second")
+OPENERS = ("robot", "human")  # each match is played robot-first and human-first
 # Ultimate score targets: mcts:100, and strong search (openspiel-mcts needs free_move open_subgrids)
 ULTIMATE_GOALS = {"mcts:100": 0.5, "mcts:1000": 0.75, "mcts:10000": 0.5, "openspiel-mcts:1000": 0.5}
 SEARCH_SECONDS_PER_MOVE = 0.2  # the robot's decision budget with search, one core
@@ -57,10 +57,10 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     names = list(opponents) if opponents else DEFAULT_LADDERS[game]
     for name in names:  # fail fast, with the registry's message, before any game is played
         make_opponent(name, game=game, free_move=config.env.free_move)
-    pairs = [(name, seat, who) for name in names for seat in SEATS for who in choosers]
+    pairs = [(name, first, who) for name in names for first in OPENERS for who in choosers]
     # the agent and the baseline meet the same games: one match seed per (opponent, seat)
-    matches = [(name, seat, who, seed + 1000 * (index // len(choosers)))
-               for index, (name, seat, who) in enumerate(pairs)]
+    matches = [(name, first, who, seed + 1000 * (index // len(choosers)))
+               for index, (name, first, who) in enumerate(pairs)]
     bar = None
     if progress:
         from pipelines.progress import progress_bar
@@ -79,8 +79,8 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
             for index, row in pool.imap_unordered(_play_worker_match, tasks):
                 rows[index] = row
                 if bar is not None:
-                    name, seat, who, _ = matches[index]
-                    bar.set_postfix_str(f"done: {who} vs {name} ({seat})")
+                    name, first, who, _ = matches[index]
+                    bar.set_postfix_str(f"done: {who} vs {name} ({first} first)")
                     bar.update(1)
             pool.close()
         except BaseException:
@@ -89,10 +89,10 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         finally:
             pool.join()
     else:
-        for index, (name, seat, who, match_seed) in enumerate(matches):
+        for index, (name, first, who, match_seed) in enumerate(matches):
             if bar is not None:
-                bar.set_postfix_str(f"{who} vs {name} ({seat})")
-            rows[index] = play_ladder_match(config, choosers[who], who, name, seat, match_seed, games)
+                bar.set_postfix_str(f"{who} vs {name} ({first} first)")
+            rows[index] = play_ladder_match(config, choosers[who], who, name, first, match_seed, games)
             if bar is not None:
                 bar.update(1)
     if bar is not None:
@@ -124,21 +124,23 @@ def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None
     return config, robot, choosers
 
 
-def play_ladder_match(config, chooser, who: str, opponent: str, seat: str, match_seed: int,
+def play_ladder_match(config, chooser, who: str, opponent: str, first: str, match_seed: int,
                       games: int) -> dict[str, Any]:
-    """One ladder row: ``games`` games of ``chooser`` against ``opponent`` from ``seat``.
+    """One ladder row: ``games`` games of ``chooser`` against ``opponent``, ``first`` (robot | human) opening; the
+    row's "seat" is the robot's (``run_env.robot_seat``).
 
     The chooser's own random stream (the search's per-move seeds, the baseline's choice) restarts from
     ``match_seed``, so a match's games do not depend on which matches ran before it in the same process."""
     from pipelines.evaluate.games import evaluate_agent
+    from pipelines.run_env import robot_seat
 
     generator = getattr(chooser, "generator", None)
     if generator is not None:
         generator.manual_seed(match_seed)
     searched = (getattr(chooser, "decisions", 0), getattr(chooser, "cpu_seconds", 0.0))
-    result = evaluate_agent(config, chooser, games=games, seat=seat, seed=match_seed, opponent=opponent)
+    result = evaluate_agent(config, chooser, games=games, first=first, seed=match_seed, opponent=opponent)
     row = {
-        "policy": who, "opponent": opponent, "seat": seat, "games": result.games, "win": result.win, "draw": result.draw,
+        "policy": who, "opponent": opponent, "seat": robot_seat(first), "games": result.games, "win": result.win, "draw": result.draw,
         "loss": result.loss, "score": result.win + 0.5 * result.draw, "task_success": result.task_success,
         "task_success_ci95": result.task_success_ci95, "avg_length": result.avg_length,
     }
@@ -166,11 +168,11 @@ def _load_worker_robot(*robot_spec: Any) -> None:
 
 
 def _play_worker_match(task: tuple) -> tuple[int, dict[str, Any]]:
-    """(index, row) of one match, ``task`` = (index, opponent, seat, who, match seed, games)."""
+    """(index, row) of one match, ``task`` = (index, opponent, first, who, match seed, games)."""
     assert _WORKER_ROBOT is not None, "ladder worker used before its initializer ran"
-    index, opponent, seat, who, match_seed, games = task
+    index, opponent, first, who, match_seed, games = task
     config, choosers = _WORKER_ROBOT
-    return index, play_ladder_match(config, choosers[who], who, opponent, seat, match_seed, games)
+    return index, play_ladder_match(config, choosers[who], who, opponent, first, match_seed, games)
 
 
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

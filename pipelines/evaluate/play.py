@@ -165,21 +165,21 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, firs
     return env, policy, config.agent.name
 
 
-def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, seat: str = "second",
+def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, first: str = "robot",
                   free_move: str | None = None, seed: int = 0, log_dir: str | None = "runs/play",
                   console: Console | None = None) -> dict:
     """One dialogue (greeting ... game ... goodbye) between the person and the robot; returns a summary.
 
-    ``seat`` is the person's seat in the game (``first``: the person draws the first mark). Raises ``QuitGame``
+    ``first`` is who opens the game: robot | human (the person draws the first mark). Raises ``QuitGame``
     when the person types ``quit`` or input ends; KeyboardInterrupt passes through (the CLI ends cleanly).
     """
     from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
-    if seat not in ("first", "second"):
-        raise ValueError(f"seat must be first or second (the person's seat), got {seat!r}")
+    from pipelines.run_env import check_first
+
+    check_first(first, ("robot", "human"))
     console = console or Console()
-    first = "human" if seat == "first" else "robot"
-    symbols = {1: "o", 2: "x"} if seat == "first" else {1: "x", 2: "o"}
+    symbols = {1: "o", 2: "x"} if first == "human" else {1: "x", 2: "o"}
     human = None
 
     def human_factory(game_name: str, rule: str) -> TerminalHuman:
@@ -197,7 +197,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, sea
 
         phase = "play" if "play" in PHASES else "robot"
         logger = EpisodeLogger(log_dir, run_info={"command": "play", "game": env.game, "agent": agent,
-                                                  "checkpoint": checkpoint, "seat": seat, "seed": seed})
+                                                  "checkpoint": checkpoint, "first": first, "seed": seed})
     console.say(f"ncbot play: {env.game} noughts & crosses against Pepper ({agent} policy). "
                 f"You are {symbols[2]}, Pepper is {symbols[1]}. Type 'quit' to stop.")
     summary = {"outcome": "unfinished", "actions": 0, "game": env.game, "agent": agent, "log_dir": log_dir}

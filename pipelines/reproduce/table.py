@@ -53,6 +53,18 @@ class Row:
     cell: str
     frames: tuple[int, ...]  # one per seed, in seed order
     stats: dict[str, Interval]
+    widths: tuple[tuple[int, ...], ...] = ()  # the runs' hidden layer widths (config.yaml), distinct, in seed order
+    played: str | None = None  # the runs' env.game (config.yaml), when they say
+
+    @property
+    def game_label(self) -> str:
+        """The game and the hidden widths the runs were trained with (from their config.yaml): "3x3 (256, 256)".
+        Without a config.yaml the row key's label, which assumes the paper's widths ("3x3 (100)")."""
+        if not self.widths:
+            return GAME_LABELS.get(self.game, self.game)
+        game = self.played or ("ultimate" if self.game.startswith("ultimate") else "standard")
+        base = {"standard": "3x3", "ultimate": "Ultimate"}.get(game, game)
+        return f"{base} (" + " | ".join(", ".join(str(w) for w in hidden) for hidden in self.widths) + ")"
 
     @property
     def paper(self) -> tuple[float, float, float] | None:
@@ -67,7 +79,7 @@ class Row:
     def to_dict(self) -> dict[str, Any]:
         paper = dict(zip(("avg_reward", "task_success", "avg_length"), self.paper)) if self.paper else None
         return {"suite": self.suite, "game": self.game, "agent": self.cell,
-                "game_label": GAME_LABELS.get(self.game, self.game), "agent_label": CELL_LABELS.get(self.cell, self.cell),
+                "game_label": self.game_label, "agent_label": CELL_LABELS.get(self.cell, self.cell),
                 "seeds": self.stats["task_success"].n, "frames": list(self.frames),
                 **{name: asdict(interval) for name, interval in self.stats.items()},
                 "paper": paper, "paper_inside_ours": self.paper_inside}
@@ -114,6 +126,20 @@ def _identity(run: dict[str, Any]) -> str:
                                            sort_keys=True)
 
 
+def run_settings(run_dir: Path) -> dict[str, Any]:
+    """The game and hidden widths a run was trained with, from its config.yaml ({} if it has none or it is not
+    readable: the table then labels the row by its key)."""
+    import yaml
+
+    try:
+        config = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8"))
+        hidden = tuple(int(width) for width in config["agent"]["hidden"])
+        game = config.get("env", {}).get("game")
+    except (OSError, yaml.YAMLError, TypeError, KeyError, ValueError, AttributeError):
+        return {}
+    return {"hidden": hidden, **({"played": game} if isinstance(game, str) else {})}
+
+
 def collect_runs(runs_dir: str | Path) -> dict[tuple[str, str, str], list[dict[str, Any]]]:
     """(suite, game row, agent cell) -> finished runs' eval.json contents (with their "seed"), seeds in order.
 
@@ -126,7 +152,7 @@ def collect_runs(runs_dir: str | Path) -> dict[tuple[str, str, str], list[dict[s
     paths = sorted(runs_dir.glob("*/*/*/seed*/eval.json"), key=lambda path: (path.parts[:-2], _seed_of(path)))
     for path in paths:
         key = tuple(path.relative_to(runs_dir).parts[:3])
-        run = {**read_eval(path), "seed": _seed_of(path)}
+        run = {**read_eval(path), "seed": _seed_of(path), **run_settings(path.parent)}
         twin = seen.setdefault((key, _identity(run)), path)
         if twin != path:
             raise ValueError(f"{twin.parent} and {path.parent} hold the same run (same run id or identical results): "
@@ -171,7 +197,9 @@ def _order(key: tuple[str, str, str]) -> tuple:
 def table_rows(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> list[Row]:
     samples = seed_samples(groups)
     return [Row(*key, frames=tuple(run["frames"] for run in groups[key]),
-                stats={name: _interval(name, values, groups[key]) for name, values in samples[key].items()})
+                stats={name: _interval(name, values, groups[key]) for name, values in samples[key].items()},
+                widths=tuple(dict.fromkeys(run["hidden"] for run in groups[key] if "hidden" in run)),
+                played=next((run["played"] for run in groups[key] if "played" in run), None))
             for key in sorted(groups, key=_order)]
 
 
@@ -224,7 +252,7 @@ def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims
         stats = row.stats
         paper = row.paper
         lines.append(" | ".join([
-            f"| {GAME_LABELS.get(row.game, row.game)}", CELL_LABELS.get(row.cell, row.cell), row.suite,
+            f"| {row.game_label}", CELL_LABELS.get(row.cell, row.cell), row.suite,
             str(stats["task_success"].n), "/".join(str(f) for f in row.frames),
             stats["avg_reward"].text(4), stats["task_success"].text(4), stats["task_success"].prediction_text(4),
             f"{paper[1]:.4f}" if paper else "–", row.paper_inside or "–",

@@ -272,8 +272,19 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
         return {"type": "error", "error": f"internal error: {type(error).__name__}", "request": request}
 
 
-def serve(config: ServeConfig, host: str = "127.0.0.1", port: int = 8000) -> None:
-    """Run the app with uvicorn until interrupted."""
+def serve(config: ServeConfig, host: str = "127.0.0.1", port: int = 8000, on_listening=None) -> None:
+    """Run the app with uvicorn until interrupted; `on_listening()` is called once the socket accepts connections
+    (after the simulator's warm-up, which takes seconds), so a URL printed there can be opened at once."""
     import uvicorn
 
-    uvicorn.run(create_app(config), host=host, port=port, ws="websockets-sansio", log_level="warning")
+    server = uvicorn.Server(uvicorn.Config(create_app(config), host=host, port=port, ws="websockets-sansio",
+                                           log_level="warning"))
+    startup = server.startup
+
+    async def startup_then_announce(sockets=None) -> None:
+        await startup(sockets=sockets)
+        if server.started and on_listening is not None:
+            on_listening()
+
+    server.startup = startup_then_announce
+    server.run()

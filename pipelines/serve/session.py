@@ -172,8 +172,11 @@ class Session:
                 raise SessionError("it is not your turn; wait for the robot")
             if cell not in self._legal:
                 taken = self.snapshot.board[cell] if self.snapshot.board else ""
-                raise SessionError(f"cell {cell} is taken" if taken else
-                                   f"cell {cell} is not playable now (Ultimate: play in the board the last move points to)")
+                from envs.rules import make_game
+
+                name = make_game(self.config.game).cell_name(cell)  # what the person reads on the board
+                raise SessionError(f"cell {name} is taken" if taken else
+                                   f"cell {name} is not playable now (Ultimate: play in the board the last move points to)")
             self._awaiting = False
         self._click_time = time.perf_counter()
         self.snapshot = replace(self.snapshot, your_turn=False, legal=[], status="Drawing your mark; the robot is watching.")

@@ -89,9 +89,26 @@ def load_grid(path: str | Path) -> dict[str, Any]:
     return grid
 
 
-def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None = None) -> list[PlannedRun]:
-    """Every (suite, game, agent, temporal, look-ahead, seed) cell of the grid, validated before anything runs."""
+CELL_KEYS = ("agent.name", "env.temporal", "agent.lookahead", "train.seed")  # what each grid cell sets itself
+
+
+def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None = None,
+              overrides: list[str] | None = None) -> list[PlannedRun]:
+    """Every (suite, game, agent, temporal, look-ahead, seed) cell of the grid, validated before anything runs.
+
+    ``overrides`` (key=value) apply to every run, after its suite's own overrides; the keys a cell sets itself
+    (``CELL_KEYS``) are refused, since they would make the cells one run.
+    """
     from pipelines.config import load_config
+
+    common = list(overrides or [])
+    for override in common:
+        key = override.partition("=")[0].strip()
+        if "=" not in override or not key:
+            raise ValueError(f"override {override!r} is not key=value (e.g. optim.lr=0.0005)")
+        if key in CELL_KEYS:
+            raise ValueError(f"override {override!r} sets {key}, which each grid cell sets itself; change the grid "
+                             "file's axes instead")
 
     grid_path = Path(grid_path)
     grid = load_grid(grid_path)
@@ -110,7 +127,7 @@ def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None 
         if agent != "proposed" and temporal and not grid.get("baselines_with_temporal", False):
             continue
         config = (grid_path.parent / entry["config"]).resolve()
-        overrides = list(entry.get("overrides", [])) + [f"agent.name={agent}", f"env.temporal={str(bool(temporal)).lower()}"]
+        overrides = list(entry.get("overrides", [])) + common + [f"agent.name={agent}", f"env.temporal={str(bool(temporal)).lower()}"]
         if lookahead is not None:
             overrides.append(f"agent.lookahead={lookahead}")
         cell = f"{agent}-{'temporal' if temporal else 'notemporal'}" + (f"-{lookahead}" if lookahead else "")
@@ -239,12 +256,19 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
 
 def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
                  out: str | Path | None = None, only: str | None = None, address: str | None = None,
-                 gpus_per_run: float = 1.0) -> dict[str, Any]:
-    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder."""
+                 overrides: list[str] | None = None, gpus_per_run: float = 1.0) -> dict[str, Any]:
+    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder.
+
+    ``only``: keep the runs whose name holds this text; a filter that keeps none is a ValueError naming a few runs.
+    ``overrides``: key=value applied to every run (``plan_runs``)."""
     check_backend(backend, workers, address)
-    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out)
-    if only:
-        planned = [run for run in planned if only in run.name]
+    planned = plan_runs(grid_path, seeds=seeds, runs_dir=out, overrides=overrides)
+    if only is not None:
+        kept = [run for run in planned if only in run.name]
+        if not kept:
+            examples = ", ".join(run.name for run in planned[:3]) + (", ..." if len(planned) > 3 else "")
+            raise ValueError(f"--only {only!r} matches none of the {len(planned)} runs of the grid (e.g. {examples})")
+        planned = kept
     todo = [run for run in planned if not run.finished]
     runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
     failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir,

@@ -64,7 +64,7 @@ class TrainingLoop:
         from pipelines.scalars import eval_scalars
 
         config, counters, agent = self.config, self.counters, self.parts.agent
-        result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, seat="alternate",
+        result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, first="alternate",
                                 seed=self.seed + EVAL_SEED_OFFSET)
         record = {"frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
                   "wall_time": round(self.wall_time(), 3),
@@ -175,6 +175,7 @@ class TrainingLoop:
     def finish(self) -> dict[str, Any]:
         """The final agent (checkpoint.pt) and its evaluation from both seats; returns the run's report."""
         from pipelines.evaluate.games import evaluate_agent
+        from pipelines.run_env import robot_seat
 
         config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
         if not history or history[-1]["frames"] != counters["frames"]:
@@ -190,11 +191,11 @@ class TrainingLoop:
             "seed": self.seed, "run_id": self.run_id,
             "train_wall_time_s": round(self.wall_time(), 2), "time_to_0995_s": time_to_success(history),
         }
-        for seat in ("first", "second"):
-            result = evaluate_agent(config, parts.agent.greedy, games=config.eval.games, seat=seat,
+        for first in ("robot", "human"):
+            result = evaluate_agent(config, parts.agent.greedy, games=config.eval.games, first=first,
                                     seed=self.seed + 2 * EVAL_SEED_OFFSET, logger=self.mcap_logger,
                                     agent_name=config.agent.name)
-            report[seat] = result.to_dict()
+            report[robot_seat(first)] = result.to_dict()
         if parts.teacher is not None:
             report["search_targets"] = {"searched": parts.teacher.searched, "labels": parts.teacher.kept,
                                         "search_cpu_s": round(parts.teacher.cpu_seconds, 2)}

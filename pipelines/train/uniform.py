@@ -19,6 +19,7 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     """eval.json of the uniform-inside-the-masks agent of ``config.lookahead`` (`train.seed` seeds its choices)."""
     from modules.masks import LookaheadOnlyPolicy
     from pipelines.evaluate.games import evaluate_agent
+    from pipelines.run_env import robot_seat
 
     started = time.monotonic()
     seed = config.train.seed
@@ -26,10 +27,10 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     report: dict[str, Any] = {"frames": 0, "updates": 0, "episodes": 0, "seed": seed, "run_id": run.run_id,
                               "time_to_0995_s": None,
                               "lookahead": config.lookahead}
-    for seat in ("first", "second"):
-        result = evaluate_agent(config, policy, games=config.eval.games, seat=seat, seed=seed + 2 * EVAL_SEED_OFFSET,
+    for first in ("robot", "human"):
+        result = evaluate_agent(config, policy, games=config.eval.games, first=first, seed=seed + 2 * EVAL_SEED_OFFSET,
                                 agent_name="uniform")
-        report[seat] = result.to_dict()
+        report[robot_seat(first)] = result.to_dict()
     report["train_wall_time_s"] = 0.0  # nothing is trained
     report["eval_wall_time_s"] = round(time.monotonic() - started, 2)
     report["history"] = []

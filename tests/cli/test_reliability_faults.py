@@ -67,9 +67,9 @@ def test_read_only_outputs_are_one_line_for_every_writing_command(tmp_path: Path
     with tmpfs(tmp_path / "ro", "1m", read_only=True) as ro:
         cases = [
             ["train", str(config), "--out", str(ro / "run")],
-            ["eval", str(tmp_path / "run" / "checkpoint.pt"), "--games", "1", "--mcap", str(ro / "log")],
+            ["eval", str(tmp_path / "run" / "checkpoint.pt"), "--games", "1", "--out", str(ro / "log")],
             ["ladder", str(tmp_path / "run" / "checkpoint.pt"), "--games", "1", "--out", str(ro / "ladder")],
-            ["play", "--log-dir", str(ro / "play")],
+            ["play", "--out", str(ro / "play")],
             ["logs", "curve", str(tmp_path), "-o", str(ro / "curve.png")],
             ["logs", "to-rerun", str(tmp_path), "-o", str(ro / "x.rrd")],
             ["vision", "generate", "cells", "--out", str(ro / "cells")],

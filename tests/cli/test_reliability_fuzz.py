@@ -213,9 +213,9 @@ GOOD_GRID = {"suites": {"s": {"standard": {"config": "tiny.yaml", "overrides": [
 
 FOLDER_OUTPUTS = [  # (command with TARGET where its output folder goes)
     ["train", "CONFIG", "--out", "TARGET"],
-    ["eval", "CKPT", "--games", "1", "--mcap", "TARGET"],
+    ["eval", "CKPT", "--games", "1", "--out", "TARGET"],
     ["ladder", "CKPT", "--games", "1", "--out", "TARGET"],
-    ["play", "--log-dir", "TARGET"],
+    ["play", "--out", "TARGET"],
     ["vision", "generate", "cells", "--out", "TARGET"],
     ["vision", "eval", "--what", "cells", "--out", "TARGET"],
     ["robot", "play", "--out", "TARGET"],
@@ -274,7 +274,7 @@ def test_every_writing_command_refuses_an_output_of_the_wrong_kind(tmp_path: Pat
     st.one_of(st.integers(-10**9, 15), st.integers(4097, 10**12)).map(
         lambda n: ["robot", "play", "--height", str(n)]),
     st.sampled_from([["ladder", "CKPT", "--opponents", ","], ["ladder", "CKPT", "--opponents", " , ,"],
-                     ["robot", "render", "-o", "OUT/x.png", "--marks", "x4,o4"],
+                     ["robot", "render", "-o", "OUT/x.png", "--marks", "xb2,ob2"],
                      ["ablate", "GRID", "--seeds", "0"], ["ablate", "GRID", "--workers", "0"],
                      ["train", "--resume", "OUT", "--overwrite"]]),
 ))

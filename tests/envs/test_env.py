@@ -213,16 +213,11 @@ def test_seat_options(starts: str, expected: set[bool]) -> None:
         assert torch.equal(env.reset()["robot_first"], ~first)
 
 
-def test_old_starts_spelling_warns_and_plays_the_same() -> None:
-    """``starts=`` is the deprecated name of ``first=``: same games, a warning that names the new spelling."""
-    with pytest.warns(DeprecationWarning, match="use first='human'"):
-        old = make_env("standard", batch_size=(8,), seed=3, starts="human")
-    new = make_env("standard", batch_size=(8,), seed=3, first="human")
-    assert old.first == "human"
-    a, b = old.rollout(30, break_when_any_done=False), new.rollout(30, break_when_any_done=False)
-    assert torch.equal(a["next", "observation"], b["next", "observation"])
-    with pytest.raises(ValueError, match="disagree"):
-        make_env("standard", first="human", starts="robot")
+def test_starts_is_no_option() -> None:
+    """Who opens has one name, ``first``: the old ``starts=`` is refused like any unknown option."""
+    with pytest.raises(ValueError, match="unknown option 'starts'"):
+        make_env("standard", batch_size=(8,), seed=3, starts="human")
+    assert not hasattr(make_env("standard"), "starts")
 
 
 def test_truncated_after_100_actions() -> None:

@@ -21,6 +21,7 @@ def test_describe_standard_lists_every_feature_and_action() -> None:
     assert "73 features, 18 actions, vocabulary of 39 words" in out
     assert "   72  time[8]" in out and "word[hello]" in out and "command[read]" in out
     assert "Request(userGameMove)" in out and "[who=rob, what=draw, where=b2]" in out
+    assert "GameMove(b2)" in out and "gridloc" not in out  # cells as the board names them
 
 
 def test_describe_ultimate_without_temporal() -> None:

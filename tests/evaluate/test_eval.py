@@ -26,7 +26,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_eval_json_has_exactly_the_documented_keys(checkpoint: Path) -> None:
-    result = ncbot("eval", str(checkpoint), "--games", "40", "--seat", "second", "--seed", "1", "--json")
+    result = ncbot("eval", str(checkpoint), "--games", "40", "--first", "human", "--seed", "1", "--json")
     assert result.returncode == 0, result.stderr
     data = json.loads(result.stdout)
     assert set(data) == KEYS
@@ -39,12 +39,12 @@ def test_eval_json_has_exactly_the_documented_keys(checkpoint: Path) -> None:
 
 
 def test_seats_are_respected_and_seeded(checkpoint: Path) -> None:
-    first = evaluate_checkpoint(checkpoint, games=50, seat="first", seed=0)
-    again = evaluate_checkpoint(checkpoint, games=50, seat="first", seed=0)
+    first = evaluate_checkpoint(checkpoint, games=50, first="robot", seed=0)
+    again = evaluate_checkpoint(checkpoint, games=50, first="robot", seed=0)
     assert first == again
-    second = evaluate_checkpoint(checkpoint, games=50, seat="second", seed=0)
+    second = evaluate_checkpoint(checkpoint, games=50, first="human", seed=0)
     assert second != first  # robot-second games are other games (the user moves first)
-    both = evaluate_checkpoint(checkpoint, games=51, seat="alternate", seed=0)
+    both = evaluate_checkpoint(checkpoint, games=51, first="alternate", seed=0)
     assert both.games == 51
 
 
@@ -69,22 +69,16 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, checkpoint: Path) -> N
     corrupt.write_bytes(checkpoint.read_bytes()[:200])
     result = ncbot("eval", str(corrupt), "--games", "5")
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1 and "corrupt" in result.stderr
-    with pytest.raises(ValueError, match="seat 'third'; expected one of first, second, alternate"):
-        evaluate_checkpoint(checkpoint, games=5, seat="third")
+    with pytest.raises(ValueError, match="first must be one of robot, human, alternate, got 'third'"):
+        evaluate_checkpoint(checkpoint, games=5, first="third")
     with pytest.raises(ValueError, match="games must be a positive number"):
         evaluate_checkpoint(checkpoint, games=0)
 
 
-def test_first_is_the_new_name_of_seat(checkpoint: Path) -> None:
-    """`--first human` plays the same games as the old `--seat second`, which still works with a one-line note."""
-    new = ncbot("eval", str(checkpoint), "--games", "30", "--first", "human", "--seed", "2", "--json")
-    old = ncbot("eval", str(checkpoint), "--games", "30", "--seat", "second", "--seed", "2", "--json")
-    assert new.returncode == 0 and old.returncode == 0, new.stderr + old.stderr
-    assert json.loads(new.stdout) == json.loads(old.stdout)
-    assert "old spelling" not in new.stderr
-    assert "ncbot: note: --seat second is the old spelling of --first human" in old.stderr.splitlines()
-    both = ncbot("eval", str(checkpoint), "--first", "robot", "--seat", "first")
-    assert both.returncode == 2 and both.stderr.strip() == "ncbot: error: give --first only (--seat is its old spelling)"
+def test_first_is_the_one_name_of_who_opens(checkpoint: Path) -> None:
+    """`--first robot|human|alternate` only: the old `--seat` is an unknown option, a bad value one line."""
+    old = ncbot("eval", str(checkpoint), "--games", "30", "--seat", "second")
+    assert old.returncode == 2 and "No such option: --seat" in old.stderr
     bad = ncbot("eval", str(checkpoint), "--first", "pepper")
     assert bad.returncode == 2 and "--first must be one of robot, human, alternate" in bad.stderr
 
@@ -95,7 +89,7 @@ def test_games_cut_at_the_act_cap_are_truncated_not_lost(checkpoint: Path) -> No
 
     config, policy = load_agent(checkpoint)
     config.env.max_steps = 5  # greeting, name, play request and two moves: no game can end
-    result = evaluate_agent(config, policy, games=20, seat="alternate", seed=0)
+    result = evaluate_agent(config, policy, games=20, first="alternate", seed=0)
     assert (result.truncated, result.loss, result.task_success) == (1.0, 0.0, 0.0)
     assert set(result.seats) == {"robot_first", "robot_second"}
     assert [result.seats[s]["games"] for s in ("robot_first", "robot_second")] == [10, 10]

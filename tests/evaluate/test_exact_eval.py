@@ -80,8 +80,8 @@ def test_branch_table_enumerates_every_digit_sequence_once() -> None:
     assert digits.shape == (945, 5)
     assert len({tuple(row) for row in digits.tolist()}) == 945
     assert int(digits[:, 0].max()) == 8 and int(digits[:, 4].max()) == 0
-    assert BranchUser("first").branches == 8 * 6 * 4 * 2
-    with pytest.raises(ValueError, match="unknown seat 'middle'"):
+    assert BranchUser("robot").branches == 8 * 6 * 4 * 2
+    with pytest.raises(ValueError, match="first must be one of robot, human, got 'middle'"):
         BranchUser("middle")
 
 
@@ -89,7 +89,8 @@ def test_branch_table_enumerates_every_digit_sequence_once() -> None:
 @pytest.mark.parametrize("lowest_first", [True, False])
 def test_exact_probabilities_equal_an_independent_expectimax(tiny_config, seat: str, lowest_first: bool) -> None:
     policy = preference_policy(tiny_config, lowest_first)
-    result = exact_seat(tiny_config, policy, seat, dialogue_seeds=[0, 5])
+    result = exact_seat(tiny_config, policy, "robot" if seat == "first" else "human", dialogue_seeds=[0, 5])
+    assert result.seat == seat
     win, draw, loss = reference((0,) * 9, seat == "first", lowest_first)
     assert result.win == pytest.approx(float(win), abs=1e-12)
     assert result.draw == pytest.approx(float(draw), abs=1e-12)
@@ -106,9 +107,9 @@ def test_exact_eval_refuses_ultimate(tiny_config) -> None:
     ultimate = load_config(write_tiny_config(Path(__import__("tempfile").mkdtemp())),
                            ["env.game=ultimate", "agent.name=dqn_original"])
     with pytest.raises(ValueError, match="3x3 games only"):
-        exact_seat(ultimate, None, "first", dialogue_seeds=[0])
+        exact_seat(ultimate, None, "robot", dialogue_seeds=[0])
     with pytest.raises(ValueError, match="at least one dialogue seed"):
-        exact_seat(tiny_config, None, "first", dialogue_seeds=[])
+        exact_seat(tiny_config, None, "robot", dialogue_seeds=[])
 
 
 def test_cli_exhaustive_json_and_bad_input(tmp_path: Path) -> None:
@@ -123,7 +124,7 @@ def test_cli_exhaustive_json_and_bad_input(tmp_path: Path) -> None:
         assert row["branches"] == branches and row["dialogue_seeds"] == [0]
         assert row["win"] + row["draw"] + row["loss"] == pytest.approx(1.0)
         assert row["task_success"] == pytest.approx(row["win"] + row["draw"])
-    table = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "1", "--seat", "second")
+    table = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "1", "--first", "human")
     assert table.returncode == 0 and "| second | 945 |" in table.stdout and "| first |" not in table.stdout
     bad = ncbot("eval", str(checkpoint), "--exhaustive", "--dialogue-seeds", "0")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "dialogue-seeds" in bad.stderr

@@ -72,7 +72,7 @@ def _play_to_the_end(child: pexpect.spawn, size: int) -> str:
 
 def test_a_full_standard_game_is_played_and_logged(tmp_path) -> None:
     logs = tmp_path / "playlog"
-    child = _spawn(tmp_path, "--seat", "second", "--log-dir", str(logs), "--seed", "3")
+    child = _spawn(tmp_path, "--first", "robot", "--out", str(logs), "--seed", "3")
     transcript = _play_to_the_end(child, 3)
     child.close()
     assert child.exitstatus == 0, transcript[-1500:]
@@ -92,7 +92,7 @@ def test_a_full_standard_game_is_played_and_logged(tmp_path) -> None:
 
 
 def test_bad_input_is_explained_and_asked_again(tmp_path) -> None:
-    child = _spawn(tmp_path, "--seat", "first", "--no-log")
+    child = _spawn(tmp_path, "--first", "human", "--no-log")
     child.expect("You: ")
     child.sendline("purple elephants")
     child.expect("did not understand 'purple elephants'")
@@ -114,6 +114,9 @@ def test_bad_input_is_explained_and_asked_again(tmp_path) -> None:
     child.sendline("d7")
     child.expect("not a cell")
     child.expect("Your move")
+    child.sendline("2b")  # one notation: column letter, then row
+    child.expect("not a cell")
+    child.expect("Your move")
     child.sendline("b2")
     child.expect(r"Your move \(e\.g\. [a-c]\d\): ")  # the robot moved; our next move
     child.sendline("b2")
@@ -127,7 +130,7 @@ def test_bad_input_is_explained_and_asked_again(tmp_path) -> None:
 
 def test_ctrl_c_ends_cleanly(tmp_path) -> None:
     logs = tmp_path / "interrupted"
-    child = _spawn(tmp_path, "--log-dir", str(logs))
+    child = _spawn(tmp_path, "-o", str(logs))
     child.expect("You: ")
     child.sendintr()
     child.expect(pexpect.EOF)
@@ -142,7 +145,7 @@ def test_ctrl_c_ends_cleanly(tmp_path) -> None:
 
 def test_ultimate_game_from_the_first_seat(tmp_path) -> None:
     logs = tmp_path / "ultimate"
-    child = _spawn(tmp_path, "--game", "ultimate", "--seat", "first", "--log-dir", str(logs), "--seed", "1")
+    child = _spawn(tmp_path, "--game", "ultimate", "--first", "human", "--out", str(logs), "--seed", "1")
     transcript = _play_to_the_end(child, 9)
     child.close()
     assert child.exitstatus == 0, transcript[-1500:]
@@ -154,9 +157,12 @@ def test_ultimate_game_from_the_first_seat(tmp_path) -> None:
 
 
 def test_bad_options_are_one_line_errors(tmp_path) -> None:
+    (tmp_path / "config.yaml").write_text("env: {game: standard}\n")
     for args, message in ((["--game", "chess"], "--game must be standard or ultimate"),
-                          (["--seat", "third"], "--seat must be first or second"),
-                          (["--checkpoint", str(tmp_path / "missing.pt")], "not found")):
+                          (["--first", "third"], "--first must be one of robot, human"),
+                          (["--seat", "first"], "No such option: --seat"),
+                          ([str(tmp_path / "missing.pt")], "not found"),
+                          ([str(tmp_path / "config.yaml")], "expected a checkpoint .pt or a run folder")):
         child = _spawn(tmp_path, *args)
         child.expect(pexpect.EOF)
         child.close()

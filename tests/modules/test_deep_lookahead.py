@@ -174,7 +174,7 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
     train(config, tmp_path / "run")
     loaded, policy = load_agent(tmp_path / "run" / "checkpoint.pt")
     assert policy[1].lookahead == "k3"
-    result = evaluate_agent(loaded, policy, games=20, seat="second", seed=0, opponent="minimax")
+    result = evaluate_agent(loaded, policy, games=20, first="human", seed=0, opponent="minimax")
     assert result.games == 20
     with pytest.raises(ValueError, match="agent.lookahead"):
         load_config(write_tiny_config(tmp_path), ["agent.lookahead=k9"])

@@ -84,7 +84,7 @@ def test_guided_policy_plays_real_dialogues(ultimate_checkpoint):
     """The robot's policy at eval time: full dialogues in the real env, from both seats, reproducible."""
     def run(seed: int):
         config, policy = load_guided_agent(ultimate_checkpoint, simulations=8, seed=seed)
-        return evaluate_agent(config, policy, games=4, seat="alternate", seed=seed, opponent="random")
+        return evaluate_agent(config, policy, games=4, first="alternate", seed=seed, opponent="random")
 
     result = run(0)
     assert result.games == 4 and result.loss < 1.0
@@ -106,13 +106,13 @@ class _CheckedPolicy(GuidedMCTSPolicy):
         return tensordict
 
 
-@pytest.mark.parametrize("seat", ["first", "second"])
-def test_guided_policy_keeps_the_agents_masks_and_counts_only_scored_games(ultimate_checkpoint, seat):
+@pytest.mark.parametrize("first", ["robot", "human"])
+def test_guided_policy_keeps_the_agents_masks_and_counts_only_scored_games(ultimate_checkpoint, first):
     """Every searched robot move lies in the agent's greedy mask (its look-ahead masks), from both seats, and the
     search runs only while a slot's first game is being scored (its cost per move is what eval reports)."""
     config, greedy = load_agent(ultimate_checkpoint)
     policy = _CheckedPolicy(greedy, guided_search(config, greedy, 6), seed=3)
-    result = evaluate_agent(config, policy, games=6, seat=seat, seed=4, opponent="random")
+    result = evaluate_agent(config, policy, games=6, first=first, seed=4, opponent="random")
     assert result.games == 6 and policy.searching is None
     # a robot game move per robot turn at most: the 6 scored games' robot actions bound the searched moves
     assert 0 < policy.decisions <= round(result.avg_length * result.games)
@@ -141,11 +141,11 @@ def test_ncbot_eval_search_option(ultimate_checkpoint):
 
     from tests.learning_helpers import ncbot
 
-    done = ncbot("eval", ultimate_checkpoint, "--search", "4", "--games", "2", "--seat", "first", "--json")
+    done = ncbot("eval", ultimate_checkpoint, "--search", "4", "--games", "2", "--first", "robot", "--json")
     assert done.returncode == 0, done.stderr
     metrics = json.loads(done.stdout.strip().splitlines()[-1])
     assert metrics["games"] == 2 and metrics["search_decisions"] > 0 and metrics["search_cpu_s_per_decision"] > 0
-    plain = ncbot("eval", ultimate_checkpoint, "--games", "2", "--seat", "first", "--json")
+    plain = ncbot("eval", ultimate_checkpoint, "--games", "2", "--first", "robot", "--json")
     assert "search_decisions" not in json.loads(plain.stdout.strip().splitlines()[-1])
     bad = ncbot("eval", ultimate_checkpoint, "--search", "0", "--games", "2")
     assert bad.returncode == 2 and "--search must be a positive" in bad.stderr

@@ -108,7 +108,7 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
 
     from pipelines.cli.app import main
 
-    for args, needle in ((["--rrd"], "--rrd needs --out"), (["--checkpoint", str(tmp_path / "missing.pt")], "does not exist"),
+    for args, needle in ((["--rrd"], "--rrd needs --out"), ([str(tmp_path / "missing.pt")], "not found"),
                          (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder"),
                          (["--speech", "loud"], "--speech must be real or text")):
         monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", *args])
@@ -168,7 +168,7 @@ def test_render_command_writes_the_mouth_camera_view(tmp_path):
 
     output = tmp_path / "mouth.png"
     result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(output),
-                             "--width", "160", "--height", "120", "--marks", "x4,o0", "--frames", "2"],
+                             "--width", "160", "--height", "120", "--marks", "xb2,oa1", "--frames", "2"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)

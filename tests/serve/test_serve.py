@@ -157,9 +157,34 @@ def test_several_sessions_at_once_and_idle_sessions_are_closed_with_their_log(tm
 def test_serve_cli_rejects_bad_input_with_one_line(tmp_path):
     bad_yaml = tmp_path / "conditions.yaml"
     bad_yaml.write_text("base: office\nlight_intensity: [0.3, 0.5]\nglitter: 3\n")
-    for args in (["--checkpoint", str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
+    for args in ([str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
                  ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"]):
         result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "serve", *args],
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 2, result.stderr
         assert result.stderr.strip().startswith("ncbot: error:") and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_serve_prints_its_url_once_it_listens(tmp_path):
+    """The URL line comes when the socket accepts connections (after the scene's warm-up), so it can be opened at
+    once; a checkpoint is the positional CHECKPOINT, whose game is served."""
+    import os
+    import select
+
+    import httpx
+
+    from tests.serve.helpers import free_port
+
+    port = free_port()
+    env = {**os.environ, "VK_ICD_FILENAMES": os.environ.get("VK_ICD_FILENAMES", "/usr/share/vulkan/icd.d/lvp_icd.json")}
+    process = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "robot", "serve", "--port", str(port),
+                                "--out", str(tmp_path / "study")], stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        ready, _, _ = select.select([process.stderr], [], [], 240)
+        assert ready, "no URL line within 240 s"
+        line = process.stderr.readline()
+        assert line.startswith(f"ncbot robot serve: http://127.0.0.1:{port}/"), line
+        assert httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=5).status_code == 200  # listening already
+    finally:
+        process.terminate()
+        process.wait(timeout=60)

@@ -105,11 +105,11 @@ def test_importing_the_config_does_not_import_torch() -> None:
     assert result.returncode == 0, result.stderr
 
 
-def test_old_eval_seat_key_is_read_as_eval_first() -> None:
-    """Checkpoints and configs written before `eval.first` say `eval.seat: first|second|alternate`."""
-    assert config_from_dict({"eval": {"seat": "first"}}).eval.first == "robot"
-    assert config_from_dict({"eval": {"seat": "second"}}).eval.first == "human"
-    assert "seat" not in config_from_dict({"eval": {"seat": "alternate"}}).to_dict()["eval"]
+def test_who_opens_the_test_games_is_eval_first_only() -> None:
+    """`eval.first: robot|human|alternate` is the one key; `eval.seat` is refused like any unknown key."""
+    assert config_from_dict({"eval": {"first": "human"}}).eval.first == "human"
+    with pytest.raises(ValueError, match="seat"):
+        config_from_dict({"eval": {"seat": "first"}})
 
 
 def test_numbers_from_yaml_and_plain_dicts_for_checkpoints(tmp_path: Path) -> None:

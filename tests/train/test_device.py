@@ -219,9 +219,9 @@ def test_tiny_3x3_run_on_cuda_completes_and_its_checkpoint_plays_on_the_cpu(tmp_
     assert final["n_actions"] == 18
     loaded, greedy = load_agent(tmp_path / "run" / "checkpoint.pt")  # on the CPU
     assert all(p.device.type == "cpu" for p in greedy.parameters())
-    result = evaluate_agent(loaded, greedy, games=20, seat="first", seed=5)
+    result = evaluate_agent(loaded, greedy, games=20, first="robot", seed=5)
     assert result.games == 20
-    on_gpu = evaluate_agent(*load_agent(tmp_path / "run" / "checkpoint.pt", device="cuda"), games=20, seat="first",
+    on_gpu = evaluate_agent(*load_agent(tmp_path / "run" / "checkpoint.pt", device="cuda"), games=20, first="robot",
                             seed=5)
     assert on_gpu.games == 20
 
@@ -282,6 +282,6 @@ def test_guided_search_reads_a_network_on_cuda(tmp_path: Path) -> None:
     train(config, tmp_path / "run")
     loaded, greedy = load_agent(tmp_path / "run" / "checkpoint.pt", device="cuda")
     policy = GuidedMCTSPolicy(greedy, guided_search(loaded, greedy, 16), seed=0)
-    result = evaluate_agent(loaded, policy, games=8, seat="first", seed=1)
+    result = evaluate_agent(loaded, policy, games=8, first="robot", seed=1)
     assert result.games == 8 and policy.decisions > 0
 

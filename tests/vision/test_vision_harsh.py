@@ -124,10 +124,13 @@ def test_cli_eval_harsh_tuning_style_reads_marker_photos_beside_the_tuning_ones(
         assert "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
 
-def test_cli_generates_harsh_frames_and_rejects_unknown_conditions(tmp_path) -> None:
+def test_cli_generates_harsh_frames_and_rejects_unknown_quality(tmp_path) -> None:
+    """`vision generate --quality clean|harsh` (the photo's quality; `--conditions` is the robot's room)."""
     base = [sys.executable, "-m", "pipelines.cli", "vision", "generate", "frames", "--n", "1", "--out", str(tmp_path)]
-    done = subprocess.run(base + ["--conditions", "harsh"], capture_output=True, text=True, timeout=300)
+    done = subprocess.run(base + ["--quality", "harsh"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert cv2.imread(str(tmp_path / "frame_3x3_0.png")).shape == (480, 640, 3)
-    bad = subprocess.run(base + ["--conditions", "dusk"], capture_output=True, text=True, timeout=300)
-    assert bad.returncode == 2 and "conditions must be one of" in bad.stdout + bad.stderr
+    bad = subprocess.run(base + ["--quality", "dusk"], capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "--quality must be one of clean, harsh" in bad.stderr
+    old = subprocess.run(base + ["--conditions", "harsh"], capture_output=True, text=True, timeout=300)
+    assert old.returncode == 2 and "No such option: --conditions" in old.stderr
