@@ -100,8 +100,8 @@ def main() -> None:
     parser.add_argument("--configs", nargs="+", default=CONFIGS)
     args = parser.parse_args()
     old = Path(args.old).resolve()
-    if not (old / "pipelines" / "config.py").is_file():
-        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/config.py); expected a checkout of the base commit")
+    if not any((old / "pipelines" / name).exists() for name in ("config.py", "config")):
+        sys.exit(f"--old {args.old!r} is not an ncbot tree (no pipelines/config); expected a checkout of the base commit")
     print(f"load average at start: {os.getloadavg()[0]:.1f}; frames per run {args.frames}; rounds {args.rounds}")
     for config in args.configs:
         times: dict[str, list[float]] = {"old": [], "new": []}

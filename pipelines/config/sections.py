@@ -1,9 +1,9 @@
 """Typed run configuration, grouped by concern like TorchRL's sota configs, loaded from YAML and validated by pydantic.
 
-Every hyper-parameter is named and documented here, in one place (CleanRL style). `load_config(path, overrides)`
-reads a YAML file, applies `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key
-and what is allowed; the CLI turns that into exit code 2. Validation is pydantic's (strict types, `extra="forbid"`,
-range constraints on the fields); `pipelines.config_errors` turns pydantic's error list into that one line.
+Every hyper-parameter is named and documented here, in one place (CleanRL style). Validation is pydantic's
+(strict types, `extra="forbid"`, range constraints on the fields); `pipelines.config.files.load_config` reads a
+YAML file with `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key and what is
+allowed (`pipelines.config.errors`); the CLI turns that into exit code 2.
 
 Importing this module stays light (pydantic and yaml, no torch): the CLI and tools read configs without paying
 for torch.
@@ -14,12 +14,7 @@ import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import yaml
-
-from fileio.yaml_file import read_yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
-
-from pipelines.config_errors import validation_line
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
 GAMES = ("standard", "ultimate")
 AGENTS = ("dqn_original", "dqn_variant", "proposed")
@@ -381,75 +376,3 @@ class RunConfig(Section):
 
 
 # --- loading -----------------------------------------------------------------------------------------------------
-
-def parse_override(text: str) -> tuple[list[str], Any]:
-    """`section.key=value` -> (["section", "key"], YAML-parsed value)."""
-    if "=" not in text:
-        raise ValueError(f"override {text!r} must look like section.key=value (e.g. optim.lr=0.0005)")
-    key, raw = text.split("=", 1)
-    path = [part for part in key.strip().split(".") if part]
-    if not path:
-        raise ValueError(f"override {text!r} has no key before '='")
-    try:
-        value = yaml.safe_load(raw) if raw.strip() else None
-    except yaml.YAMLError:
-        value = raw
-    return path, value
-
-
-def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """Set each `section.key=value` in the nested mapping (validation happens when the config is built)."""
-    for text in overrides:
-        path, value = parse_override(text)
-        node = data
-        for part in path[:-1]:
-            child = node.get(part)
-            if child is None:
-                child = node[part] = {}
-            if not isinstance(child, dict):
-                raise ValueError(f"override {text!r}: '{part}' is not a section")
-            node = child
-        node[path[-1]] = value
-    return data
-
-
-def config_from_dict(data: dict[str, Any]) -> RunConfig:
-    """Validate a nested mapping into a RunConfig (one-line ValueError on any problem)."""
-    if not isinstance(data, dict):
-        raise ValueError(f"config must be a mapping of sections (env, agent, ...), got {data!r}")
-    data = {key: {} if value is None else value for key, value in data.items()}  # an empty section means defaults
-    try:
-        return RunConfig.model_validate(data)
-    except ValidationError as error:
-        raise ValueError(validation_line(error, RunConfig)) from None
-
-
-def shipped_config(path: str | Path) -> Path:
-    """`path`, or for a missing `pipelines/configs/...` path the config of that name shipped in the installed
-    package: the README's `ncbot train pipelines/configs/default.yaml` then works outside a clone (a wheel install)."""
-    path = Path(path)
-    parts = path.parts
-    if not path.exists() and len(parts) > 2 and parts[:2] == ("pipelines", "configs"):
-        shipped = Path(__file__).resolve().parent.joinpath(*parts[1:])
-        if shipped.is_file():
-            return shipped
-    return path
-
-
-def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConfig:
-    """Read a YAML config, apply overrides and validate it."""
-    expected = "a YAML file of config sections, e.g. pipelines/configs/default.yaml"
-    data = read_yaml(shipped_config(path), "config file", expected)
-    if data is None:
-        raise ValueError(f"config file {str(path)!r} is empty; expected {expected} (an empty mapping {{}} means "
-                         "every default)")
-    if not isinstance(data, dict):
-        raise ValueError(f"config file {str(path)!r} must hold a mapping of sections (env, agent, ...)")
-    if "grid" in data and "suites" in data:
-        raise ValueError(f"{str(path)!r} is an ablation grid, not a run config: run ncbot ablate {path}")
-    return config_from_dict(apply_overrides(data, overrides or []))
-
-
-def dump_config(config: RunConfig) -> str:
-    """The resolved config as YAML (written next to every run)."""
-    return yaml.safe_dump(config.to_dict(), sort_keys=False)
