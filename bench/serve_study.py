@@ -14,7 +14,6 @@ import argparse
 import asyncio
 import json
 import random
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's packages, not an installed copy
 
 from pipelines.serve.answers import PREFERRED_ACTS
+from pipelines.serve.latency import latency_stats
 
 
 async def play_session(url: str, games: int, seed: int, first: str = "robot", timeout: float = 600.0) -> dict[str, Any]:
@@ -89,15 +89,6 @@ async def _until_closed(ws, timeout: float = 60.0) -> None:
                 return
     except websockets.ConnectionClosed:
         return
-
-
-def latency_stats(values: list[float]) -> dict[str, float] | None:
-    """Median and 95th percentile (nearest rank) in seconds."""
-    if not values:
-        return None
-    ordered = sorted(values)
-    return {"n": len(ordered), "median": round(statistics.median(ordered), 3),
-            "p95": round(ordered[min(len(ordered) - 1, int(0.95 * len(ordered)))], 3), "max": round(ordered[-1], 3)}
 
 
 async def run_study(url: str, sessions: int, games: int, parallel: int, seed: int = 0,

@@ -18,6 +18,7 @@ from envs.fingerprint import CONFIGS, fingerprint
 from pipelines.config import load_config
 from pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
+from tests.envs.helpers import to_robot_move
 
 torch.set_num_threads(1)
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,23 +38,13 @@ def test_options_off_keep_the_recorded_env_fingerprint(name: str) -> None:
     assert fingerprint(explicit, policy, 300, 64) == fingerprint(kwargs, policy, 300, 64)
 
 
-def _to_robot_move(env, td):
-    """Step through the opening (the first allowed non-move act each time) until the robot may move."""
-    for _ in range(20):
-        if bool(td["action_mask"][0, : env.cells].any()):
-            return td
-        td["action"] = td["action_mask"][0].nonzero()[0]
-        td = env.step(td)["next"]
-    raise AssertionError("the robot never got a move")
-
-
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_a_taken_cell_is_offered_and_refused_with_minus_five(game: str) -> None:
     env = make_env(game, batch_size=(1,), seed=4, first="robot", taken_squares="refused", dialogues="paper")
-    td = _to_robot_move(env, env.reset())
+    td = to_robot_move(env, env.reset())
     first_cell = int(td["action_mask"][0, : env.cells].nonzero()[0])
     td["action"] = torch.tensor([first_cell])
-    td = _to_robot_move(env, env.step(td)["next"])  # "your turn", the user moves, the robot's turn again
+    td = to_robot_move(env, env.step(td)["next"])  # "your turn", the user moves, the robot's turn again
     assert int(td["board"][0, first_cell]) == 1
     assert bool(td["action_mask"][0, first_cell]) and float(td["lookahead_reward"][0, first_cell]) == -5.0
     assert not bool(td["winning_actions"][0, first_cell])

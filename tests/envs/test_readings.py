@@ -14,19 +14,10 @@ from modules.mask_rules import all_moves_negative, untaken_actions
 from modules.masks import LookaheadMasks, LookaheadOnlyPolicy
 from modules.policy import make_policies
 from modules.qnet import make_qnet
+from tests.envs.helpers import to_robot_move
 
 torch.set_num_threads(1)
 MOVE_REFUSED = -5.0
-
-
-def _to_robot_move(env, td):
-    """Step game 0 through the dialogue (the first allowed non-move act each time) until the robot may move."""
-    for _ in range(20):
-        if bool(td["action_mask"][0, : env.cells].any()):
-            return td
-        td["action"] = td["action_mask"][0].nonzero()[0]
-        td = env.step(td)["next"]
-    raise AssertionError("the robot never got a move")
 
 
 def _has_line(board: list[int], mark: int) -> bool:
@@ -37,9 +28,9 @@ def _has_line(board: list[int], mark: int) -> bool:
 def test_a_refused_move_corrects_the_belief_and_the_next_observation_differs() -> None:
     env = make_env("standard", batch_size=(1,), seed=3, first="robot", taken_squares="misread", misread_rate=0.99)
     for _ in range(50):  # find a misread: a square the robot believes free that the user really took
-        td = _to_robot_move(env, env.reset())
+        td = to_robot_move(env, env.reset())
         td["action"] = td["action_mask"][0, :9].nonzero()[0]
-        td = _to_robot_move(env, env.step(td)["next"])
+        td = to_robot_move(env, env.step(td)["next"])
         truth, believed = env.boards.board[0], td["board"][0]
         misread = ((truth == 2) & (believed == 0)).nonzero().flatten()
         if misread.numel():

@@ -10,24 +10,15 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import statistics
 import time
 from pathlib import Path
 from typing import Any
 
 from pipelines.serve.answers import PREFERRED_ACTS
+from pipelines.serve.latency import latency_stats
 
 OUTCOMES = ("win", "loss", "draw")
 ANSWERING = "Answer the robot"
-
-
-def latency_stats(values: list[float]) -> dict[str, float] | None:
-    """Median and 95th percentile (nearest rank) in seconds, as bench/serve_study.py reports them."""
-    if not values:
-        return None
-    ordered = sorted(values)
-    return {"n": len(ordered), "median": round(statistics.median(ordered), 3),
-            "p95": round(ordered[min(len(ordered) - 1, int(0.95 * len(ordered)))], 3), "max": round(ordered[-1], 3)}
 
 
 def open_chromium(width: int = 1100, height: int = 900):
