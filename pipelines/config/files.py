@@ -61,7 +61,7 @@ def shipped_config(path: str | Path) -> Path:
     path = Path(path)
     parts = path.parts
     if not path.exists() and len(parts) > 2 and parts[:2] == ("pipelines", "configs"):
-        shipped = Path(__file__).resolve().parent.joinpath(*parts[1:])
+        shipped = Path(__file__).resolve().parents[1].joinpath(*parts[1:])
         if shipped.is_file():
             return shipped
     return path

@@ -59,11 +59,14 @@ class Row:
     @property
     def game_label(self) -> str:
         """The game and the hidden widths the runs were trained with (from their config.yaml): "3x3 (256, 256)".
-        Without a config.yaml the row key's label, which assumes the paper's widths ("3x3 (100)")."""
-        if not self.widths:
-            return GAME_LABELS.get(self.game, self.game)
+        Without a config.yaml the row key's label, which assumes the paper's widths ("3x3 (100)"); an agent that
+        learns nothing (0 frames) has no network: the game alone ("3x3")."""
         game = self.played or ("ultimate" if self.game.startswith("ultimate") else "standard")
         base = {"standard": "3x3", "ultimate": "Ultimate"}.get(game, game)
+        if set(self.frames) == {0}:
+            return base
+        if not self.widths:
+            return GAME_LABELS.get(self.game, self.game)
         return f"{base} (" + " | ".join(", ".join(str(w) for w in hidden) for hidden in self.widths) + ")"
 
     @property

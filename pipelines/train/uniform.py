@@ -11,7 +11,7 @@ import time
 from typing import Any
 
 from fileio import atomic_write_text
-from pipelines.config import RunConfig
+from pipelines.config import RunConfig, dump_config
 from pipelines.train.loop import EVAL_SEED_OFFSET
 
 
@@ -22,6 +22,7 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     from pipelines.run_env import robot_seat
 
     started = time.monotonic()
+    atomic_write_text(dump_config(config), run.path / "config.yaml")  # every run folder keeps what it ran
     seed = config.train.seed
     policy = LookaheadOnlyPolicy(seed=seed, lookahead=config.lookahead, all_negative=config.agent.all_negative)
     report: dict[str, Any] = {"frames": 0, "updates": 0, "episodes": 0, "seed": seed, "run_id": run.run_id,

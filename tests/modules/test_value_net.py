@@ -160,9 +160,9 @@ def test_bad_value_options_are_one_line_errors(trained, ultimate_checkpoint, tmp
         (("eval", ultimate_checkpoint, "--search", "4", "--value", str(corrupt), "--games", "1"), "corrupt or not ncbot's"),
         (("ladder", ultimate_checkpoint, "--search", "4", "--value", str(tmp_path / "open" / "value.pt"),
           "--opponents", "random", "--games", "1"), "trained on the 'open_subgrids' free-move rule"),
-        (("train-value", str(tmp_path / "bad"), "--free-move", "nowhere"), "--free-move must be one of"),
-        (("train-value", str(tmp_path / "bad"), "--hidden", "wide"), "--hidden must be comma-separated"),
-        (("train-value", str(tmp_path / "bad"), "--positions", "3"), "--positions must be at least 10"),
+        (("train-value", "--out", str(tmp_path / "bad"), "--free-move", "nowhere"), "--free-move must be one of"),
+        (("train-value", "--out", str(tmp_path / "bad"), "--hidden", "wide"), "--hidden must be comma-separated"),
+        (("train-value", "--out", str(tmp_path / "bad"), "--positions", "3"), "--positions must be at least 10"),
     ]
     for args, message in cases:
         done = ncbot(*args)

@@ -27,8 +27,8 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
         assert "TINY BUDGET (test)" in text and "ncbot reproduce all --budget tiny" in text, name
     assert (out / "data_budget_games.png").stat().st_size > 0 and (out / "data_budget_dialogues.png").stat().st_size > 0
     table = (out / "paper_table.md").read_text()
-    assert "| 3x3 (100) | DQN-Original | paper | 1 |" in table
-    assert "| 3x3 (100) | Uniform in the masks (no learning) | paper | 1 | 0 |" in table  # no learning: 0 frames
+    assert "| 3x3 (32, 32) | DQN-Original | paper | 1 |" in table  # labelled by the runs' own hidden widths
+    assert "| 3x3 | Uniform in the masks (no learning) | paper | 1 | 0 |" in table  # no network, no frames
     budget = result["budget_report"]
     assert {r["dialogues"] for r in budget["dialogues"]} == {1, 2, 4, 8, 12, 24}
     # the dialogue-budget agents: 2 subsets at k = 2, their test games read back per k (3x3 only)

@@ -23,12 +23,13 @@ def test_reproduce_table_on_a_local_ray_instance_puts_every_run_under_the_runs_f
     configs = write_paper_configs(tmp_path, 128)
     runs, out = tmp_path / "runs", tmp_path / "results"
     result = reproduce("table", TOY, out=out, runs=runs, workers=2, backend="ray", configs=configs)
-    assert (result["runs"]["done"], result["runs"]["failed"]) == (4, 0), result["runs"]
+    # 5 cells a row: the uniform choice inside the masks, the three agents, Proposed with temporal features
+    assert (result["runs"]["done"], result["runs"]["failed"]) == (5, 0), result["runs"]
     finished = sorted(p.relative_to(runs) for p in runs.glob("toy/paper/standard/*/seed0/eval.json"))
-    assert len(finished) == 4 and (out / "paper_table.md").is_file()
+    assert len(finished) == 5 and (out / "paper_table.md").is_file()
     assert not list(runs.rglob(".ncbot-ray-probe-*"))  # the shared-folder marker is removed after the check
     again = reproduce("table", TOY, out=out, runs=runs, workers=2, backend="ray", configs=configs)
-    assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 4)
+    assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 5)
 
 
 def test_a_runs_folder_the_nodes_cannot_see_is_one_clear_error(tmp_path: Path) -> None:
