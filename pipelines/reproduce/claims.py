@@ -21,6 +21,8 @@ import statistics
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from pipelines.reproduce.seed_stats import mean_and_variance
+
 ALPHA = 0.05
 POWER = 0.8  # the power below which a claim that is not reproduced counts as untested
 MIN_SEEDS = 5
@@ -83,14 +85,6 @@ class Welch:
         stat = "–" if self.p is None else ("both sides constant" if self.t is None else
                                             f"t={self.t:.2f}, df={self.df:.1f}")
         return f"{sides[0]} > {sides[1]}: {stat}, p={_p(self.p)}"
-
-
-def mean_and_variance(values: list[float]) -> tuple[float, float]:
-    """(mean, sample variance) of n >= 2 values; identical values give exactly 0 variance and the value itself as
-    mean (so no rounding residue turns into a spurious spread)."""
-    if max(values) == min(values):
-        return values[0], 0.0
-    return statistics.fmean(values), statistics.variance(values)
 
 
 def welch_greater(larger: list[float], smaller: list[float]) -> tuple[float | None, float | None, float | None]:
