@@ -57,8 +57,8 @@ def first_reaching(history: list[dict], level: float) -> float | None:
 
 
 def run_one(recipe: str, device: str, quick: bool, seed: int, out: Path) -> dict:
-    from pipelines.config import load_config
-    from pipelines.train.run import train
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.run import train
 
     path, overrides = RECIPES[recipe]
     overrides = overrides + (QUICK if quick else FULL)[recipe] + [

@@ -1,7 +1,7 @@
 """A hash of everything the dialogue env outputs over seeded rollouts: proof that a speed change kept it bit-identical.
 
 Run: python bench/env_fingerprint.py [--steps 2000] [--batch 64]
-The configurations and the hash are `envs.fingerprint` (the tests use the same code); the printed
+The configurations and the hash are `ncbot.envs.fingerprint` (the tests use the same code); the printed
 per-configuration and total hashes are recorded in docs/env.md; compare them before and after a change.
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tree's envs, not an installed copy
 
-from envs.fingerprint import CONFIGS, fingerprint  # noqa: E402
+from ncbot.envs.fingerprint import CONFIGS, fingerprint  # noqa: E402
 
 
 def main() -> None:

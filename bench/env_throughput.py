@@ -24,7 +24,7 @@ import torch
 from tensordict import TensorDict
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tree's envs, not an installed copy
-from pipelines.progress import progress_bar  # noqa: E402
+from ncbot.pipelines.progress import progress_bar  # noqa: E402
 
 
 def steps_per_second(env, reset_td, seconds: float, label: str) -> tuple[float, float]:
@@ -56,7 +56,7 @@ def main() -> None:
     torch.set_num_threads(1)
     from torchrl.envs.custom import TicTacToeEnv
 
-    from envs import make_env
+    from ncbot.envs import make_env
 
     if args.rounds < 1 or args.seconds <= 0:
         parser.error("--rounds must be >= 1 and --seconds > 0")
@@ -102,7 +102,7 @@ def draw(rows: list[tuple[int, float, float, float]], path: str) -> None:
     ax.set_title("Env throughput (random masked actions, 1 thread)")
     ax.legend()
     fig.tight_layout()
-    from fileio import atomic_path
+    from ncbot.fileio import atomic_path
 
     with atomic_path(path) as temp:
         fig.savefig(temp, dpi=120, format="png")

@@ -60,14 +60,14 @@ class Ours:
     """The default pipeline's env, Collector, replay buffer and learners (one per precision, same start weights)."""
 
     def __init__(self, config_path: str) -> None:
-        from modules.policy import make_policies
-        from modules.qnet import make_qnet, seeded_init
-        from modules.symmetry import make_symmetries
-        from modules.transitions import make_multistep, prepare_transitions
-        from pipelines.config import load_config
-        from modules.learner import Learner, make_replay_buffer
-        from pipelines.run_env import make_run_env
-        from pipelines.train.build import frames_per_batch, learner_settings, make_collector
+        from ncbot.modules.policy import make_policies
+        from ncbot.modules.qnet import make_qnet, seeded_init
+        from ncbot.modules.symmetry import make_symmetries
+        from ncbot.modules.transitions import make_multistep, prepare_transitions
+        from ncbot.pipelines.config import load_config
+        from ncbot.modules.learner import Learner, make_replay_buffer
+        from ncbot.pipelines.run_env import make_run_env
+        from ncbot.pipelines.train.build import frames_per_batch, learner_settings, make_collector
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -167,8 +167,8 @@ def levers(config_path: str, seconds: float, rounds: int, compile_too: bool) -> 
 
     from torch import nn
 
-    from pipelines.config import load_config
-    from pipelines.train.build import env_sizes
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.build import env_sizes
 
     config = load_config(config_path)
     features, actions = env_sizes(config)  # the config's env: its observation features and actions

@@ -2,7 +2,7 @@
 
 Three measurements, each printed with the figures it produced:
 
-  env     the real env (`envs.make_env`) stepped by a uniformly random policy over the action mask, logged
+  env     the real env (`ncbot.envs.make_env`) stepped by a uniformly random policy over the action mask, logged
           with the default packed training log and with one JSON message per action (random Q-values so
           the messages are as large as in training); time inside the logger against the rest of the same
           run. This is the WORST case for the ratio: real training also spends time on gradient updates
@@ -43,8 +43,8 @@ def random_policy_run(game: str, batch: int, steps: int, frames: int, seed: int,
     """Step the real env with random legal actions; optionally log every step (phase train, `detail`).
 
     Steps are handed to the logger `frames` at a time as a (B, T) batch, as a TorchRL collector does."""
-    from envs import make_env
-    from logs import EpisodeLogger
+    from ncbot.envs import make_env
+    from ncbot.logs import EpisodeLogger
 
     env = make_env(game=game, batch_size=(batch,), seed=seed)
     generator = torch.Generator().manual_seed(seed)
@@ -92,7 +92,7 @@ def bench_env(game: str, batch: int, steps: int, frames: int, repeats: int) -> P
             rest = result["seconds"] - result["logger_seconds"]
             ratios[variant].append(result["logger_seconds"] / rest)
             per_step[variant].append(result["logger_seconds"] / result["env_steps"])
-            from logs.reader import read_episodes
+            from ncbot.logs.reader import read_episodes
 
             total = sum(p.stat().st_size for p in log_dir.glob("*.mcap"))
             sizes[variant].append((total, len(read_episodes(log_dir))))
@@ -118,7 +118,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
     for repeat in range(repeats):
         for variant in ("off", "on"):
             out = Path(tempfile.mkdtemp(prefix=f"mcap_train_{variant}_"))
-            command = [sys.executable, "-m", "pipelines.cli", "train", config, f"collector.total_frames={frames}",
+            command = [sys.executable, "-m", "ncbot", "train", config, f"collector.total_frames={frames}",
                        "--out", str(out), "--no-progress", "--seed", str(repeat)]
             if variant == "off":
                 command.append("--no-mcap")
@@ -127,7 +127,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
             commands[variant].append(time.perf_counter() - started)
             timings[variant].append(float(re.search(r"train wall time ([0-9.]+) s", result.stdout).group(1)))
             if variant == "on":
-                from logs.summary import summarize
+                from ncbot.logs.summary import summarize
 
                 summaries.append(summarize(out))
     off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
@@ -145,8 +145,8 @@ def bench_train_share(config: str, frames: int, repeats: int) -> None:
 
     Immune to the between-run noise of a shared machine: both times come from one run. The logger's
     calls (record_steps, which also compresses and writes chunks, and close) are wrapped with a timer."""
-    from logs import EpisodeLogger
-    from pipelines.train.run import resolve_run, train
+    from ncbot.logs import EpisodeLogger
+    from ncbot.pipelines.train.run import resolve_run, train
 
     spent = {"seconds": 0.0, "calls": 0}
     original_record, original_close = EpisodeLogger.record_steps, EpisodeLogger.close
@@ -185,7 +185,7 @@ def bench_train_share(config: str, frames: int, repeats: int) -> None:
 def bench_encoding(log_dir: Path) -> None:
     from mcap.writer import CompressionType, Writer
 
-    from logs.reader import LogReader
+    from ncbot.logs.reader import LogReader
 
     steps = [m.data for m in LogReader(log_dir).messages(["/step"])]
     step_type, descriptor_set = _protobuf_step_type()

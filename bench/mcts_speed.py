@@ -17,10 +17,10 @@ import time
 
 import torch
 
-from envs.opponents import make_opponent
-from envs.opponents.arena import play_match
-from envs.opponents.bitboards import DRAW, ONGOING, make_bits
-from envs.opponents.mcts import uct_search
+from ncbot.envs.opponents import make_opponent
+from ncbot.envs.opponents.arena import play_match
+from ncbot.envs.opponents.bitboards import DRAW, ONGOING, make_bits
+from ncbot.envs.opponents.mcts import uct_search
 
 SETTINGS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]
 
@@ -57,7 +57,7 @@ def simulations_per_second(game: str, free_move: str, simulations: int = 2000, s
 
 def batched_select_ms(game: str, free_move: str, name: str, batch: int = 1024, repeats: int = 20) -> float:
     """Milliseconds per ``select`` call on ``batch`` random unfinished positions (the env's per-step cost)."""
-    from envs.rules import make_game
+    from ncbot.envs.rules import make_game
 
     rules = make_game(game, free_move)
     rng = random.Random(0)

@@ -2,7 +2,7 @@
 
     python bench/memory_cost.py [--config pipelines/configs/default.yaml] [--rounds 3] [--batches 4] [override ...]
 
-For each memory setting the training parts are built as `ncbot train` builds them (`pipelines.train.build`), the
+For each memory setting the training parts are built as `ncbot train` builds them (`ncbot.pipelines.train.build`), the
 buffer is filled past the burn-in, then each round times, in CPU seconds of this process (`time.process_time`,
 robust to a shared machine), `--batches` collected batches (collect + store) and `optim.updates_per_batch`
 updates after each; the settings take turns and the median round is reported as CPU ms per frame.
@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tre
 
 
 def _parts(config_path: str, overrides: list[str], memory: str):
-    from pipelines.config import load_config
-    from pipelines.train.build import build_parts, frames_per_batch, make_collector
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.build import build_parts, frames_per_batch, make_collector
 
     config = load_config(config_path, [*overrides, f"agent.memory={memory}", "logger.mcap=false"])
     parts = build_parts(config, config.train.seed, 0)
@@ -32,7 +32,7 @@ def _parts(config_path: str, overrides: list[str], memory: str):
 
 
 def _store(config, parts, batch, frames: int) -> None:
-    from modules.transitions import prepare_transitions
+    from ncbot.modules.transitions import prepare_transitions
 
     loss = config.loss
     rows = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward, bootstrap=loss.bootstrap,

@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's pack
 
 def build_scenes(count: int, width: int = 320, height: int = 240) -> list:
     """`count` scenes, each with its own mark (cell i) so a frame from another scene would show."""
-    from robot_sim.scene import PepperScene, SceneConfig
-    from robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
     scenes = []
     for i in range(count):

@@ -21,8 +21,8 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's packages, not an installed copy
 
-from pipelines.serve.answers import PREFERRED_ACTS
-from pipelines.serve.latency import latency_stats
+from ncbot.pipelines.serve.answers import PREFERRED_ACTS
+from ncbot.pipelines.serve.latency import latency_stats
 
 
 async def play_session(url: str, games: int, seed: int, first: str = "robot", timeout: float = 600.0) -> dict[str, Any]:

@@ -16,8 +16,8 @@ It prints the training wall time at which each first reaches task success 0.95 a
   its default), one DQN per seat. ``--dqn-opponent dqn`` (default): the two DQNs learn against each other
   (OpenSpiel's two-player DQN examples; the tic_tac_toe example's opponent also learns); ``random``: each seat's
   DQN learns against the uniform random player, as our agent does. Snapshots every ``--snapshot-seconds`` of its
-  training clock (the copy is taken off the clock). Evaluated through ``envs.opponents.arena`` with OpenSpiel's
-  own observation tensor, its moves checked against our rules (``envs.opponents.openspiel``).
+  training clock (the copy is taken off the clock). Evaluated through ``ncbot.envs.opponents.arena`` with OpenSpiel's
+  own observation tensor, its moves checked against our rules (``ncbot.envs.opponents.openspiel``).
 
 Snapshots are evaluated in time order and evaluation stops at the first snapshot with 0.995 in both seats.
 
@@ -57,7 +57,7 @@ if str(ROOT) not in sys.path:
 THRESHOLDS = (0.95, 0.995)
 NEVER_EVALUATE = 10**10  # train.eval_every_frames past any run's end (the config caps it at 1e10)
 
-from pipelines.evaluate.openspiel_dqn import dqn_worker, evaluate_dqn, exact_dqn, first_time  # noqa: E402
+from ncbot.pipelines.evaluate.openspiel_dqn import dqn_worker, evaluate_dqn, exact_dqn, first_time  # noqa: E402
 
 
 def load_average() -> str:
@@ -115,11 +115,11 @@ def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: 
     with their train clock (wall) and the CPU seconds the process spent since the train clock started."""
     import shutil
 
-    from pipelines.checkpoint import periodic_checkpoints
+    from ncbot.pipelines.checkpoint import periodic_checkpoints
 
     shutil.rmtree(out, ignore_errors=True)  # snapshots of an earlier run must not count
 
-    command = [sys.executable, "-m", "pipelines.cli", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
+    command = [sys.executable, "-m", "ncbot", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
                "--seed", str(seed), f"train.eval_every_frames={NEVER_EVALUATE}",
                f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=1000", "checkpoint.save_buffer=false",
                "eval.games=10", "eval.periodic_games=10", *(overrides or [])]
@@ -144,11 +144,11 @@ def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int |
     """Task success of a snapshot from each seat: greedy, or (``search``) with its game moves chosen by the
     Q-guided search of ``search`` simulations (``value``: a value network scores the leaves), as ``ncbot eval
     --search N --value V`` plays it."""
-    from pipelines.agents import load_agent, load_guided_agent
-    from pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.agents import load_agent, load_guided_agent
+    from ncbot.pipelines.evaluate.games import evaluate_agent
 
     config, policy = load_guided_agent(snapshot["path"], search, seed, value) if search else load_agent(snapshot["path"])
-    from pipelines.run_env import robot_seat
+    from ncbot.pipelines.run_env import robot_seat
 
     return {robot_seat(first): evaluate_agent(config, policy, games=games, first=first, seed=seed).task_success
             for first in ("robot", "human")}
@@ -157,7 +157,7 @@ def evaluate_ours(snapshot: dict[str, Any], games: int, seed: int, search: int |
 def exact_ours(snapshot: dict[str, Any]) -> dict[str, float]:
     """Exact task success of a 3x3 snapshot from each seat: every branch of the uniform random user, 8 dialogue
     draws (``ncbot eval --exhaustive``): no evaluation noise, which near 0.995 is most of a 1000-game figure."""
-    from pipelines.evaluate.exact import exact_checkpoint
+    from ncbot.pipelines.evaluate.exact import exact_checkpoint
 
     return {result.seat: result.task_success for result in exact_checkpoint(snapshot["path"])}
 
@@ -180,7 +180,7 @@ def check_search_options(parser: argparse.ArgumentParser, args: argparse.Namespa
         parser.error("--ours-value scores the leaves of the search: give --ours-search N too")
     if not args.ultimate:
         parser.error("--ours-value is for Ultimate (--game ultimate): value networks score Ultimate positions")
-    from modules.value_net import load_value_net
+    from ncbot.modules.value_net import load_value_net
 
     try:
         load_value_net(args.ours_value, args.free_move)
@@ -257,7 +257,7 @@ def main(argv: list[str] | None = None) -> None:
     check_search_options(parser, args)  # before any training: a bad value network must not cost a run
     if args.exact and (args.ultimate or args.ours_search):
         parser.error("--exact scores 3x3 greedy snapshots only (Ultimate's game tree is too large to enumerate)")
-    from envs.opponents.openspiel import import_pyspiel
+    from ncbot.envs.opponents.openspiel import import_pyspiel
 
     import_pyspiel()  # one clear line if the optional package is missing, before any training
     out = Path(args.out) / game

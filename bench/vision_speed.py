@@ -16,11 +16,11 @@ import cv2
 import numpy as np
 import torch
 
-from vision.classifier import load_classifier
-from vision.data import TEST_SEED
-from vision.data.frames import make_frame
-from vision.grid import read_board
-from vision.recogniser import MoveRecogniser
+from ncbot.vision.classifier import load_classifier
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.grid import read_board
+from ncbot.vision.recogniser import MoveRecogniser
 
 TARGET_MS = {3: 20.0, 9: 60.0}
 

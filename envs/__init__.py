@@ -1,13 +1,13 @@
 """ncbot envs: the exact rules, the batched engine and the multimodal dialogue game as a TorchRL env.
 
 Imports stay light: torch/torchrl are loaded when ``make_env`` is first called. Importing this package also
-registers the Gymnasium id ``ncbot/NoughtsCrosses-v0`` (see ``envs.gym_wrapper``).
+registers the Gymnasium id ``ncbot/NoughtsCrosses-v0`` (see ``ncbot.envs.gym_wrapper``).
 """
 from __future__ import annotations
 
 from typing import Any
 
-from envs.env_options import OPTION_NAMES  # light: no torch
+from ncbot.envs.env_options import OPTION_NAMES  # light: no torch
 
 GYM_ID = "ncbot/NoughtsCrosses-v0"
 
@@ -24,18 +24,18 @@ def make_env(
     """Build the batched dialogue game env (a TorchRL ``EnvBase`` with batch size ``(B,)``).
 
     ``first``: robot|human|alternate|random, who makes the first game move (default robot; ``alternate`` flips per
-    game slot every episode, ``random`` draws per game). Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``envs.opponents`` or an
+    game slot every episode, ``random`` draws per game). Options: ``opponent`` "random" (uniform among legal squares), another opponent name from ``ncbot.envs.opponents`` or an
     object with ``select(boards, last_move, legal, player, generator)``, ``asr_confidence`` (low, high) of the
     uniform ASR confidence of each user word (default (0, 1)), ``max_actions`` (default 100), ``hearing`` None (the
     words said, at those uniform confidences) or an object with ``hear(utterances, generator)`` that decides what
-    the robot hears (``speech.hearing.ChannelHearing``; built by ``pipelines.run_env`` for ``env.asr: channel``).
+    the robot hears (``ncbot.speech.hearing.ChannelHearing``; built by ``ncbot.pipelines.run_env`` for ``env.asr: channel``).
     ``dialogue_subset`` None (every example dialogue) or (k, seed): the act filter and the simulated user learnt from
-    a seeded subset of k example dialogues (the data-budget curve; ``envs.dialogue.subset_examples``).
+    a seeded subset of k example dialogues (the data-budget curve; ``ncbot.envs.dialogue.subset_examples``).
     """
     for name in options:
         if name not in OPTION_NAMES:
             raise ValueError(f"unknown option {name!r}; options: {', '.join(OPTION_NAMES)}")
-    from envs.dialogue_env import DialogueGameEnv
+    from ncbot.envs.dialogue_env import DialogueGameEnv
 
     return DialogueGameEnv(game=game, batch_size=batch_size, temporal=temporal, free_move=free_move, seed=seed, first=first, **options)
 
@@ -46,7 +46,7 @@ def _register_gym() -> None:
     except ImportError:  # gymnasium is a dependency; stay importable without it anyway
         return
     if GYM_ID not in registry:
-        register(id=GYM_ID, entry_point="envs.gym_wrapper:NoughtsCrossesGymEnv")
+        register(id=GYM_ID, entry_point="ncbot.envs.gym_wrapper:NoughtsCrossesGymEnv")
 
 
 _register_gym()

@@ -1,7 +1,7 @@
 """The game's shared vocabulary, defined once: board geometry, mark and seat codes, outcome codes, rewards.
 
-Why one module: four rule implementations (``envs.rules`` the reference, ``envs.engine`` the batched env engine,
-``envs.opponents.bitboards`` the search engine, ``envs.opponents.lines`` the batched line arithmetic) and the
+Why one module: four rule implementations (``ncbot.envs.rules`` the reference, ``ncbot.envs.engine`` the batched env engine,
+``ncbot.envs.opponents.bitboards`` the search engine, ``ncbot.envs.opponents.lines`` the batched line arithmetic) and the
 layers above (rewards, evaluation, logs) must agree on what cell 40 is, which subgrid it sends the opponent to
 and what outcome code 2 means. Plain Python only (no torch), so every layer can import it for free.
 

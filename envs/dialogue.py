@@ -252,7 +252,7 @@ def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet,
     """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape;
     any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``). ``vocabulary``:
     use these words (ValueError if a dialogue says another) instead of the ones the dialogues give."""
-    from envs.rules import make_game
+    from ncbot.envs.rules import make_game
 
     contexts: list[tuple[int, int, int]] = []
     labels: list[int] = []

@@ -12,8 +12,8 @@ dialogues) and the legal squares form ``action_mask``; an act outside it is refu
 except the action count. See docs/env.md for rewards, features and every key.
 
 This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
-specs in ``envs.dialogue_tables``, the option checks in ``envs.env_options``, the exact TorchRL shortcuts in
-``envs.env_speed``. Who opens is the option ``first`` (``env.first``).
+specs in ``ncbot.envs.dialogue_tables``, the option checks in ``ncbot.envs.env_options``, the exact TorchRL shortcuts in
+``ncbot.envs.env_speed``. Who opens is the option ``first`` (``env.first``).
 
 The paper's ambiguous readings are options (defaults = this project's first reading; the paper configs set the
 readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
@@ -30,28 +30,28 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
-import envs.dialogue as dlg
-from envs.core import (
+import ncbot.envs.dialogue as dlg
+from ncbot.envs.core import (
     FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, check_free_move, check_game,  # noqa: F401
 )
-from envs.threat_features import threat_planes
-from envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
+from ncbot.envs.threat_features import threat_planes
+from ncbot.envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
     AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, reply_tables, step_tables,
 )
-from envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
-from envs.engine.tables import uniform_choice_by_rows
-from envs.env_options import (
+from ncbot.envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
+from ncbot.envs.engine.tables import uniform_choice_by_rows
+from ncbot.envs.env_options import (
     check_batch, check_confidence, check_hearing, check_subset, check_taken_squares, first_of, resolve_opponent,
 )
-from envs.env_speed import DialogueState, FastProcHooks, paste_rows
-from envs.misread import MisreadBoard
+from ncbot.envs.env_speed import DialogueState, FastProcHooks, paste_rows
+from ncbot.envs.misread import MisreadBoard
 
 ILLEGAL_ACT_REWARD = REWARD_ILLEGAL  # the paper's penalty for a repeated move, applied to every refused act (ours)
 USER = HUMAN  # the simulated user sits in the human seat
 
 
 class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
-    """Batched Noughts & Crosses dialogue env (3x3 or Ultimate); build it with ``envs.make_env``.
+    """Batched Noughts & Crosses dialogue env (3x3 or Ultimate); build it with ``ncbot.envs.make_env``.
 
     Metadata: ``action_names``, ``templates``, ``robot_commands`` (per action), ``feature_names``,
     ``user_act_names``, ``words``, ``n_actions``, ``n_features``, ``game``, ``cells``; ``user_utterance(id)``
@@ -159,7 +159,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         """The robot's template utterance with its bracketed command, e.g. "I take this one. [who=rob, what=draw, where=b2]"."""
         action = self._check_action_index(int(action))
         if action < self.cells:
-            from envs.rules import make_game
+            from ncbot.envs.rules import make_game
 
             where = make_game(self.game, self.free_move).cell_name(action)
             return f"{self.templates[action]} [who=rob, what=draw, where={where}]"
@@ -420,7 +420,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         return self._utterance_acts.index_select(0, understood), columns, confidence.float()
 
     def _reply_tables(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """The simulated user's reply tables (``envs.dialogue_tables.reply_tables``), read each step from
+        """The simulated user's reply tables (``ncbot.envs.dialogue_tables.reply_tables``), read each step from
         ``self.model``: ``ncbot play`` swaps in or edits its tables to make the user say what a person typed,
         so they are rebuilt when the model's tensors change."""
         options, counts = self.model.reply_options, self.model.reply_counts

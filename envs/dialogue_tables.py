@@ -3,7 +3,7 @@
 Why tables: the env's step is a chain of 1-D ``index_select`` reads (the fastest gather on CPU) keyed by small
 integers -- the act type, the "stage" of a game, the last (system act, user act) pair -- instead of ~12
 whole-batch ops that rebuild the dialogue phase and context every step. This module builds those tables once
-per env from the dialogue model (``envs.dialogue``) and the engine; ``envs.dialogue_env`` only reads them.
+per env from the dialogue model (``ncbot.envs.dialogue``) and the engine; ``ncbot.envs.dialogue_env`` only reads them.
 """
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from typing import Any
 import torch
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 
-import envs.dialogue as dlg
-from envs.core import REWARD_ILLEGAL, REWARD_WIN, ROBOT
+import ncbot.envs.dialogue as dlg
+from ncbot.envs.core import REWARD_ILLEGAL, REWARD_WIN, ROBOT
 
 # Dialogue flags, kept multiplied by 8 so that ``engine.status`` (outcome * 2 + marks % 2, 0..7) + flags is the
 # game's "stage" (0..63): all the phase depends on, one integer per game, and the index of the phase table.
@@ -123,7 +123,7 @@ def describe(model: dlg.DialogueModel, cells: int, temporal: bool, threat_featur
     if temporal:
         names += [f"time[{c:0{width}d}]" for c in range(cells)]
     if threat_features:
-        from envs.threat_features import threat_names
+        from ncbot.envs.threat_features import threat_names
 
         names += threat_names(cells)
     return {

@@ -4,7 +4,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from envs.core import FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
+from ncbot.envs.core import FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
 
 # taken_squares (with misread_rate), win_set, about_to and dialogues: the
 # paper's readings (envs.core, docs/env.md "Readings", docs/reproduction.md)
@@ -13,7 +13,7 @@ OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "taken_squ
 
 
 def check_taken_squares(taken_squares: Any, misread_rate: Any) -> tuple[str, float | None]:
-    """``taken_squares`` (``envs.core.TAKEN_SQUARES_CHOICES``) and its ``misread_rate``: a float in (0, 1), required
+    """``taken_squares`` (``ncbot.envs.core.TAKEN_SQUARES_CHOICES``) and its ``misread_rate``: a float in (0, 1), required
     with ``misread`` (the chance that the robot misreads a user move) and refused with the other readings."""
     check_choice("taken_squares", taken_squares, TAKEN_SQUARES_CHOICES)
     if taken_squares != "misread":
@@ -31,12 +31,12 @@ def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tup
 
     Also returns which optional keywords its ``select`` takes: ``owners`` (Ultimate subgrid owners) and
     ``rows`` (the batch indices of the games that move, for opponents that hold per-game input such as
-    ``envs.external_opponent.ExternalOpponent``).
+    ``ncbot.envs.external_opponent.ExternalOpponent``).
     """
     if isinstance(opponent, str):
         if opponent == "random":
             return None, set()
-        from envs.opponents import make_opponent, opponent_choices
+        from ncbot.envs.opponents import make_opponent, opponent_choices
 
         try:
             opponent = make_opponent(opponent, game=game, free_move=free_move, seed=seed)
@@ -78,7 +78,7 @@ def check_confidence(bounds: Any) -> tuple[float, float]:
 
 
 def check_hearing(hearing: Any) -> Any:
-    """None (uniform ASR confidences) or an object with ``hear(utterances (B,), generator)`` (``speech.hearing``)."""
+    """None (uniform ASR confidences) or an object with ``hear(utterances (B,), generator)`` (``ncbot.speech.hearing``)."""
     if hearing is not None and not callable(getattr(hearing, "hear", None)):
         raise ValueError(f"hearing must be None or an object with a hear(utterances, generator) method, got {hearing!r}")
     return hearing
@@ -87,7 +87,7 @@ def check_hearing(hearing: Any) -> Any:
 def check_subset(subset: Any) -> tuple[int, int] | None:
     """None (every example dialogue of the set) or (k, seed): learn from a seeded subset of k dialogues.
 
-    The upper bound of k depends on the set and the game; ``envs.dialogue.subset_examples`` checks it.
+    The upper bound of k depends on the set and the game; ``ncbot.envs.dialogue.subset_examples`` checks it.
     """
     if subset is None:
         return None

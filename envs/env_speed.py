@@ -2,7 +2,7 @@
 
 Why separate: these overrides change no number (``tests/envs/test_env_speed.py`` compares them with TorchRL's own
 path); they only skip work that EnvBase does for any env and that ours never needs. Keeping them apart leaves
-``envs.dialogue_env`` about the game itself.
+``ncbot.envs.dialogue_env`` about the game itself.
 """
 from __future__ import annotations
 

@@ -38,8 +38,8 @@ def hash_tensordict(digest: "hashlib._Hash", td: TensorDictBase) -> None:
 
 def fingerprint(kwargs: dict, policy: str, steps: int, batch: int, seed: int = 0) -> str:
     """The hash of a seeded rollout of ``steps`` calls of ``step_and_maybe_reset`` at ``batch`` games."""
-    from envs import make_env
-    from envs.dialogue_env import uniform_choice
+    from ncbot.envs import make_env
+    from ncbot.envs.dialogue_env import uniform_choice
 
     env = make_env(batch_size=(batch,), seed=seed, **kwargs)
     policy_rng = torch.Generator().manual_seed(seed + 7)

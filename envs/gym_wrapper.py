@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
-from envs.dialogue_env import DialogueGameEnv
+from ncbot.envs.dialogue_env import DialogueGameEnv
 
 
 class NoughtsCrossesGymEnv(gym.Env):
@@ -78,7 +78,7 @@ class NoughtsCrossesGymEnv(gym.Env):
     def render(self) -> str | None:
         if self.render_mode != "ansi" or self._last is None:
             return None
-        from envs.rules import make_game
+        from ncbot.envs.rules import make_game
 
         rules = make_game(self.env.game, self.env.free_move)
         board = self._last["board"][0].tolist()

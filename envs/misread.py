@@ -1,7 +1,7 @@
 """``taken_squares="misread"``: the robot's knowledge of the board can be wrong (the paper's "not taken yet (to the
 robot's knowledge)"), as the methods of the dialogue env that keep its believed board beside the true one.
 
-Why a mixin of its own: the reading is one option of ``envs.dialogue_env.DialogueGameEnv``, used only by the paper
+Why a mixin of its own: the reading is one option of ``ncbot.envs.dialogue_env.DialogueGameEnv``, used only by the paper
 configs; its four steps (offer from the belief, play the robot's accepted moves on it, read the user's moves with
 seeded misreads, re-read the sheet after a refusal) read and write the env's state (``self.boards``,
 ``self.belief``, ``self.d``) and are called from its ``_refresh`` and ``_step``. docs/env.md "Readings" says what
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import torch
 
-from envs.core import HUMAN, REWARD_ILLEGAL, ROBOT
-from envs.dialogue_tables import N_STAGES
-from envs.engine import uniform_choice
+from ncbot.envs.core import HUMAN, REWARD_ILLEGAL, ROBOT
+from ncbot.envs.dialogue_tables import N_STAGES
+from ncbot.envs.engine import uniform_choice
 
 USER = HUMAN  # the simulated user sits in the human seat
 

@@ -24,7 +24,7 @@ import operator
 from dataclasses import dataclass
 from typing import Literal
 
-from envs.core import (  # noqa: F401  (re-exported: the rules' public vocabulary)
+from ncbot.envs.core import (  # noqa: F401  (re-exported: the rules' public vocabulary)
     COLUMN_LETTERS, DRAWN, EMPTY, FREE_MOVE_CHOICES, LINES_3X3, O, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, X,
     check_free_move, check_game, subgrid_cells,
 )

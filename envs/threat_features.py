@@ -12,17 +12,17 @@ from __future__ import annotations
 
 import torch
 
-from envs.core import HUMAN, ROBOT
-from envs.opponents.bitboards import CELL_OF, COMPLETING, FULL, SQUARES_OF_MASK
-from envs.opponents.lines import OPEN, completing_cells, subgrid_owners, subgrid_taking_cells
+from ncbot.envs.core import HUMAN, ROBOT
+from ncbot.envs.opponents.bitboards import CELL_OF, COMPLETING, FULL, SQUARES_OF_MASK
+from ncbot.envs.opponents.lines import OPEN, completing_cells, subgrid_owners, subgrid_taking_cells
 
 
 def threat_planes(board: torch.Tensor, owners: torch.Tensor | None = None) -> torch.Tensor:
     """(B, cells) board codes (+ (B, 9) Ultimate subgrid owners) -> (B, n) float32 planes (module doc).
 
     Owners not given (a board whose owners are not tracked) are read from the board
-    (``envs.opponents.lines.subgrid_owners``; exact under ``open_subgrids``). The line arithmetic is the rule
-    opponents' (``envs.opponents.lines``): one gather of each cell's line partners."""
+    (``ncbot.envs.opponents.lines.subgrid_owners``; exact under ``open_subgrids``). The line arithmetic is the rule
+    opponents' (``ncbot.envs.opponents.lines``): one gather of each cell's line partners."""
     if board.shape[1] == 9:
         planes = [completing_cells(board, p) for p in (ROBOT, HUMAN)]
     else:
@@ -33,7 +33,7 @@ def threat_planes(board: torch.Tensor, owners: torch.Tensor | None = None) -> to
 
 
 def position_threat_indices(pos: tuple, cells: int) -> list[int]:
-    """Indices into the ``threat_planes`` of one bitboard position (``envs.opponents.bitboards``) that are 1, seen
+    """Indices into the ``threat_planes`` of one bitboard position (``ncbot.envs.opponents.bitboards``) that are 1, seen
     from the side to move (its threats first, as the robot's).
 
     Why: the Q-guided search builds one position's features per expansion; the batched torch version costs ~0.3 ms

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from fileio import atomic_path
-from logs.reader import read_episodes
+from ncbot.fileio import atomic_path
+from ncbot.logs.reader import read_episodes
 
 
 def curve_series(episodes: list[dict[str, Any]], window: int = 200) -> dict[str, dict[str, Any]]:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.core import COLUMN_LETTERS  # light: plain constants
+from ncbot.envs.core import COLUMN_LETTERS  # light: plain constants
 
 _GRIDLOC = re.compile(r"gridloc=(\d+)")
 
@@ -65,7 +65,7 @@ class NameTables:
         return _GRIDLOC.sub(lambda match: self.cell_name(int(match.group(1))), name)
 
     def cell_name(self, cell: int) -> str:
-        """Cell index -> its name on the board (b2 style, as ``envs.rules`` ``cell_name``); the board size follows
+        """Cell index -> its name on the board (b2 style, as ``ncbot.envs.rules`` ``cell_name``); the board size follows
         from the number of move acts (9 or 81)."""
         moves = sum(1 for name in self.action_names if _GRIDLOC.search(name)) or 9
         size = math.isqrt(moves)
@@ -97,7 +97,7 @@ class NameTables:
         (index -1) is silence. Lets the logger pick all ASR confidences of a batch with one numpy call."""
         cached = self.__dict__.get("_utterance_words")
         if cached is None:
-            from envs.dialogue import tokenize  # the env's own rule for turning text into word features
+            from ncbot.envs.dialogue import tokenize  # the env's own rule for turning text into word features
 
             position = {word: k for k, (word, _) in enumerate(self.word_columns())}
             cached = np.zeros((len(self.user_utterances) + 1, len(position)), bool)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from logs.names import NameTables
+from ncbot.logs.names import NameTables
 
 SCHEMA_NAME = "ncbot.EpisodeSteps"
 

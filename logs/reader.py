@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
-import logs.packed as packed
-import logs.schemas as schemas
-from logs.names import NameTables
-from logs.steps import expand_episode
+import ncbot.logs.packed as packed
+import ncbot.logs.schemas as schemas
+from ncbot.logs.names import NameTables
+from ncbot.logs.steps import expand_episode
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 FILE_PATTERN = re.compile(r"^episodes-(\d{4,})\.mcap$")  # the files an EpisodeLogger writes in a run folder

@@ -6,9 +6,9 @@ from typing import Any
 
 from pathlib import Path
 
-from logs.board_image import board_text
-from logs.names import NameTables
-from logs.reader import EpisodeRecord, LogReader, read_episode_records
+from ncbot.logs.board_image import board_text
+from ncbot.logs.names import NameTables
+from ncbot.logs.reader import EpisodeRecord, LogReader, read_episode_records
 
 
 def load_episode(path: str | Path, episode_id: int,

@@ -11,11 +11,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Iterable
 
-from fileio import atomic_path
-import logs.schemas as schemas
-from logs.board_image import board_png, changed_cell
-from logs.names import NameTables
-from logs.reader import EpisodeRecord, LogReader, read_episode_records
+from ncbot.fileio import atomic_path
+import ncbot.logs.schemas as schemas
+from ncbot.logs.board_image import board_png, changed_cell
+from ncbot.logs.names import NameTables
+from ncbot.logs.reader import EpisodeRecord, LogReader, read_episode_records
 
 
 def parse_episode_spec(spec: str | None) -> set[int] | None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from envs.core import OUTCOME_NAMES
+from ncbot.envs.core import OUTCOME_NAMES
 
 SCHEMA_VERSION = 1
 

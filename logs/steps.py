@@ -2,7 +2,7 @@
 
 Speed matters: a training step costs well under 100 us and logging may add 10 %. So the assembler never
 loops over steps in Python: each batch becomes fixed-width rows with one numpy call per field
-(`logs.packed.batch_rows`), the assembler notes where each episode lies in them ((rows, b, t0, t1)
+(`ncbot.logs.packed.batch_rows`), the assembler notes where each episode lies in them ((rows, b, t0, t1)
 slices), and a finished episode is its rows concatenated. Written as is, that is the packed
 `/episode/steps` message; expanded (`expand_episode`, also used by the reader) it becomes the per-action
 `/step`, `/dialogue` and `/board` messages. Steps wait per batch index until their episode ends, so an
@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from logs.names import NameTables
-from logs.packed import batch_rows, unpack_steps
-from logs.schemas import OUTCOMES
+from ncbot.logs.names import NameTables
+from ncbot.logs.packed import batch_rows, unpack_steps
+from ncbot.logs.schemas import OUTCOMES
 
 REQUIRED_KEYS = ("action", "action_mask", ("next", "reward"), ("next", "done"), ("next", "board"))
 OPTIONAL_KEYS = ("observation", ("next", "observation"), "lookahead_reward", "winning_actions", "robot_first", "turn",

@@ -6,8 +6,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import logs.schemas as schemas
-from logs.reader import LogReader
+import ncbot.logs.schemas as schemas
+from ncbot.logs.reader import LogReader
 
 
 def summarize(path: str | Path, reader: LogReader | None = None) -> dict[str, Any]:

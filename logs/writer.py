@@ -16,14 +16,14 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-import logs.foxglove as foxglove
-import logs.packed as packed
-import logs.schemas as schemas
-from fileio import fsync_folder
-from logs.board_image import board_png, changed_cell
-from logs.names import NameTables
-from logs.reader import FILE_PATTERN, episode_file_name, next_episode_id
-from logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_arrays
+import ncbot.logs.foxglove as foxglove
+import ncbot.logs.packed as packed
+import ncbot.logs.schemas as schemas
+from ncbot.fileio import fsync_folder
+from ncbot.logs.board_image import board_png, changed_cell
+from ncbot.logs.names import NameTables
+from ncbot.logs.reader import FILE_PATTERN, episode_file_name, next_episode_id
+from ncbot.logs.steps import EpisodeAssembler, FinishedEpisode, expand_episode, step_arrays
 
 DEFAULT_MAX_FILE_BYTES = 256 * 2**20
 DEFAULT_STEP_DETAIL = {"train": "packed", "eval": "packed", "robot": "per_action", "play": "per_action"}
@@ -45,7 +45,7 @@ class EpisodeLogger:
     `/dialogue` and `/board` messages per action as they happen; every episode ends with an `/episode`
     summary. The robot simulator uses the same call with `phase="robot"` and adds `log_camera`,
     `log_joint_states` and `log_transform`. Lower-level `log_step`/`log_dialogue`/`log_board`/`log_episode`
-    take dicts that follow the JSON Schemas in `logs.schemas` for producers that are not TorchRL envs.
+    take dicts that follow the JSON Schemas in `ncbot.logs.schemas` for producers that are not TorchRL envs.
 
     Args:
         run_dir: directory of the run; created if missing. Existing `episodes-NNNN.mcap` files are kept and
@@ -279,7 +279,7 @@ class EpisodeLogger:
         self._write_protobuf(topic, foxglove.compressed_image(image, image_format, frame_id), t)
 
     def log_audio(self, audio: Any, *, topic: str, t: float | None = None) -> None:
-        """Write a `foxglove.RawAudio` message (e.g. `speech.audio.raw_audio(samples)`) on `topic`
+        """Write a `foxglove.RawAudio` message (e.g. `ncbot.speech.audio.raw_audio(samples)`) on `topic`
         (`/audio/robot`, `/audio/user`); `t` is the producer's time of the sound's start, as in `log_camera`."""
         if getattr(getattr(type(audio), "DESCRIPTOR", None), "full_name", None) != "foxglove.RawAudio":
             raise ValueError(f"log_audio needs a foxglove.RawAudio message, got {type(audio).__name__}")

@@ -11,11 +11,11 @@ TensorDict: ``board`` (0 empty, 1 robot, 2 human), the robot's legal squares fro
 root's forced subgrid exactly), and, on Ultimate, who owns each subgrid. Owners depend on the order of play
 (with ``free_move="anywhere"`` a subgrid can hold lines of both players); with temporal features the order is in
 the observation (time[c] = move number / marks) and owners are exact; without them owners are read from the board
-and the rare two-line subgrid is credited to the robot (as ``envs.opponents.lines`` does).
+and the rare two-line subgrid is credited to the robot (as ``ncbot.envs.opponents.lines`` does).
 
-The search runs on the opponents' bitboards (``envs.opponents.bitboards``), one Python search per game that needs
+The search runs on the opponents' bitboards (``ncbot.envs.opponents.bitboards``), one Python search per game that needs
 it: games with at most one safe move skip it. Exactness is tested against a
-brute-force search over ``envs.rules`` (tests/modules/test_deep_lookahead.py); cost per decision: bench/studies/lookahead_cost.py.
+brute-force search over ``ncbot.envs.rules`` (tests/modules/test_deep_lookahead.py); cost per decision: bench/studies/lookahead_cost.py.
 
 Rule names: ``k1`` .. ``k5`` assume the paper's ``free_move="anywhere"``; ``k1_open`` .. ``k5_open`` the
 ``open_subgrids`` variant. A rule that meets a root mask contradicting its variant raises ValueError.
@@ -25,9 +25,9 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDictBase
 
-from envs.opponents.bitboards import FREE_SQUARES, IS_LINE, ONGOING, StandardBits, UltimateBits
-from envs.rules import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL
-from modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, fallback, nonempty_or
+from ncbot.envs.opponents.bitboards import FREE_SQUARES, IS_LINE, ONGOING, StandardBits, UltimateBits
+from ncbot.envs.rules import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL
+from ncbot.modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, fallback, nonempty_or
 
 ROBOT, HUMAN = 1, 2
 MAX_PLIES = 5

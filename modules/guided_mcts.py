@@ -1,18 +1,18 @@
 """MCTS guided by the learnt Q-network: the paper's future work ("MinMax/MCTS combined with the learnt policy").
 
-The shared search loop of ``envs.opponents.search`` with PUCT (AlphaZero-style) selection and a Q-guided
+The shared search loop of ``ncbot.envs.opponents.search`` with PUCT (AlphaZero-style) selection and a Q-guided
 evaluator, on the opponents' bitboards, with three inputs from the agent:
 - priors: softmax(Q / temperature) over the legal cells of the side to move, read from the Q-network on the
   features of a typical game turn seen from that side (``TurnFeatures``);
 - values: a leaf is scored by ``value_weight * v_Q + (1 - value_weight) * random playout``, where
   v_Q = (clip(max Q, -5, 5) / 5 + 1) / 2 maps the paper's reward scale (+5 win / -5 loss) to [0, 1]; or, given a
-  ``value_net`` (Ultimate, ``modules.value_net``), by that network alone (no playout);
+  ``value_net`` (Ultimate, ``ncbot.modules.value_net``), by that network alone (no playout);
 - the root keeps the paper's one-step masks: a winning cell is taken at once, and cells after which the other
   side wins at once are searched only when every cell is such (Algorithm 2's A and A_hat).
 
 ``simulations`` is the budget per decision. All chance comes from one seed per decision drawn from the caller's
-torch generator, so results are reproducible by seed. Two front-ends: ``QMCTSOpponent`` (an ``envs.opponents``
-opponent, name ``qmcts:N:CHECKPOINT`` registered by ``pipelines.evaluate.ladder``) and ``GuidedMCTSPolicy`` (the robot's
+torch generator, so results are reproducible by seed. Two front-ends: ``QMCTSOpponent`` (an ``ncbot.envs.opponents``
+opponent, name ``qmcts:N:CHECKPOINT`` registered by ``ncbot.pipelines.evaluate.ladder``) and ``GuidedMCTSPolicy`` (the robot's
 policy at eval time: the greedy dialogue policy, with its game moves chosen by the search).
 """
 from __future__ import annotations
@@ -27,15 +27,15 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
 
-from envs.core import HUMAN, ROBOT
-from envs.opponents.base import Opponent
-from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
-from envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
-from envs.threat_features import position_threat_indices, threat_planes
-from modules.deep_lookahead import move_order, owners_from_order, win_in_one
-from modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
-from modules.qnet import ACTION_VALUE_KEY, MLPReader
-from modules.value_net import ValueNetEvaluator
+from ncbot.envs.core import HUMAN, ROBOT
+from ncbot.envs.opponents.base import Opponent
+from ncbot.envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
+from ncbot.envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
+from ncbot.envs.threat_features import position_threat_indices, threat_planes
+from ncbot.modules.deep_lookahead import move_order, owners_from_order, win_in_one
+from ncbot.modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from ncbot.modules.qnet import ACTION_VALUE_KEY, MLPReader
+from ncbot.modules.value_net import ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
 
@@ -49,15 +49,15 @@ class TurnFeatures:
 
     Own marks as robot moves, the other side's as human moves, the words of "I take this one" and the user's
     move utterance, no command, and (temporal) the last mark at 1.0 and the others at 0.5 (a tree node knows its
-    last move but not the order of the earlier ones). Same reading as ``pipelines.agents.AgentOpponent``.
+    last move but not the order of the earlier ones). Same reading as ``ncbot.pipelines.agents.AgentOpponent``.
     ``threats``: the env's ``threat_features`` planes too, seen from the side to move; Ultimate subgrid owners are
     read from the board (exact under ``open_subgrids``; under ``anywhere`` a subgrid holding lines of both sides
-    counts as the robot's, as in ``envs.opponents.lines.subgrid_owners``).
+    counts as the robot's, as in ``ncbot.envs.opponents.lines.subgrid_owners``).
     """
 
     def __init__(self, game: str, temporal: bool, free_move: str = "anywhere", threats: bool = False) -> None:
-        from envs import make_env
-        from envs.dialogue import MOVE, USER_ACTS
+        from ncbot.envs import make_env
+        from ncbot.envs.dialogue import MOVE, USER_ACTS
 
         env = make_env(game, batch_size=(1,), temporal=temporal, free_move=free_move, seed=0, threat_features=threats)
         names, model = env.feature_names, env.model
@@ -144,7 +144,7 @@ class QGuidedEvaluator:
 class GuidedMCTS:
     """PUCT search whose priors and leaf values come from a Q-network (see the module docstring).
 
-    The loop is ``envs.opponents.search.run_search`` with ``PUCT`` selection and ``QGuidedEvaluator`` (or
+    The loop is ``ncbot.envs.opponents.search.run_search`` with ``PUCT`` selection and ``QGuidedEvaluator`` (or
     ``ValueNetEvaluator`` when a ``value_net`` is given)."""
 
     def __init__(self, qnet: nn.Module, features: TurnFeatures, game: str, free_move: str = "anywhere",
@@ -195,7 +195,7 @@ class GuidedMCTS:
         if self._reader is not None:
             return self._reader(x)[moves].tolist()
         with torch.no_grad():
-            from modules.device import module_device
+            from ncbot.modules.device import module_device
 
             return self.qnet(torch.from_numpy(x).unsqueeze(0).to(module_device(self.qnet)))[0][moves].tolist()
 
@@ -279,7 +279,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
     the board.
 
     ``searching`` ((B,) bool or None): rows whose game move is searched; the others keep the greedy move.
-    ``pipelines.evaluate.games.play_games`` sets it to the games still being counted, so no search is spent on the
+    ``ncbot.pipelines.evaluate.games.play_games`` sets it to the games still being counted, so no search is spent on the
     extra games of slots that already finished. ``decisions`` / ``cpu_seconds`` count the searched moves and
     their process CPU time (the cost per robot move that eval reports).
     """
@@ -289,7 +289,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
 
     def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0, prune=None,
                  root_key: str = GREEDY_MASK_KEY) -> None:
-        """``prune``: an optional k-step rule (``modules.deep_lookahead.KStepLookahead``); the root then skips the
+        """``prune``: an optional k-step rule (``ncbot.modules.deep_lookahead.KStepLookahead``); the root then skips the
         moves it proves lost by force, so the simulations are spent on moves that can still be saved."""
         super().__init__()
         if root_key not in ROOT_KEYS:
@@ -303,7 +303,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
     policy_device = "cpu"  # reads and writes CPU TensorDicts; its greedy network runs where it lives
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        from modules.device import on_device
+        from ncbot.modules.device import on_device
 
         tensordict = on_device(self.greedy)(tensordict)
         cells = self.search.cells

@@ -1,7 +1,7 @@
 """The learner of a run: replay buffer, competitive DQN loss, target updater and optimiser, built in one place
 from `LearnerSettings` (plain values; the pipelines fill them from the run's config).
 
-The training loop (`pipelines.train`) and `bench/learner_throughput.py` both step this object, so the benchmark
+The training loop (`ncbot.pipelines.train`) and `bench/learner_throughput.py` both step this object, so the benchmark
 measures exactly the update the training loop runs. Speed figures: docs/learner-speed.md.
 """
 from __future__ import annotations
@@ -14,11 +14,11 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-from modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
-from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
-from modules.symmetry import BoardSymmetries
-from modules.prioritized_sampler import ProportionalSampler
-from modules.transitions import LOSS_KEYS
+from ncbot.modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
+from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
+from ncbot.modules.symmetry import BoardSymmetries
+from ncbot.modules.prioritized_sampler import ProportionalSampler
+from ncbot.modules.transitions import LOSS_KEYS
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ def scheduled_lr(frames: int, lr: float, lr_end: float | None, total_frames: int
 
 def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: bool = False,
               precision: str = "fp32", gamma: float = 0.99) -> CompetitiveDQNLoss:
-    """The competitive DQN loss reading the transitions `modules.transitions.prepare_transitions` stores (its
+    """The competitive DQN loss reading the transitions `ncbot.modules.transitions.prepare_transitions` stores (its
     learning reward and bootstrap mask: `LOSS_KEYS`), with its TD(0) value estimator."""
     loss_module = CompetitiveDQNLoss(qnet, loss_function=loss_function, double_dqn=double_dqn, precision=precision)
     loss_module.set_keys(**LOSS_KEYS)
@@ -63,12 +63,12 @@ def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False,
                        beta: float = 0.4, sequence_length: int | None = None,
                        device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
-    RandomSampler or, `prioritized`, a proportional one (`modules.prioritized_sampler`: rows drawn by the loss's
+    RandomSampler or, `prioritized`, a proportional one (`ncbot.modules.prioritized_sampler`: rows drawn by the loss's
     |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
-    of dialogues (`modules.recurrent.make_sequence_buffer`). The storage lives on `device` (the learner's: sampled
+    of dialogues (`ncbot.modules.recurrent.make_sequence_buffer`). The storage lives on `device` (the learner's: sampled
     batches need no copy; the uniform sampler draws its indices there)."""
     if sequence_length is not None:
-        from modules.recurrent import make_sequence_buffer
+        from ncbot.modules.recurrent import make_sequence_buffer
 
         return make_sequence_buffer(size, batch_size, sequence_length, device)
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
@@ -106,7 +106,7 @@ class Learner:
     def build(cls, qnet: TensorDictModule, settings: LearnerSettings,
               symmetries: BoardSymmetries | None = None) -> "Learner":
         if settings.memory != "none":  # slices of dialogues through the recurrent network (modules/recurrent.py)
-            from modules.recurrent import make_sequence_loss
+            from ncbot.modules.recurrent import make_sequence_loss
 
             loss_module = make_sequence_loss(qnet, settings, symmetries)
             symmetries = None  # the loss turns whole slices

@@ -27,9 +27,9 @@ from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimato
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
 
-from modules.argmax import MaskedArgmax
-from modules.masks import AVAILABLE_KEY
-from modules.qnet import ACTION_VALUE_KEY, QValues
+from ncbot.modules.argmax import MaskedArgmax
+from ncbot.modules.masks import AVAILABLE_KEY
+from ncbot.modules.qnet import ACTION_VALUE_KEY, QValues
 
 BOOTSTRAP_VALUE_KEY = "bootstrap_value"  # max of Q over the bootstrap mask, written by `value_network`
 PRIORITY_KEY = "td_error"  # |Q(s, a) - y| per row, written by the loss for a prioritised replay buffer

@@ -31,7 +31,7 @@ Sequence replay (`make_sequence_buffer`, `SequenceRows`, `SequenceDQNLoss`), cho
 - Targets: one unroll of the online and one of the target network over the L + 1 observations
   (obs_0, next_obs_0, ..., next_obs_{L-1}) gives Q(s_t) and Q(s_{t+1}) from the same hidden-state history;
   y_t = r_t + gamma * max over the next bootstrap mask of Q_target(s_{t+1}) (r_t alone on terminated steps),
-  the target of `modules.loss.CompetitiveDQNLoss`; double DQN picks a' with the online unroll.
+  the target of `ncbot.modules.loss.CompetitiveDQNLoss`; double DQN picks a' with the online unroll.
 - Defaults L = 16, burn-in 4, 128 memory units: a 3x3 dialogue is ~10-15 acts, so most slices are whole
   dialogues; on Ultimate (~50-70 acts) the slices start inside dialogues and the burn-in matters.
 Not combined with memory (one-line config errors): prioritised replay, n-step returns, bf16, self-play and the
@@ -51,9 +51,9 @@ from torchrl.modules.utils import get_primers_from_module
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import distance_loss
 
-from modules.loss import LOSS_FUNCTIONS, CompetitiveDQNLoss
-from modules.masks import AVAILABLE_KEY
-from modules.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
+from ncbot.modules.loss import LOSS_FUNCTIONS, CompetitiveDQNLoss
+from ncbot.modules.masks import AVAILABLE_KEY
+from ncbot.modules.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
 
 MEMORY_CHOICES = ("none", "gru", "lstm")
 IS_INIT_KEY = "is_init"  # TorchRL's InitTracker key: True on the first step of a dialogue
@@ -90,7 +90,7 @@ def make_recurrent_qnet(n_features: int, n_actions: int, hidden: Sequence[int] =
 
 
 def make_agent_qnet(n_features: int, n_actions: int, agent, seed: int | None = None) -> TensorDictModule:
-    """The Q-network of an `agent` config section (`pipelines.config.AgentConfig`): the paper's MLP for
+    """The Q-network of an `agent` config section (`ncbot.pipelines.config.AgentConfig`): the paper's MLP for
     memory none (exactly `make_qnet`), else the recurrent network; `seed` re-initialises every weight from it."""
     memory = check_memory(getattr(agent, "memory", "none"))
     if memory == "none":
@@ -196,9 +196,9 @@ class SequenceRows:
 
 
 def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) -> "SequenceDQNLoss":
-    """The loss of a recurrent learner from `modules.learner.LearnerSettings` (memory, sequence_length, burn_in,
+    """The loss of a recurrent learner from `ncbot.modules.learner.LearnerSettings` (memory, sequence_length, burn_in,
     loss_function, double_dqn, gamma), reading the transitions' learning reward and bootstrap mask (`LOSS_KEYS`)."""
-    from modules.transitions import LOSS_KEYS
+    from ncbot.modules.transitions import LOSS_KEYS
 
     loss = SequenceDQNLoss(qnet, sequence_length=settings.sequence_length, burn_in=settings.burn_in,
                            loss_function=settings.loss_function, double_dqn=settings.double_dqn, symmetries=symmetries)
@@ -208,7 +208,7 @@ def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) ->
 
 
 class SequenceDQNLoss(LossModule):
-    """The competitive DQN loss (`modules.loss.CompetitiveDQNLoss`: same keys, same target) on slices of
+    """The competitive DQN loss (`ncbot.modules.loss.CompetitiveDQNLoss`: same keys, same target) on slices of
     dialogues, unrolling the recurrent network in recurrent mode (see module doc)."""
 
     _AcceptedKeys = CompetitiveDQNLoss._AcceptedKeys

@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDictBase
 
-from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, REWARD_DRAW, REWARD_WIN
+from ncbot.envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, REWARD_DRAW, REWARD_WIN
 
 REWARD_MODES = ("paper", "outcome")
 LEARNING_REWARD_KEY = ("next", "learning_reward")

@@ -2,7 +2,7 @@
 call (`prepare_transitions`), so the training loop has one line between the Collector and the buffer.
 
 Keys written (nothing the env wrote changes meaning; the loss reads the new keys through its `set_keys`,
-`LOSS_KEYS`, wired by `modules.learner.make_loss`):
+`LOSS_KEYS`, wired by `ncbot.modules.learner.make_loss`):
 - ("next", "learning_reward"): the reward the learner trains on (modules/rewards.py, `loss.reward`);
 - ("next", "bootstrap_mask"): the next actions the TD target maximises over (modules/bootstrap.py,
   `loss.bootstrap`);
@@ -19,8 +19,8 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import MultiStepTransform
 
-from modules.bootstrap import BOOTSTRAP_MASK_KEY, bootstrap_keys, set_bootstrap_mask
-from modules.rewards import LEARNING_REWARD_KEY, learning_rewards
+from ncbot.modules.bootstrap import BOOTSTRAP_MASK_KEY, bootstrap_keys, set_bootstrap_mask
+from ncbot.modules.rewards import LEARNING_REWARD_KEY, learning_rewards
 
 # what the learning reward and the bootstrap mask are computed from (plus the look-ahead keys `greedy` reads)
 TRANSITION_KEYS = (

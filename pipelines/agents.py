@@ -26,18 +26,18 @@ def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu")
     """(config, greedy policy) of a saved agent: the same masks as in training. `device` (auto | cpu | cuda |
     cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device).
 
-    An agent with `agent.memory` needs its env wrapped by `modules.recurrent.memory_env` (`evaluate_agent` does
+    An agent with `agent.memory` needs its env wrapped by `ncbot.modules.recurrent.memory_env` (`evaluate_agent` does
     it): callers that do so pass `recurrent=True`; for the others (they step their own envs) such an agent is a
     one-line error rather than a KeyError on `is_init` mid-game."""
-    from modules.device import resolve_device
-    from modules.policy import make_policies
-    from modules.recurrent import make_agent_qnet
-    from pipelines.checkpoint import load_agent_checkpoint
+    from ncbot.modules.device import resolve_device
+    from ncbot.modules.policy import make_policies
+    from ncbot.modules.recurrent import make_agent_qnet
+    from ncbot.pipelines.checkpoint import load_agent_checkpoint
     from torchrl.data import Categorical
 
     config, data = load_agent_checkpoint(checkpoint_path)  # keys, config and weight shapes checked: one-line errors
     if not recurrent:
-        from modules.recurrent import require_feedforward
+        from ncbot.modules.recurrent import require_feedforward
 
         require_feedforward(config, "this command")
     qnet = make_agent_qnet(data["n_features"], data["n_actions"], config.agent)  # agent.memory's network or the MLP
@@ -54,7 +54,7 @@ def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu")
 def resolve_lookahead(name: str, free_move: str) -> str:
     """A `--lookahead` choice -> the mask rule name for this game's rule variant (`k3` -> `k3_open` on
     `open_subgrids`); ValueError naming the allowed choices otherwise."""
-    from modules.masks import LOOKAHEAD_RULES
+    from ncbot.modules.masks import LOOKAHEAD_RULES
 
     rule = name.strip()
     if free_move == "open_subgrids" and rule.startswith("k") and not rule.endswith("_open"):
@@ -74,15 +74,15 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
     acts stay greedy); with both, the search's root skips the moves the k-step rule proves lost (when some
     move survives). ``value``: a value network (``ncbot train-value``) scores the search's leaves.
     """
-    from modules.masks import lookahead_rule
-    from modules.policy import make_policies
+    from ncbot.modules.masks import lookahead_rule
+    from ncbot.modules.policy import make_policies
 
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     check_value_option(value, search)
     config, greedy = load_agent(checkpoint, recurrent=True)  # the ladder plays it through evaluate_agent
     if lookahead is not None or search:
-        from modules.recurrent import require_feedforward
+        from ncbot.modules.recurrent import require_feedforward
 
         require_feedforward(config, "--search" if search else "--lookahead")
     if lookahead is not None:
@@ -95,7 +95,7 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
     description = f"greedy Q, masks {config.lookahead}"
     if not search:
         return config, greedy, description
-    from modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
 
     mcts = guided_search(config, greedy, search, value=value)  # the loaded Q-network, not a second read of the file
     rule = lookahead_rule(config.lookahead)
@@ -122,12 +122,12 @@ class AgentOpponent:
     def __init__(self, checkpoint: str, game: str, free_move: str, seed: int) -> None:
         import torch
 
-        from envs.rules import make_game
-        from modules.guided_mcts import TurnFeatures
-        from modules.qnet import make_qnet
-        from pipelines.checkpoint import load_agent_checkpoint
+        from ncbot.envs.rules import make_game
+        from ncbot.modules.guided_mcts import TurnFeatures
+        from ncbot.modules.qnet import make_qnet
+        from ncbot.pipelines.checkpoint import load_agent_checkpoint
 
-        from modules.recurrent import require_feedforward
+        from ncbot.modules.recurrent import require_feedforward
 
         config, data = load_agent_checkpoint(checkpoint)
         require_feedforward(config, "opponent 'agent:CHECKPOINT'")
@@ -146,7 +146,7 @@ class AgentOpponent:
     def select(self, boards, last_move, legal, player, generator=None, owners=None):
         import torch
 
-        from envs.opponents.lines import subgrid_owners
+        from ncbot.envs.opponents.lines import subgrid_owners
 
         rows = boards.shape[0]
         features = self.features.batch(boards, player, last_move)
@@ -165,7 +165,7 @@ class AgentOpponent:
 
     def _lookahead(self, board: list[int], last_move: int, player: int, choices: list[int], owners) -> list[int]:
         """Algorithm 2 on game moves: the winning cells if any, else the cells that do not lose at once."""
-        from envs.rules import DRAWN, State
+        from ncbot.envs.rules import DRAWN, State
 
         other = 3 - player
         mover_is_x = board.count(player) == board.count(other)
@@ -190,7 +190,7 @@ class AgentOpponent:
 
 def register_agent_opponent() -> None:
     """Make ``agent:CHECKPOINT`` a valid opponent name (envs cannot import pipelines, so pipelines registers it)."""
-    from envs.opponents import register_opponent
+    from ncbot.envs.opponents import register_opponent
 
     def factory(arg, *, game, free_move, seed):
         if not arg:
@@ -205,14 +205,14 @@ def register_agent_opponent() -> None:
 def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""
-    from modules.guided_mcts import GuidedMCTS, TurnFeatures
-    from modules.recurrent import require_feedforward
+    from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
+    from ncbot.modules.recurrent import require_feedforward
 
     require_feedforward(config, "the Q-guided search")
     free_move = free_move or config.env.free_move
     value_net = None
     if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
-        from modules.value_net import load_value_net
+        from ncbot.modules.value_net import load_value_net
 
         value_net = load_value_net(value, free_move)
     qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
@@ -228,7 +228,7 @@ def load_guided_search(checkpoint: str, simulations: int, free_move: str | None 
 
 def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0, value: str | None = None):
     """(config, policy) for eval / ladder: the agent's greedy dialogue policy with game moves chosen by the search."""
-    from modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
 
     config, greedy = load_agent(checkpoint)
     return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations, value=value), seed)
@@ -236,8 +236,8 @@ def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0, value: s
 
 def register_qmcts_opponent() -> None:
     """Make ``qmcts:N:CHECKPOINT`` (MCTS guided by a trained agent's Q-network) a valid opponent name."""
-    from envs.opponents import register_opponent
-    from modules.guided_mcts import QMCTSOpponent, parse_qmcts
+    from ncbot.envs.opponents import register_opponent
+    from ncbot.modules.guided_mcts import QMCTSOpponent, parse_qmcts
 
     def factory(arg, *, game, free_move, seed):
         simulations, checkpoint = parse_qmcts(arg)

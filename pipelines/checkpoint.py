@@ -1,11 +1,11 @@
-"""Checkpoints: written atomically (`fileio.atomic_path`), read back with `weights_only=True`.
+"""Checkpoints: written atomically (`ncbot.fileio.atomic_path`), read back with `weights_only=True`.
 
 Two kinds live in a run folder:
 - `checkpoint.pt`: the final agent (Q-network weights + resolved config): what `ncbot eval` loads.
 - `checkpoints/step-NNNNNNNNN.pt`: periodic training state (network, target network, optimiser, epsilon, replay
   buffer, counters, RNG, evaluation history) that `ncbot train --resume DIR` continues from.
 A crash can leave a stray `.NAME.*.tmp` file but never a half-written checkpoint under its final name; every run
-removes such leftovers once it holds the folder's lock (`pipelines.run_folder`). Loaders check keys and weight
+removes such leftovers once it holds the folder's lock (`ncbot.pipelines.run_folder`). Loaders check keys and weight
 shapes against the stored config (`load_agent_checkpoint`, `check_training_state`) for a one-line reason.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any
 
 import torch
 
-from fileio import atomic_path
+from ncbot.fileio import atomic_path
 
 FORMAT = "ncbot-dqn/1"
 FINAL_NAME = "checkpoint.pt"
@@ -117,7 +117,7 @@ ACTIONS = {"standard": 18, "ultimate": 90}  # 9 / 81 game moves + 9 other dialog
 
 
 def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:
-    """The state-dict shapes `modules.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
+    """The state-dict shapes `ncbot.modules.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
     widths = [n_features, *hidden, n_actions]
     shapes: dict[str, tuple[int, ...]] = {}
     for layer, (inputs, outputs) in enumerate(zip(widths, widths[1:])):
@@ -137,7 +137,7 @@ def _require(data: dict[str, Any], keys: dict[str, Any], path: Path, expected: s
 def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
     """The Q-network weights match the sizes the config builds; ValueError naming the first mismatch."""
     if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/recurrent.py
-        from modules.recurrent import recurrent_qnet_shapes
+        from ncbot.modules.recurrent import recurrent_qnet_shapes
 
         expected = recurrent_qnet_shapes(data["n_features"], data["n_actions"], config.agent)
     else:
@@ -159,7 +159,7 @@ def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
 def load_agent_checkpoint(path: str | os.PathLike) -> tuple[Any, dict[str, Any]]:
     """(validated RunConfig, checkpoint dict) of a saved agent: keys, config and weight shapes checked, so a
     foreign or inconsistent file is one line naming what is wrong instead of a KeyError or size mismatch."""
-    from pipelines.config import config_from_dict
+    from ncbot.pipelines.config import config_from_dict
 
     data = load_checkpoint(path)
     path = Path(path) / FINAL_NAME if Path(path).is_dir() else Path(path)

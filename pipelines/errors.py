@@ -74,7 +74,7 @@ def one_line(error: BaseException) -> str | None:
     """The one line for an expected failure, or None when `error` is a bug that deserves a traceback."""
     import yaml
 
-    from pipelines.extras import extra_line
+    from ncbot.pipelines.extras import extra_line
 
     missing = extra_line(error)  # an optional extra (pyproject.toml) that is not installed
     if missing is not None:

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from fileio import atomic_path
+from ncbot.fileio import atomic_path
 
 CURVES = (
     ("avg_reward", "avg reward / action"),

@@ -1,4 +1,4 @@
-"""One place that turns the `env` section of a run config into `envs.make_env(...)` calls.
+"""One place that turns the `env` section of a run config into `ncbot.envs.make_env(...)` calls.
 
 Training, periodic evaluation and `ncbot eval` all build their envs here, so who opens (`first`) or an opponent
 means the same thing everywhere.
@@ -14,8 +14,8 @@ FIRST_CHOICES = ("robot", "human", "alternate")  # who opens test games (`--firs
 def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | None = None,
                  opponent: str | None = None, hearing: Any = None):
     """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random); `hearing`
-    (e.g. a `speech.hearing.RecogniserHearing`) replaces the ears `env.asr` would give it."""
-    from envs import make_env
+    (e.g. a `ncbot.speech.hearing.RecogniserHearing`) replaces the ears `env.asr` would give it."""
+    from ncbot.envs import make_env
 
     readings = {"taken_squares": env_config.taken_squares, "misread_rate": env_config.misread_rate,
                 "win_set": env_config.win_set, "about_to": env_config.about_to, "dialogues": env_config.dialogues,
@@ -52,9 +52,9 @@ def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[
                      subset: tuple[int, int] | None = None):
     """Cached: evaluation builds envs every few thousand frames; the hearing holds no state (the env's generator
     draws its noise), so games and seeds can share one."""
-    from envs.dialogue import build_dialogue_model
-    from speech.channel import DEFAULT_CHANNEL, ChannelModel
-    from speech.hearing import ChannelHearing
+    from ncbot.envs.dialogue import build_dialogue_model
+    from ncbot.speech.channel import DEFAULT_CHANNEL, ChannelModel
+    from ncbot.speech.hearing import ChannelHearing
 
     dialogue = build_dialogue_model(game, dialogues, subset)
     model = ChannelModel.load(DEFAULT_CHANNEL if path is None else path)

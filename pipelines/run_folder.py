@@ -2,12 +2,12 @@
 
 Why: two runs writing one folder deleted each other's checkpoints and interleaved one log, and a fresh run into an
 old folder resumed the old run's state after a kill. So:
-- `pipelines.outputs.check_writable_dir` refuses an output that is a file or cannot be written, before any work;
+- `ncbot.pipelines.outputs.check_writable_dir` refuses an output that is a file or cannot be written, before any work;
 - `RunFolder.open` takes an exclusive `flock` on RUN/.lock (a second writer gets one line and exit 2; the kernel
   drops the lock when a run dies, so a killed run's lock is taken over without a stale-pid dance), then either
   claims a fresh folder (refusing one that holds another run unless `overwrite`), or, to resume, picks the newest
   periodic checkpoint of THIS run (run.json's id) that loads, falling back past damaged ones and saying which;
-- stray temp files of killed writers (`fileio.TEMP_GLOB`) anywhere in the folder are removed once the lock is ours;
+- stray temp files of killed writers (`ncbot.fileio.TEMP_GLOB`) anywhere in the folder are removed once the lock is ours;
 - the MCAP log is rolled at every checkpoint (`EpisodeLogger.roll`), the checkpoint records the first file written
   after it, and a resume deletes the files from there on: the log keeps exactly the episodes the counters count.
 """
@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fileio import TEMP_GLOB, atomic_write_text
-from pipelines.outputs import check_writable_dir
+from ncbot.fileio import TEMP_GLOB, atomic_write_text
+from ncbot.pipelines.outputs import check_writable_dir
 
 IDENTITY_NAME = "run.json"
 LOCK_NAME = ".lock"
@@ -44,7 +44,7 @@ def holds_run(path: Path) -> bool:
 
 
 def remove_stray_temp_files(run_dir: str | os.PathLike) -> list[Path]:
-    """Delete the temp files `fileio.atomic_path` leaves when a writer is killed mid-write, anywhere in the run
+    """Delete the temp files `ncbot.fileio.atomic_path` leaves when a writer is killed mid-write, anywhere in the run
     folder; only for a folder whose lock we hold (no other writer)."""
     stray = [p for p in Path(run_dir).rglob(TEMP_GLOB) if p.is_file()]
     for path in stray:
@@ -66,7 +66,7 @@ def drop_logs_after(path: Path, next_file: int | None) -> list[Path]:
     """Delete MCAP files numbered `next_file` or later: episodes played after the checkpoint a run resumes from."""
     if next_file is None:
         return []
-    from logs.reader import FILE_PATTERN
+    from ncbot.logs.reader import FILE_PATTERN
 
     dropped = [p for p in path.glob(MCAP_GLOB) if (m := FILE_PATTERN.match(p.name)) and int(m.group(1)) >= next_file]
     for log in dropped:
@@ -145,7 +145,7 @@ class RunFolder:
 
     @classmethod
     def _resume(cls, path: Path, validate: Callable[[dict[str, Any], Path], None] | None) -> RunFolder:
-        from pipelines.checkpoint import newest_resumable, periodic_checkpoints
+        from ncbot.pipelines.checkpoint import newest_resumable, periodic_checkpoints
 
         run_id = read_run_id(path)
 

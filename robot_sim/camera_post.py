@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from robot_sim.scene_conditions import CameraEffects
+from ncbot.robot_sim.scene_conditions import CameraEffects
 
 
 class CameraPost:

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from robot_sim.scene_conditions import (LAB_INK_BGR, LAB_SKIN, LAB_SLEEVE, CameraEffects, Light, Prop, Range,
+from ncbot.robot_sim.scene_conditions import (LAB_INK_BGR, LAB_SKIN, LAB_SLEEVE, CameraEffects, Light, Prop, Range,
                                         SceneConditions, kelvin_to_rgb)
-from robot_sim.sheet_shape import sample_sheet_shape
+from ncbot.robot_sim.sheet_shape import sample_sheet_shape
 
 PRESETS_NAMES = ("lab", "office", "atrium", "random")
 CLUTTER_KINDS = ("cup", "phone", "pen", "scrap", "sheet")
@@ -120,7 +120,7 @@ class ConditionRanges:
         if abs(self.sheet_yaw[0]) > 30 or abs(self.sheet_yaw[1]) > 30 or self.sheet_offset[1] > 0.05:
             raise ValueError(f"conditions {self.name!r}: the sheet may turn at most 30 degrees and move at most 0.05 m "
                              f"(the robot must still reach it); got yaw {self.sheet_yaw}, offset {self.sheet_offset}")
-        from speech.noise import NOISE_KINDS
+        from ncbot.speech.noise import NOISE_KINDS
 
         if not self.speech_noise or any(kind not in NOISE_KINDS for kind in self.speech_noise):
             raise ValueError(f"conditions {self.name!r}: speech_noise must be a non-empty list of {', '.join(NOISE_KINDS)}; "
@@ -198,7 +198,7 @@ def load_conditions(spec: str | Path) -> ConditionRanges:
     path = Path(text)
     if not path.is_file():
         raise FileNotFoundError(f"conditions {text!r} is neither a preset ({', '.join(PRESETS_NAMES)}) nor a YAML file")
-    from fileio.yaml_file import read_yaml
+    from ncbot.fileio.yaml_file import read_yaml
 
     data = read_yaml(path, "conditions file", "a YAML mapping: base: <preset> plus fields to override") or {}
     if not isinstance(data, dict):

@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 
-from robot_sim.scene_conditions import Prop, SceneConditions
-from robot_sim.sheet_shape import SheetShape
-from robot_sim.textures import surface_texture
+from ncbot.robot_sim.scene_conditions import Prop, SceneConditions
+from ncbot.robot_sim.sheet_shape import SheetShape
+from ncbot.robot_sim.textures import surface_texture
 
 #: A bystander's arm leaves the view with this probability per frame once it is in.
 BYSTANDER_LEAVE = 0.35

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from envs.core import FIRST_CHOICES
-from robot_sim.conditions import ConditionRanges, load_conditions
-from robot_sim.human import HumanConfig
-from robot_sim.scene import check_game
+from ncbot.envs.core import FIRST_CHOICES
+from ncbot.robot_sim.conditions import ConditionRanges, load_conditions
+from ncbot.robot_sim.human import HumanConfig
+from ncbot.robot_sim.scene import check_game
 
 SPEECH_MODES = ("real", "text")
 

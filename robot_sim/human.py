@@ -2,7 +2,7 @@
 
 The human's arm (forearm, hand and pen, simple primitives) comes in from the far side of the table, so while
 drawing it hides part of the sheet from the robot's mouth camera, as a real player's hand does. The cell
-comes from the same opponent models the dialogue env uses (`envs.opponents`, random by default), applied to
+comes from the same opponent models the dialogue env uses (`ncbot.envs.opponents`, random by default), applied to
 the TRUE board, which the human sees; the robot only sees frames. Optional noise: a human who waits a
 while before drawing, and a sheet nudged a little after a move.
 """
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_sim.sheet import HUMAN_INK, MarkSpec
+from ncbot.robot_sim.sheet import HUMAN_INK, MarkSpec
 
 FrameSink = Callable[[np.ndarray, float], None]
 
@@ -22,7 +22,7 @@ FrameSink = Callable[[np.ndarray, float], None]
 class HumanConfig:
     """How the simulated person behaves."""
 
-    #: Opponent model name (`envs.opponents.make_opponent`): random, rule, minimax, mcts:N.
+    #: Opponent model name (`ncbot.envs.opponents.make_opponent`): random, rule, minimax, mcts:N.
     opponent: str = "random"
     #: Frames rendered while the pen moves (the mark grows over these).
     drawing_frames: int = 6
@@ -58,7 +58,7 @@ class SimulatedHuman:
         if self.config.opponent == "random":
             return None
         try:
-            from envs.opponents import make_opponent
+            from ncbot.envs.opponents import make_opponent
         except ImportError as error:  # pragma: no cover - the opponents package is part of ncbot
             raise ValueError(f"opponent {self.config.opponent!r} needs envs.opponents ({error}); use 'random'") from None
         game_name = "standard" if self.scene.grid == 3 else "ultimate"

@@ -45,7 +45,7 @@ def pixel_rays(scene, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def localise_sheet(scene, frame_rgb: np.ndarray) -> SheetEstimate | None:
     """The sheet's pose from a frame, or None if the page cannot be found (then keep the last estimate)."""
-    from vision.page import find_page
+    from ncbot.vision.page import find_page
 
     corners = find_page(np.ascontiguousarray(frame_rgb[:, :, ::-1]))
     if corners is None:

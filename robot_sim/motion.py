@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_sim.ik import PositionIK
-from robot_sim.pepper_model import ARM_JOINTS, TOOL_LINKS
-from robot_sim.sheet import MarkSpec
+from ncbot.robot_sim.ik import PositionIK
+from ncbot.robot_sim.pepper_model import ARM_JOINTS, TOOL_LINKS
+from ncbot.robot_sim.sheet import MarkSpec
 
 FrameCallback = Callable[[np.ndarray, float], None]
 

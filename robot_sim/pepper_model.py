@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from fileio import atomic_write_text
+from ncbot.fileio import atomic_write_text
 
 PACKAGED_URDF = Path(__file__).parent / "assets" / "pepper.urdf"
 

@@ -2,7 +2,7 @@
 
 The robot perceives only through rendered mouth-camera frames (the vision package's move recogniser,
 Algorithm 1 of the paper) and the dialogue: with `speech: real` it speaks its templates and hears the simulated
-person's spoken replies through the real recogniser (`robot_sim.speech`), with `speech: text` the env's
+person's spoken replies through the real recogniser (`ncbot.robot_sim.speech`), with `speech: text` the env's
 simulated ASR gives it the words said at random confidences. It decides with a policy over the SAME
 dialogue env state the agent was trained on, and acts through the simulator. The glue is an "external"
 opponent handed to the env: when the env needs the human's move, the simulated person draws on the sheet
@@ -10,7 +10,7 @@ opponent handed to the env: when the env needs the human's move, the simulated p
 and therefore the robot's state, believes. Wins, draws and losses are judged on the true board; every move
 the recogniser got wrong is counted.
 
-One game = one episode: everything goes through `logs.EpisodeLogger` (camera frames as
+One game = one episode: everything goes through `ncbot.logs.EpisodeLogger` (camera frames as
 `foxglove.CompressedImage`, joint states, transforms, dialogue, with real speech every utterance's audio as
 `foxglove.RawAudio` on `/audio/robot` and `/audio/user` and what was heard on `/dialogue`, the believed board per
 step, and the true board per step in the episode summary); a PNG snapshot of the camera view closes each game.
@@ -27,16 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from fileio import atomic_write_bytes
-from robot_sim.game_config import RobotPlayConfig
-from robot_sim.human import SimulatedHuman
-from robot_sim.localise import localise_sheet
-from robot_sim.motion import RobotMotion
-from robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
-from robot_sim.scene import PepperScene, SceneConfig, check_game
-from robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
-from robot_sim.speech import GameSpeech, Speaker, SpeechLog
-from robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
+from ncbot.fileio import atomic_write_bytes
+from ncbot.robot_sim.game_config import RobotPlayConfig
+from ncbot.robot_sim.human import SimulatedHuman
+from ncbot.robot_sim.localise import localise_sheet
+from ncbot.robot_sim.motion import RobotMotion
+from ncbot.robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
+from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game
+from ncbot.robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
+from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog
+from ncbot.robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
 
 __all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
@@ -98,8 +98,8 @@ class RobotGameRunner:
         self.speech = GameSpeech(config.game, self._ranges) if config.speech == "real" else None
         self.speaker = self._robot_speaker()
         self.records: list[GameRecord] = []
-        from envs.rules import make_game
-        from vision.recogniser import MoveRecogniser
+        from ncbot.envs.rules import make_game
+        from ncbot.vision.recogniser import MoveRecogniser
 
         self.rules = make_game(config.game, config.free_move)
         self.grid = check_game(config.game)
@@ -108,7 +108,7 @@ class RobotGameRunner:
 
     def _robot_speaker(self) -> Speaker:
         """The robot's voice: espeak-ng with real speech (or for --audio WAVs when installed), else text only."""
-        from speech.tts import ROBOT_VOICE
+        from ncbot.speech.tts import ROBOT_VOICE
 
         audio_dir = self.out_dir / "speech" if (self.config.audio and self.out_dir) else None
         if self.speech is not None:
@@ -281,7 +281,7 @@ class RobotGameRunner:
 
     # ------------------------------------------------------------------ one game
     def play_game(self, index: int) -> GameRecord:
-        from envs import make_env
+        from ncbot.envs import make_env
         from torchrl.envs.utils import step_mdp
 
         cfg = self.config
@@ -365,7 +365,7 @@ class RobotGameRunner:
 
     def _check_own_mark(self, cell: int) -> None:
         """After drawing, look at the sheet once (the robot's own check that its mark landed in the cell)."""
-        from vision.grid import read_page
+        from ncbot.vision.grid import read_page
 
         frame = self._home_frame = self.scene.render()
         self._log_frame(frame, self.scene.time)
@@ -411,21 +411,21 @@ class RobotGameRunner:
         return self.report()
 
     def report(self) -> dict[str, Any]:
-        """The JSON report of `ncbot robot play` (`robot_sim.report.games_report`)."""
+        """The JSON report of `ncbot robot play` (`ncbot.robot_sim.report.games_report`)."""
         return games_report(self.records, self.config)
 
 
 def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
                      log_mcap: bool = True, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
     """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
-    from modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.masks import LookaheadOnlyPolicy
 
     config.validate()
     if policy is None:
         policy = LookaheadOnlyPolicy(seed=config.seed)
     logger = None
     if out_dir is not None and log_mcap:
-        from logs import EpisodeLogger
+        from ncbot.logs import EpisodeLogger
 
         logger = EpisodeLogger(out_dir, run_info={"robot_play": asdict(config)})
     try:

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from fileio import atomic_write_text
-from robot_sim.game_config import RobotPlayConfig
+from ncbot.fileio import atomic_write_text
+from ncbot.robot_sim.game_config import RobotPlayConfig
 
 
 @dataclass

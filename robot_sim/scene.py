@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_sim.camera_post import CameraPost
-from robot_sim.conditions import PRESETS, ConditionRanges, SceneConditions, sample_conditions
-from robot_sim.dressing import SceneDressing, add_bent_sheet_visual
-from robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
+from ncbot.robot_sim.camera_post import CameraPost
+from ncbot.robot_sim.conditions import PRESETS, ConditionRanges, SceneConditions, sample_conditions
+from ncbot.robot_sim.dressing import SceneDressing, add_bent_sheet_visual
+from ncbot.robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACKAGED_URDF, TOOL_LINKS,
                                     write_pepper_urdf)
-from robot_sim.render_system import new_render_system
-from robot_sim.sheet import SheetCanvas
+from ncbot.robot_sim.render_system import new_render_system
+from ncbot.robot_sim.sheet import SheetCanvas
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.

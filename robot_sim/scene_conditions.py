@@ -1,6 +1,6 @@
 """One game's concrete scene: the lights, props, camera effects and sheet that `PepperScene` builds.
 
-Why its own module: `robot_sim.conditions` says how widely a scene may vary and draws one game from a seed; what
+Why its own module: `ncbot.robot_sim.conditions` says how widely a scene may vary and draws one game from a seed; what
 it draws (`SceneConditions`) is read by the scene, its dressing and the camera's post-processing, which need the
 values and not the ranges. The defaults are the lab scene the robot was built in (kept bit-identical).
 """
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_sim.sheet_shape import SheetShape
+from ncbot.robot_sim.sheet_shape import SheetShape
 
 Range = tuple[float, float]
 

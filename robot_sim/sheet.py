@@ -3,7 +3,7 @@
 The canvas is kept in camera orientation (row 0 = far edge seen from the robot, column 0 = the robot's left)
 so cell indices mean the same thing to the renderer, the vision reader and the game: row-major from the
 top-left corner as the robot sees the sheet. The grid layout and the hand-drawn marks come from `vision`
-(`vision.sheet`, `vision.strokes`), so what the camera sees is what the reader was built for.
+(`ncbot.vision.sheet`, `ncbot.vision.strokes`), so what the camera sees is what the reader was built for.
 
 Marks are redrawn from their seed at every `progress`, so a mark can grow stroke by stroke over frames
 without keeping partial state; finished marks are baked into `_committed` once.
@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision.sheet import cell_center, cell_size, draw_sheet
-from vision.strokes import Stroke, draw_mark, mark_strokes
+from ncbot.vision.sheet import cell_center, cell_size, draw_sheet
+from ncbot.vision.strokes import Stroke, draw_mark, mark_strokes
 
 MARK_OF_PLAYER = {"x": "cross", "o": "nought"}
 HUMAN_INK = (120, 40, 20)   # BGR: a blue ballpoint

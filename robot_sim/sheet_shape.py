@@ -1,6 +1,6 @@
 """The game sheet's shape when it is not lying flat: a curled edge, a fold's crease (field conditions).
 
-Drawn per game by `robot_sim.conditions` (ranges `curl_*`, `fold_*`), used by `robot_sim.dressing` to build the
+Drawn per game by `ncbot.robot_sim.conditions` (ranges `curl_*`, `fold_*`), used by `ncbot.robot_sim.dressing` to build the
 sheet as a bent mesh (its shading then comes from the scene's lights) and by the scene to put the robot's pen
 on the bent surface.
 """

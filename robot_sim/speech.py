@@ -3,9 +3,9 @@ another voice over the room's background noise, and the real recogniser hears th
 
 `Speaker` keeps every utterance's text (what `/dialogue` logs) and, with a voice, synthesises it (speech.tts,
 cached per text and voice). `GameSpeech` holds what all games of a run share (the pocketsphinx recognisers,
-the TTS cache, the babble talkers' audio) and builds each game's ears: a `speech.hearing.RecogniserHearing`
+the TTS cache, the babble talkers' audio) and builds each game's ears: a `ncbot.speech.hearing.RecogniserHearing`
 that the dialogue env takes as its `hearing` (the same hook `env.asr: channel` uses in training), and the
-`speech.cell_answers.AnswerEars` that hear the answer to "where did you draw?" (robot_sim.where).
+`ncbot.speech.cell_answers.AnswerEars` that hear the answer to "where did you draw?" (robot_sim.where).
 
 Held out from the channel model's fit (speech/fit.py, docs/speech.md): the person is one of the four flite voices
 at their normal rate (the fit heard them at 0.85 and 1.15), babble comes from the report set of espeak-ng
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_sim.conditions import ConditionRanges
+from ncbot.robot_sim.conditions import ConditionRanges
 
 # SeedSequence words that keep the game's speech draws apart from its others (and the answers' noise apart
 # from the dialogue's, so a game's dialogue is heard the same with or without unseen moves)
@@ -27,11 +27,11 @@ PERSON_SALT, NOISE_SALT, ANSWER_NOISE_SALT = 150, 151, 152
 
 
 class Speaker:
-    """Says template utterances: keeps the text; with `voice` (a `speech.tts.Voice`) it synthesises them and
+    """Says template utterances: keeps the text; with `voice` (a `ncbot.speech.tts.Voice`) it synthesises them and
     returns the samples; with `audio_dir` too it writes one WAV per utterance (`utterance-NNNN.wav`)."""
 
     def __init__(self, audio_dir: str | Path | None = None, voice=None, cache=None) -> None:
-        from speech.tts import SpeechCache
+        from ncbot.speech.tts import SpeechCache
 
         self.voice = voice
         self.cache = cache if cache is not None else SpeechCache()
@@ -55,7 +55,7 @@ class Speaker:
         samples, _ = self.cache.speak(text, self.voice)
         self.tts_seconds.append(time.perf_counter() - started)
         if self.audio_dir is not None:
-            from speech.audio import write_wav
+            from ncbot.speech.audio import write_wav
 
             write_wav(self.audio_dir / f"utterance-{len(self.said) - 1:04d}.wav", samples)
         return samples
@@ -65,13 +65,13 @@ class GameSpeech:
     """The speech parts every game of a run shares, and each game's ears drawn from its seed."""
 
     def __init__(self, game: str, ranges: ConditionRanges) -> None:
-        from envs.dialogue import build_dialogue_model
-        from robot_sim.scene import check_game
-        from speech.asr import Recogniser
-        from speech.cell_answers import answer_sentences, confirm_sentences
-        from speech.fit import REPORT_BABBLE_VOICES, babble_texts
-        from speech.roundtrip import babble_pool
-        from speech.tts import SpeechCache
+        from ncbot.envs.dialogue import build_dialogue_model
+        from ncbot.robot_sim.scene import check_game
+        from ncbot.speech.asr import Recogniser
+        from ncbot.speech.cell_answers import answer_sentences, confirm_sentences
+        from ncbot.speech.fit import REPORT_BABBLE_VOICES, babble_texts
+        from ncbot.speech.roundtrip import babble_pool
+        from ncbot.speech.tts import SpeechCache
 
         dialogue = build_dialogue_model(game)
         self.texts, self.words = dialogue.utterance_texts, dialogue.words
@@ -87,8 +87,8 @@ class GameSpeech:
 
     def hearing(self, seed: int):
         """The ears of the game with `seed`: its person's voice and noise kind drawn once, SNR per utterance."""
-        from speech.fit import REPORT_VOICES
-        from speech.hearing import RecogniserHearing
+        from ncbot.speech.fit import REPORT_VOICES
+        from ncbot.speech.hearing import RecogniserHearing
 
         rng = np.random.default_rng([seed, PERSON_SALT])
         voice = REPORT_VOICES[int(rng.integers(len(REPORT_VOICES)))]
@@ -102,7 +102,7 @@ class GameSpeech:
     def answer_ears(self, seed: int, hearing):
         """The ears for the game's answers to "where did you draw?": the same person, noise kind and SNR range as
         `hearing` (this game's), the noise from its own seed, the answers' recognisers started afresh."""
-        from speech.cell_answers import AnswerEars
+        from ncbot.speech.cell_answers import AnswerEars
 
         self.cell_recogniser.reset()
         self.confirm_recogniser.reset()
@@ -125,8 +125,8 @@ class SpeechLog:
     def utterance(self, speaker: str, samples: np.ndarray, text: str, scene_time: float, count: bool = True) -> float:
         """Log one utterance starting at `scene_time` (or when the one before ends); returns its timestamp.
         `count`: add it to the record's utterances per speaker (the dialogue's; answers are counted apart)."""
-        from speech import SAMPLE_RATE
-        from speech.audio import AUDIO_TOPICS, raw_audio
+        from ncbot.speech import SAMPLE_RATE
+        from ncbot.speech.audio import AUDIO_TOPICS, raw_audio
 
         t = max(scene_time, self.clock)
         seconds = samples.size / SAMPLE_RATE
@@ -141,7 +141,7 @@ class SpeechLog:
 
     def heard(self, hearing, heard: list, scene_time: float) -> None:
         """The person's replies `hearing` (a `RecogniserHearing`) heard in the last env step."""
-        from speech.align import word_errors
+        from ncbot.speech.align import word_errors
 
         record = self.record
         for utterance in heard:
@@ -163,7 +163,7 @@ class SpeechLog:
     def answer(self, utterance, question: str, scene_time: float) -> None:
         """One of the person's answers to the robot's `question` about an unseen move (a `HeardUtterance` whose
         `understood` is the cell heard): audio on `/audio/user`, words and cell on the user's `/dialogue` turn."""
-        from speech.align import word_errors
+        from ncbot.speech.align import word_errors
 
         t = self.utterance("user", utterance.samples, utterance.said, scene_time, count=False)
         record = self.record

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from speech.cell_answers import CONFIRM_NO, CONFIRM_YES, AnswerEars, cell_phrase
+from ncbot.speech.cell_answers import CONFIRM_NO, CONFIRM_YES, AnswerEars, cell_phrase
 
 ASK_WHERE = "I could not see your move, where did you draw?"  # also text mode's question (the answer: the dialogue)
 ASK_AGAIN = "Sorry, I did not get that. Where did you draw?"
@@ -32,7 +32,7 @@ def ask_where(true_cell: int, legal: np.ndarray, ears: AnswerEars, say: Callable
     """The cell the robot settles on from the person's spoken answers, or None if the questions settled nothing.
 
     `legal` marks the cells free on the robot's board; `say(text)` speaks a robot question; `heard(utterance,
-    question)` logs each of the person's answers (a `speech.hearing.HeardUtterance`)."""
+    question)` logs each of the person's answers (a `ncbot.speech.hearing.HeardUtterance`)."""
     grid = ears.grid
     for ask in range(max_asks):
         question = ASK_WHERE if ask == 0 else ASK_AGAIN

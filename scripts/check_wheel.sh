@@ -8,9 +8,8 @@
 #
 # The venv gets torch==2.13.0 first (the CPU build from local disk: a plain torch requirement would pull the CUDA
 # build), then PyPI's `envs` package, then the wheel with -c constraints.txt. `envs` is there on purpose: ncbot's
-# top-level packages (envs, modules, pipelines, ...) still share names with other PyPI packages, and the check says
-# so. Until they move under an `ncbot` namespace that clash is an expected failure (XFAIL, reported, not fatal);
-# NCBOT_STRICT_NAMESPACE=1 makes it fatal (switch it on in .ci/run once the namespace lands).
+# packages keep the repository's folder names (envs, modules, pipelines, ...), which other PyPI packages also use;
+# installed, they live under `ncbot.` (pyproject's package-dir), so both must import side by side.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$PWD
@@ -34,13 +33,16 @@ python - "$wheel" "$repo" <<'EOF'
 import subprocess, sys, zipfile
 wheel, repo = sys.argv[1:]
 names = set(zipfile.ZipFile(wheel).namelist())
-packages = ("fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
+packages = ("ncbot", "fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
 tracked = subprocess.run(["git", "-C", repo, "ls-files", *packages], capture_output=True, text=True, check=True).stdout.split()
 wanted = [p for p in tracked if not p.startswith("vision/reports/") and "/__pycache__/" not in p]
-missing = [p for p in wanted if p not in names]
-configs = sorted(p for p in names if p.startswith("pipelines/configs/"))
-print(f"[check_wheel] wheel holds {len(configs)} configs under pipelines/configs/ "
-      f"(default.yaml: {'pipelines/configs/default.yaml' in names}); "
+missing = [p for p in wanted if (p if p.startswith("ncbot/") else f"ncbot/{p}") not in names]
+configs = sorted(p for p in names if p.startswith("ncbot/pipelines/configs/"))
+strays = sorted({p.split("/")[0] for p in names if not p.startswith(("ncbot/", "ncbot-"))})
+if strays:
+    sys.exit("[check_wheel] FAIL: top-level names outside ncbot/ in the wheel: " + ", ".join(strays))
+print(f"[check_wheel] wheel holds {len(configs)} configs under ncbot/pipelines/configs/ "
+      f"(default.yaml: {'ncbot/pipelines/configs/default.yaml' in names}); "
       f"{len(wanted) - len(missing)}/{len(wanted)} tracked package files")
 if missing:
     sys.exit("[check_wheel] FAIL: missing from the wheel: " + ", ".join(missing))
@@ -66,12 +68,15 @@ log "no extra installed (sapien, pocketsphinx, fastapi, uvicorn, websockets, htt
 # 5. the main job's commands, shortened, from an empty folder (nothing of the clone on the path)
 ncbot="$work/venv/bin/ncbot"
 rm -rf "$work/empty" && mkdir -p "$work/empty" && cd "$work/empty"
-where=$(env -u PYTHONPATH "$py" -c "import pipelines; print(pipelines.__file__)")
-case "$where" in "$work/venv/"*) ;; *) fail "pipelines comes from $where, not from the installed wheel" ;; esac
-# the README's path: no pipelines/ folder here, so ncbot reads the config shipped in the wheel
-config=pipelines/configs/default.yaml
+where=$(env -u PYTHONPATH "$py" -c "import ncbot.pipelines; print(ncbot.pipelines.__file__)")
+case "$where" in "$work/venv/"*) ;; *) fail "ncbot.pipelines comes from $where, not from the installed wheel" ;; esac
 env -u PYTHONPATH "$ncbot" version
-env -u PYTHONPATH "$ncbot" train "$config" --out run collector.total_frames=4096 collector.init_random_frames=512 \
+env -u PYTHONPATH "$ncbot" configs >configs.txt && head -3 configs.txt
+# a shipped config by name, and the README's path (no pipelines/ folder here: the config shipped in the wheel)
+env -u PYTHONPATH "$ncbot" train pipelines/configs/default.yaml --out readme-path collector.total_frames=1024 \
+  collector.init_random_frames=512 eval.games=10 eval.periodic_games=10 train.eval_every_frames=1024 >readme.log 2>&1 \
+  || { tail -20 readme.log; fail "ncbot train pipelines/configs/default.yaml"; }
+env -u PYTHONPATH "$ncbot" train default train.device=cpu --out run collector.total_frames=4096 collector.init_random_frames=512 \
   eval.games=50 eval.periodic_games=50 train.eval_every_frames=2048 checkpoint.every_frames=2048 >train.log 2>&1 \
   || { tail -20 train.log; fail "ncbot train"; }
 tail -1 train.log
@@ -84,13 +89,10 @@ set +e; line=$(env -u PYTHONPATH "$ncbot" robot render -o mouth.png 2>&1); code=
 log "ncbot robot render without [robot]: $line"
 log "main-job commands ran from an empty folder at $(stamp)"
 
-# 6. the name clash with PyPI's `envs` (expected until the packages move under an `ncbot` namespace)
-ours=$(env -u PYTHONPATH "$py" -c "import envs; print('ncbot' if hasattr(envs, 'make_env') else 'foreign')")
-if env -u PYTHONPATH "$py" -c "import os; os.environ['NCBOT_PROBE'] = '7'; from envs import env; assert env('NCBOT_PROBE', var_type='integer') == 7" 2>/dev/null; then
-  log "XPASS: PyPI's envs package works beside ncbot (import envs -> $ours): make this check strict"
-else
-  msg="PyPI's envs package is shadowed: import envs -> $ours envs (ncbot's wheel overwrote envs/__init__.py); expected until the ncbot namespace lands"
-  if [ "${NCBOT_STRICT_NAMESPACE:-0}" = 1 ]; then fail "$msg"; fi
-  log "XFAIL: $msg"
-fi
+# 6. no clash with PyPI's `envs`: both import side by side, and the Gymnasium id is registered from the ncbot name
+env -u PYTHONPATH "$py" -c "import os; os.environ['NCBOT_PROBE'] = '7'; from envs import env; assert env('NCBOT_PROBE', var_type='integer') == 7" \
+  || fail "PyPI's envs package is shadowed by ncbot's wheel"
+env -u PYTHONPATH "$py" -c "import gymnasium, ncbot.envs as envs; env = gymnasium.make(envs.GYM_ID); env.reset(seed=0); print(envs.GYM_ID, 'from', envs.__name__)" \
+  | tail -1 || fail "the Gymnasium id from ncbot.envs"
+log "import envs gives PyPI's envs; ncbot's is ncbot.envs"
 log "done in $(stamp)"

@@ -54,7 +54,7 @@ if [ "$TORCH_BEFORE" != "$TORCH_AFTER" ]; then
   FAILED+=("torch changed from $TORCH_BEFORE to $TORCH_AFTER")
 fi
 set -x
-timeout 120 $PY -c "import torchrl, tensordict, pydantic, gymnasium, matplotlib, yaml, pipelines.train.run; print('imports ok: torchrl', torchrl.__version__, 'tensordict', tensordict.__version__)" \
+timeout 120 $PY -c "import torchrl, tensordict, pydantic, gymnasium, matplotlib, yaml, ncbot.pipelines.train.run; print('imports ok: torchrl', torchrl.__version__, 'tensordict', tensordict.__version__)" \
   || FAILED+=("imports")
 { set +x; } 2>/dev/null
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from speech import SAMPLE_RATE
+from ncbot.speech import SAMPLE_RATE
 
 GAMES = ("standard", "ultimate")
 
@@ -34,7 +34,7 @@ class Heard:
 
 def dialogue_sentences(games: Sequence[str] = GAMES) -> list[str]:
     """Every user utterance of the example dialogues of ``games`` (with repeats: the LM learns their frequency)."""
-    from envs.dialogue import load_dialogues, tokenize
+    from ncbot.envs.dialogue import load_dialogues, tokenize
 
     return [
         " ".join(tokenize(turn["says"]))

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio.atomic import atomic_path
-from speech import SAMPLE_RATE
+from ncbot.fileio.atomic import atomic_path
+from ncbot.speech import SAMPLE_RATE
 
 AUDIO_FORMAT = "pcm-s16"  # signed 16-bit little-endian PCM, interleaved (one channel here)
 AUDIO_TOPICS = {"robot": "/audio/robot", "user": "/audio/user"}

@@ -23,9 +23,9 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from speech.asr import Recogniser
-from speech.hearing import HeardUtterance, say_in_noise_and_hear
-from speech.tts import PERSON_VOICE, SpeechCache, Voice
+from ncbot.speech.asr import Recogniser
+from ncbot.speech.hearing import HeardUtterance, say_in_noise_and_hear
+from ncbot.speech.tts import PERSON_VOICE, SpeechCache, Voice
 
 ROWS, COLUMNS = ("top", "middle", "bottom"), ("left", "middle", "right")
 CONFIRM_YES, CONFIRM_NO = "yes, that is right", "no, that is wrong"

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from fileio.atomic import atomic_write_text
-from speech.align import align
-from speech.asr import Heard
-from speech.noise import NOISE_KINDS
+from ncbot.fileio.atomic import atomic_write_text
+from ncbot.speech.align import align
+from ncbot.speech.asr import Heard
+from ncbot.speech.noise import NOISE_KINDS
 
 BINS = 20  # confidence histogram bins over [0, 1]
 CLEAN_DB = 40.0  # where "clean" sits on the SNR axis when interpolating between levels
@@ -159,7 +159,7 @@ class ChannelModel:
     def load(cls, path: str | Path = DEFAULT_CHANNEL) -> ChannelModel:
         path = Path(path)
         if not path.is_file():
-            raise FileNotFoundError(f"ASR channel model {path} not found: fit one with `python -m speech.fit`")
+            raise FileNotFoundError(f"ASR channel model {path} not found: fit one with `python -m ncbot.speech.fit`")
         try:
             data = json.loads(path.read_text())
         except json.JSONDecodeError as error:

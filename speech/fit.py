@@ -1,4 +1,4 @@
-"""Fit the ASR channel model from real round trips: ``python -m speech.fit [--out PATH] [--seeds N]``
+"""Fit the ASR channel model from real round trips: ``python -m ncbot.speech.fit [--out PATH] [--seeds N]``
 (``--show`` prints the per-level figures of an existing model instead).
 
 The voices, noise seeds and babble talkers used here are kept apart from those bench/studies/speech_asr.py reports on
@@ -14,11 +14,11 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from speech.asr import Recogniser, dialogue_sentences
-from speech.channel import DEFAULT_CHANNEL, ChannelModel
-from speech.noise import NOISE_KINDS
-from speech.roundtrip import RoundTripper, Trial, babble_pool
-from speech.tts import FLITE_VOICES, Voice
+from ncbot.speech.asr import Recogniser, dialogue_sentences
+from ncbot.speech.channel import DEFAULT_CHANNEL, ChannelModel
+from ncbot.speech.noise import NOISE_KINDS
+from ncbot.speech.roundtrip import RoundTripper, Trial, babble_pool
+from ncbot.speech.tts import FLITE_VOICES, Voice
 
 SNR_LEVELS: tuple[float | None, ...] = (None, 30.0, 20.0, 15.0, 10.0, 5.0)
 FIT_VOICES = tuple(Voice("flite", name, rate) for name in FLITE_VOICES for rate in (0.85, 1.15))
@@ -30,7 +30,7 @@ FIT_SEED, REPORT_SEED = 1_000_000, 0
 
 def babble_texts() -> list[str]:
     """What the other talkers say: the robot's templates and the user sentences."""
-    from envs.dialogue import TEMPLATES
+    from ncbot.envs.dialogue import TEMPLATES
 
     return list(TEMPLATES) + sorted(set(dialogue_sentences()))
 
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
         ((t.trial.kind, t.trial.snr_db, t.said, t.heard) for t in trips),
         recogniser.vocabulary, SNR_LEVELS, NOISE_KINDS,
         meta={
-            "command": f"python -m speech.fit --seeds {args.seeds}",
+            "command": f"python -m ncbot.speech.fit --seeds {args.seeds}",
             "round_trips": len(trips),
             "voices": [v.spec for v in FIT_VOICES],
             "babble_voices": [v.spec for v in FIT_BABBLE_VOICES],

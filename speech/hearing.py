@@ -16,12 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from speech.align import word_errors
-from speech.asr import Heard, Recogniser
-from speech.channel import ChannelModel
-from speech.noise import add_noise
-from speech.tts import PERSON_VOICE, SpeechCache, Voice
-from speech.understand import closest_utterance, utterance_table
+from ncbot.speech.align import word_errors
+from ncbot.speech.asr import Heard, Recogniser
+from ncbot.speech.channel import ChannelModel
+from ncbot.speech.noise import add_noise
+from ncbot.speech.tts import PERSON_VOICE, SpeechCache, Voice
+from ncbot.speech.understand import closest_utterance, utterance_table
 
 
 class ChannelHearing:
@@ -32,7 +32,7 @@ class ChannelHearing:
         self, model: ChannelModel, utterance_texts: Sequence[str], env_words: Sequence[str],
         snr_db: tuple[float, float] | None = (10.0, 30.0), kind: str = "babble",
     ) -> None:
-        from envs.dialogue import tokenize
+        from ncbot.envs.dialogue import tokenize
 
         if kind not in model.kinds:
             raise ValueError(f"noise kind {kind!r} is not in the channel model; kinds: {', '.join(model.kinds)}")
@@ -55,7 +55,7 @@ class ChannelHearing:
     def for_game(cls, model: ChannelModel, game: str, snr_db: tuple[float, float] | None = (10.0, 30.0),
                  kind: str = "babble") -> ChannelHearing:
         """The hearing of ``game``'s dialogue env (its utterance ids and word columns), built before the env."""
-        from envs.dialogue import build_dialogue_model
+        from ncbot.envs.dialogue import build_dialogue_model
 
         dialogue = build_dialogue_model(game)
         return cls(model, dialogue.utterance_texts, dialogue.words, snr_db, kind)
@@ -81,7 +81,7 @@ class ChannelHearing:
 def heard_tensors(heard: Heard, utterance_texts: Sequence[str], env_words: Sequence[str]) -> tuple[
         torch.Tensor, torch.Tensor, torch.Tensor]:
     """The real recogniser's result for one game as ``ChannelHearing.hear``'s (1, H), (1, H), (1,) tensors."""
-    from envs.dialogue import tokenize
+    from ncbot.envs.dialogue import tokenize
 
     column = {w: i for i, w in enumerate(env_words)}
     columns = torch.tensor([[column.get(w, len(env_words)) for w in heard.words] or [len(env_words)]])
@@ -139,7 +139,7 @@ class RecogniserHearing:
         voice: Voice = PERSON_VOICE, snr_db: SnrSpec = None, kind: str = "babble",
         babble_pool: Sequence[np.ndarray] = (), seed: int | Sequence[int] = 0, cache: SpeechCache | None = None,
     ) -> None:
-        from envs.dialogue import tokenize
+        from ncbot.envs.dialogue import tokenize
 
         if isinstance(snr_db, tuple) and not (len(snr_db) == 2 and snr_db[0] <= snr_db[1]):
             raise ValueError(f"snr_db must be a level, (low, high) with low <= high, or None for clean; got {snr_db!r}")

@@ -1,6 +1,6 @@
 """Real round trips: text -> TTS voice -> background noise -> recogniser, with CPU time per stage.
 
-Used to measure the recogniser (bench/studies/speech_asr.py) and to fit the channel model (``python -m speech.fit``).
+Used to measure the recogniser (bench/studies/speech_asr.py) and to fit the channel model (``python -m ncbot.speech.fit``).
 TTS audio is cached per (text, voice): noise and decoding vary, the clean speech of a voice does not.
 """
 from __future__ import annotations
@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from speech.asr import Heard, Recogniser
-from speech.noise import add_noise
-from speech.tts import SpeechCache, Voice, speak
+from ncbot.speech.asr import Heard, Recogniser
+from ncbot.speech.noise import add_noise
+from ncbot.speech.tts import SpeechCache, Voice, speak
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from speech import SAMPLE_RATE
-from speech.noise import white_noise_at
+from ncbot.speech import SAMPLE_RATE
+from ncbot.speech.noise import white_noise_at
 
 ENGINES = ("flite", "espeak-ng")
 FLITE_VOICES = ("slt", "rms", "awb", "kal16")

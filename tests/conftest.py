@@ -7,7 +7,7 @@ import pytest
 @pytest.fixture(scope="session")
 def sapien_render_system():
     """The process-wide SAPIEN RenderSystem; FAILS (never skips) with the set-up recipe if no Vulkan device."""
-    from robot_sim.render_system import SimulatorUnavailable, get_render_system
+    from ncbot.robot_sim.render_system import SimulatorUnavailable, get_render_system
 
     try:
         return get_render_system()

@@ -43,5 +43,5 @@ def write_paper_configs(folder: Path, total_frames: int) -> Path:
 
 
 def ncbot(*args: str, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "ncbot", *args], capture_output=True, text=True,
                           cwd=cwd, timeout=timeout)

@@ -3,7 +3,7 @@
 Why: the paper's title claims data efficiency ("a few hundred images": 109 clean + 201 noisy = 310 labelled
 cells). This module draws N cells from the TRAINING handwriting ("pen" strokes, the shipped data's generator
 and photos) and trains the same network with the same optimiser, loss, augmentation, batch and number of
-updates as `vision.training` (so a smaller N means less data, not less training), then measures what the
+updates as `ncbot.vision.training` (so a smaller N means less data, not less training), then measures what the
 robot needs on the HELD-OUT handwriting ("sketch" + "hershey"): the share of cells right and the share of
 3x3 photos whose board is read entirely right.
 
@@ -22,14 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from vision.classifier.inference import CellClassifier
-from vision.classifier.model import CellCNN
-from vision.classifier.train import TrainConfig, fit
-from vision.data import BUDGET_SEED, N_CLEAN, N_NOISY, TEST_SEED
-from vision.data.cells import make_cells, render_cell
-from vision.grid import extract_cells
-from vision.labels import LABELS, symbol_to_index
-from vision.training import DefaultTraining, frame_cells
+from ncbot.vision.classifier.inference import CellClassifier
+from ncbot.vision.classifier.model import CellCNN
+from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.data import BUDGET_SEED, N_CLEAN, N_NOISY, TEST_SEED
+from ncbot.vision.data.cells import make_cells, render_cell
+from ncbot.vision.grid import extract_cells
+from ncbot.vision.labels import LABELS, symbol_to_index
+from ncbot.vision.training import DefaultTraining, frame_cells
 
 PAPER_IMAGES = N_CLEAN + N_NOISY  # 310: the paper's labelled cells
 _SHIPPED = DefaultTraining()
@@ -146,9 +146,9 @@ class HeldOut:
 
 
 def heldout(n_cells: int = 600, n_photos: int = 60, progress: Callable[..., Any] | None = None) -> HeldOut:
-    """The figures' held-out sets: the cells of `vision.experiments.heldout_cells` (TEST_SEED + 1, + 2; half
-    noisy) and the 3x3 photos of `vision.experiments.reading` (TEST_SEED + 50,000; sketch + hershey marks)."""
-    from vision.data.frames import make_frame
+    """The figures' held-out sets: the cells of `ncbot.vision.experiments.heldout_cells` (TEST_SEED + 1, + 2; half
+    noisy) and the 3x3 photos of `ncbot.vision.experiments.reading` (TEST_SEED + 50,000; sketch + hershey marks)."""
+    from ncbot.vision.data.frames import make_frame
 
     cells = {style: make_cells(n_cells, TEST_SEED + 1 + k, noisy_fraction=0.5, styles=(style,))
              for k, style in enumerate(HELDOUT_STYLES)}

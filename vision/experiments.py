@@ -15,16 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_path, atomic_write_bytes, atomic_write_text
-from vision.classifier.inference import CellClassifier, load_classifier
-from vision.classifier.train import TrainConfig, fit
-from vision.data import (CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, N_CLEAN, N_NOISY,
+from ncbot.fileio import atomic_path, atomic_write_bytes, atomic_write_text
+from ncbot.vision.classifier.inference import CellClassifier, load_classifier
+from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.data import (CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, N_CLEAN, N_NOISY,
                          NOISY_SEED, TEST_SEED)
-from vision.data.cells import make_cells
-from vision.data.frames import make_frame
-from vision.grid import read_page
-from vision.labels import LABELS
-from vision.strokes import TUNING_STYLES
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.grid import read_page
+from ncbot.vision.labels import LABELS
+from ncbot.vision.strokes import TUNING_STYLES
 
 PAPER_TRAIN = TrainConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)
 HARSH_SPLITS = ("heldout", "tuning", "tuning-style")  # `harsh_reading`'s photo sets

@@ -17,12 +17,12 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from vision.classifier.inference import CellClassifier, load_classifier
-from vision.illumination import balance_frame, flatten, non_paper
-from vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
-from vision.lattice import lattice, remap_cells
-from vision.page import check_frame, locate_balanced_page
-from vision.sheet import check_grid
+from ncbot.vision.classifier.inference import CellClassifier, load_classifier
+from ncbot.vision.illumination import balance_frame, flatten, non_paper
+from ncbot.vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
+from ncbot.vision.lattice import lattice, remap_cells
+from ncbot.vision.page import check_frame, locate_balanced_page
+from ncbot.vision.sheet import check_grid
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)

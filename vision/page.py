@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vision.illumination import balance_frame, shade_and_hue
+from ncbot.vision.illumination import balance_frame, shade_and_hue
 
 MIN_PAGE_FRACTION = 0.03  # of the frame area: anything smaller is not the game sheet
 MAX_PAGE_FRACTION = 0.92  # a "page" filling the whole frame is a uniform image (its corners are not seen)

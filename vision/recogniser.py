@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vision.classifier.inference import CellClassifier, load_classifier
-from vision.grid import extract_cells, read_page, rim_fraction
-from vision.labels import BOARD_SYMBOL, LABELS, NOTHING
-from vision.page import check_frame, find_page, warp
-from vision.sheet import check_grid
+from ncbot.vision.classifier.inference import CellClassifier, load_classifier
+from ncbot.vision.grid import extract_cells, read_page, rim_fraction
+from ncbot.vision.labels import BOARD_SYMBOL, LABELS, NOTHING
+from ncbot.vision.page import check_frame, find_page, warp
+from ncbot.vision.sheet import check_grid
 
 STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
 EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge

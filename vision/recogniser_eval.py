@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_path, atomic_write_text
-from vision.classifier.inference import CellClassifier, load_classifier
-from vision.data import TEST_SEED
+from ncbot.fileio import atomic_path, atomic_write_text
+from ncbot.vision.classifier.inference import CellClassifier, load_classifier
+from ncbot.vision.data import TEST_SEED
 
 TUNING_SEED = TEST_SEED + 80_000     # sequences looked at while the hand test was tuned
 # +400_000 was the first held-out set; its failures were then looked at (hands mostly outside the page),
@@ -67,8 +67,8 @@ class SequenceSet:
 def evaluate_sequences(grid: int, n: int, seed: int = HELDOUT_SEED, styles: tuple[str, ...] = ("pen",),
                        classifier: CellClassifier | None = None, progress: Callable[..., Any] | None = None) -> SequenceSet:
     """Run the recogniser over n seeded drawing sequences (seeds seed .. seed + n - 1)."""
-    from vision.data.sequences import make_move_sequence
-    from vision.recogniser import MoveRecogniser
+    from ncbot.vision.data.sequences import make_move_sequence
+    from ncbot.vision.recogniser import MoveRecogniser
 
     if n < 1:
         raise ValueError(f"need at least one sequence; got n={n}")

@@ -3,7 +3,7 @@
 One layout shared by the frame generator and the robot simulator's sheet texture, so both draw marks
 where the reader looks for them. The grid is a centred square covering `GRID_FRACTION` of the page's
 shorter side; 9x9 grids have thicker lines every 3 cells (the ultimate game's subgrids). The reader does
-not rely on this layout: it finds the grid lines itself (`vision.grid`).
+not rely on this layout: it finds the grid lines itself (`ncbot.vision.grid`).
 """
 from __future__ import annotations
 

@@ -2,9 +2,9 @@
 
 Three sources, all from the "pen" stroke model only (the "sketch" and "hershey" styles stay unseen, as the
 held-out handwriting): generated cells (clean and noisy mixed); cells cut from generated camera frames
-by the real reading pipeline (`vision.grid.extract_cells`) with their true labels, so the classifier sees
+by the real reading pipeline (`ncbot.vision.grid.extract_cells`) with their true labels, so the classifier sees
 exactly the crops, warps and grid-line remnants it will get when reading boards; and generated cells taken
-through what a harsh photo does to a cell (`vision.data.harsh_cells`: motion streaks, dim light and its
+through what a harsh photo does to a cell (`ncbot.vision.data.harsh_cells`: motion streaks, dim light and its
 amplified noise, JPEG, faint ink), which the first two never show.
 
 Reproduce: `ncbot vision train --out vision/weights/cell_cnn.pt` (defaults below).
@@ -18,14 +18,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from vision.classifier.model import CellCNN
-from vision.classifier.train import TrainConfig, fit
-from vision.data import TRAIN_SEED
-from vision.data.cells import make_cells
-from vision.data.frames import make_frame
-from vision.data.harsh_cells import make_harsh_cells
-from vision.grid import extract_cells
-from vision.labels import symbol_to_index
+from ncbot.vision.classifier.model import CellCNN
+from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.data import TRAIN_SEED
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.data.harsh_cells import make_harsh_cells
+from ncbot.vision.grid import extract_cells
+from ncbot.vision.labels import symbol_to_index
 
 
 @dataclass

@@ -30,7 +30,7 @@ class Understood:
     """Wraps an env hearing and counts the replies understood as the utterance said (silence not counted)."""
 
     def __init__(self, inner, game: str, dialogues: str) -> None:
-        from envs.dialogue import build_dialogue_model
+        from ncbot.envs.dialogue import build_dialogue_model
 
         self.inner, self.said, self.ok = inner, 0, 0
         self.texts = build_dialogue_model(game, dialogues).utterance_texts
@@ -88,14 +88,14 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    from envs.core import OUTCOME_NAMES
-    from envs.dialogue import build_dialogue_model
-    from pipelines.agents import load_agent
-    from pipelines.run_env import make_run_env, run_hearing
-    from speech.asr import Recogniser
-    from speech.fit import REPORT_BABBLE_VOICES, REPORT_VOICES, babble_texts
-    from speech.hearing import RecogniserHearing
-    from speech.roundtrip import babble_pool
+    from ncbot.envs.core import OUTCOME_NAMES
+    from ncbot.envs.dialogue import build_dialogue_model
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.run_env import make_run_env, run_hearing
+    from ncbot.speech.asr import Recogniser
+    from ncbot.speech.fit import REPORT_BABBLE_VOICES, REPORT_VOICES, babble_texts
+    from ncbot.speech.hearing import RecogniserHearing
+    from ncbot.speech.roundtrip import babble_pool
 
     assert OUTCOME_NAMES[1] == "win" and OUTCOME_NAMES[3] == "draw", OUTCOME_NAMES
     recogniser = Recogniser()

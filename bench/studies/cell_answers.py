@@ -18,13 +18,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from speech.asr import Recogniser  # noqa: E402
-from speech.cell_answers import (CONFIRM_NO, CONFIRM_YES, answer_sentences, cell_of, cell_phrase,  # noqa: E402
+from ncbot.speech.asr import Recogniser  # noqa: E402
+from ncbot.speech.cell_answers import (CONFIRM_NO, CONFIRM_YES, answer_sentences, cell_of, cell_phrase,  # noqa: E402
                                  confirm_sentences, yes_or_no)
-from speech.fit import REPORT_BABBLE_VOICES, REPORT_VOICES, babble_texts  # noqa: E402
-from speech.noise import add_noise  # noqa: E402
-from speech.roundtrip import babble_pool  # noqa: E402
-from speech.tts import SpeechCache  # noqa: E402
+from ncbot.speech.fit import REPORT_BABBLE_VOICES, REPORT_VOICES, babble_texts  # noqa: E402
+from ncbot.speech.noise import add_noise  # noqa: E402
+from ncbot.speech.roundtrip import babble_pool  # noqa: E402
+from ncbot.speech.tts import SpeechCache  # noqa: E402
 
 CONDITIONS = (("white", None), ("babble", 20.0), ("babble", 15.0), ("babble", 10.0), ("white", 10.0), ("white", 5.0))
 

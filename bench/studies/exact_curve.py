@@ -34,8 +34,8 @@ LOSS_LIMIT = 0.005  # task success 0.995
 
 def run_curve(run_dir: Path, dialogue_seeds: int) -> list[tuple[int, float, float, float]]:
     """(frames, wall seconds, exact loss first, exact loss second) of every snapshot under run_dir/checkpoints."""
-    from pipelines.checkpoint import load_checkpoint
-    from pipelines.evaluate.exact import exact_checkpoint
+    from ncbot.pipelines.checkpoint import load_checkpoint
+    from ncbot.pipelines.evaluate.exact import exact_checkpoint
 
     rows = []
     for path in sorted((run_dir / "checkpoints").glob("step-*.pt")):

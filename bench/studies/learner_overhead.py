@@ -5,7 +5,7 @@
 
 Why: at the paper's batch of 2 an update is almost all fixed cost (TensorDict plumbing, replay sampling, optimiser,
 collector), so `reproduce --budget full` pays ~12 CPU hours mostly for overhead. This bench prices that overhead as
-a run pays it: each round runs `pipelines.train.run.train` of each config once in a fresh subprocess per tree (old,
+a run pays it: each round runs `ncbot.pipelines.train.run.train` of each config once in a fresh subprocess per tree (old,
 new, alternately, so a burst of load on this shared machine hits both alike) and times, in CPU seconds of that
 process (`time.process_time`), the training loop after the burn-in (`collector.init_random_frames`), minus the
 periodic evaluations inside it. It patches only the timing hooks (the Collector's iterator and `evaluate_agent`),
@@ -31,13 +31,13 @@ CHILD = r"""
 import json, sys, time
 import importlib
 import torchrl.collectors
-from pipelines.config import load_config
+from ncbot.pipelines.config import load_config
 try:  # the tree's layout: pipelines/train/ and pipelines/evaluate/ packages, or the flat modules of older trees
-    from pipelines.train.run import train
-    evaluation = importlib.import_module("pipelines.evaluate.games")
+    from ncbot.pipelines.train.run import train
+    evaluation = importlib.import_module("ncbot.pipelines.evaluate.games")
 except ImportError:
-    from pipelines.train import train
-    evaluation = importlib.import_module("pipelines.evaluate")
+    from ncbot.pipelines.train import train
+    evaluation = importlib.import_module("ncbot.pipelines.evaluate")
 
 config_path, frames, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 config = load_config(config_path, [f"collector.total_frames={frames}", "train.max_games=null", "eval.games=10",

@@ -18,7 +18,7 @@ import torch
 
 def collect_positions(game: str, free_move: str, batch: int, steps: int, seed: int) -> list:
     """TensorDicts (copies) of the states in which at least one robot may take a square."""
-    from envs import make_env
+    from ncbot.envs import make_env
 
     env = make_env(game, batch_size=(batch,), temporal=True, free_move=free_move, seed=seed, first="alternate")
     td = env.reset()
@@ -34,8 +34,8 @@ def collect_positions(game: str, free_move: str, batch: int, steps: int, seed: i
 
 
 def time_rule(rule_name: str, positions: list, cells: int) -> dict:
-    from modules.deep_lookahead import KStepLookahead
-    from modules.masks import lookahead_rule
+    from ncbot.modules.deep_lookahead import KStepLookahead
+    from ncbot.modules.masks import lookahead_rule
 
     rule = lookahead_rule(rule_name)
     one_step = lookahead_rule("one_step")
@@ -67,7 +67,7 @@ def main() -> None:
     parser.add_argument("--png", default=None, help="also draw CPU ms per decision as a bar chart")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    from pipelines.progress import progress_bar
+    from ncbot.pipelines.progress import progress_bar
 
     results = []
     jobs = [(g, r) for g in args.games for r in args.rules]

@@ -2,7 +2,7 @@
 
     python bench/studies/reliability_sweep.py [--list]
 
-Each case runs in-process through `pipelines.cli.app.main` in a fresh folder with a 90 s alarm. A case is HANDLED when
+Each case runs in-process through `ncbot.pipelines.cli.app.main` in a fresh folder with a 90 s alarm. A case is HANDLED when
 it exits 2 with one `ncbot: error:` line and no traceback (or, for inputs that are fine, exits 0), and leaves
 no new file when it was refused. Prints one line per kind and the totals; exit 1 if any case is not handled.
 """
@@ -24,8 +24,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from pipelines.checkpoint import FORMAT, atomic_save  # noqa: E402
-from pipelines.cli.app import main  # noqa: E402
+from ncbot.pipelines.checkpoint import FORMAT, atomic_save  # noqa: E402
+from ncbot.pipelines.cli.app import main  # noqa: E402
 from tests.learning_helpers import TINY  # noqa: E402
 from tests.cli.test_reliability_fuzz import GOOD_GRID, _valid_agent  # noqa: E402
 

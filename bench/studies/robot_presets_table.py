@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 def preset_row(folders: list[Path]) -> dict:
     """Counts from the finished games' `/episode` summaries (so a run cut short still counts the games it
     finished); the time split from report.json where the run finished (None otherwise)."""
-    from logs import LogReader, read_episodes
+    from ncbot.logs import LogReader, read_episodes
 
     episodes = [e for folder in folders for e in read_episodes(folder) if e.get("phase") == "robot"]
     extras = [e["extra"] for e in episodes]

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from pipelines.progress import progress_bar  # noqa: E402
+from ncbot.pipelines.progress import progress_bar  # noqa: E402
 
 
 def median_ms(fn, repeats: int) -> float:
@@ -47,17 +47,17 @@ def main() -> None:
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
-    from logs import EpisodeLogger
-    from robot_sim.ik import PositionIK
-    from robot_sim.pepper_model import ARM_JOINTS
-    from modules.masks import LookaheadOnlyPolicy
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.play import RobotGameRunner
-    from robot_sim.scene import PepperScene, SceneConfig
-    from robot_sim.sheet import HUMAN_INK, MarkSpec
-    from vision.grid import read_page
+    from ncbot.logs import EpisodeLogger
+    from ncbot.robot_sim.ik import PositionIK
+    from ncbot.robot_sim.pepper_model import ARM_JOINTS
+    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import RobotGameRunner
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.sheet import HUMAN_INK, MarkSpec
+    from ncbot.vision.grid import read_page
 
-    from robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.conditions import load_conditions
 
     ranges = load_conditions(args.conditions)
     figures: dict[str, float | int | str | None] = {"load_average_start": round(os.getloadavg()[0], 2),

@@ -30,11 +30,11 @@ def main() -> None:
 
     import torch
 
-    from modules.policy import make_policies
-    from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
-    from pipelines.agents import guided_search, load_agent
-    from pipelines.run_env import make_run_env
-    from pipelines.train.build import make_collector
+    from ncbot.modules.policy import make_policies
+    from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
+    from ncbot.pipelines.agents import guided_search, load_agent
+    from ncbot.pipelines.run_env import make_run_env
+    from ncbot.pipelines.train.build import make_collector
 
     torch.set_num_threads(1)
     config, greedy = load_agent(args.checkpoint)

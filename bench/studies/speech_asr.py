@@ -20,14 +20,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from speech.align import word_errors  # noqa: E402
-from speech.asr import Heard, Recogniser, dialogue_sentences  # noqa: E402
-from speech.channel import DEFAULT_CHANNEL, ChannelModel  # noqa: E402
-from speech.fit import REPORT_BABBLE_VOICES, REPORT_SEED, REPORT_VOICES, babble_texts  # noqa: E402
-from speech.roundtrip import RoundTripper, Trial, babble_pool  # noqa: E402
-from speech import SAMPLE_RATE  # noqa: E402
-from speech.tts import ROBOT_VOICE, speak_timed  # noqa: E402
-from speech.understand import closest_text  # noqa: E402
+from ncbot.speech.align import word_errors  # noqa: E402
+from ncbot.speech.asr import Heard, Recogniser, dialogue_sentences  # noqa: E402
+from ncbot.speech.channel import DEFAULT_CHANNEL, ChannelModel  # noqa: E402
+from ncbot.speech.fit import REPORT_BABBLE_VOICES, REPORT_SEED, REPORT_VOICES, babble_texts  # noqa: E402
+from ncbot.speech.roundtrip import RoundTripper, Trial, babble_pool  # noqa: E402
+from ncbot.speech import SAMPLE_RATE  # noqa: E402
+from ncbot.speech.tts import ROBOT_VOICE, speak_timed  # noqa: E402
+from ncbot.speech.understand import closest_text  # noqa: E402
 
 CONDITIONS: tuple[tuple[str, float | None], ...] = (
     ("white", None), ("white", 20.0), ("white", 10.0), ("babble", 20.0), ("babble", 10.0)

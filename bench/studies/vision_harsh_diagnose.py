@@ -11,15 +11,15 @@ cut it beside the same cell cut at the true crossings. Never run it on HARSH_HEL
 """
 import sys, collections, json
 import cv2, numpy as np
-from vision.data import HARSH_TUNING_SEED
-from vision.data.frames import random_scene, random_board, render
-from vision.grid import _grid_lines, cut_cells, PAGE_SIDE, DEFAULT_RHO
-from vision.illumination import balance_frame
-from vision.page import locate_balanced_page
-from vision.lattice import lattice
-from vision.labels import LABELS
-from vision.classifier import load_classifier
-from vision.grid import cell_probabilities
+from ncbot.vision.data import HARSH_TUNING_SEED
+from ncbot.vision.data.frames import random_scene, random_board, render
+from ncbot.vision.grid import _grid_lines, cut_cells, PAGE_SIDE, DEFAULT_RHO
+from ncbot.vision.illumination import balance_frame
+from ncbot.vision.page import locate_balanced_page
+from ncbot.vision.lattice import lattice
+from ncbot.vision.labels import LABELS
+from ncbot.vision.classifier import load_classifier
+from ncbot.vision.grid import cell_probabilities
 import torch; torch.set_num_threads(1)
 
 grid = int(sys.argv[1]); n = int(sys.argv[2]); start = int(sys.argv[3]) if len(sys.argv) > 3 else 0

@@ -29,8 +29,8 @@ _TIMER = r"""
 import json, sys, time
 import cv2, torch
 torch.set_num_threads(1); cv2.setNumThreads(1)
-from vision.classifier import load_classifier
-from vision.grid import read_board
+from ncbot.vision.classifier import load_classifier
+from ncbot.vision.grid import read_board
 folder, repeats, weights = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 sets = json.load(open(folder + "/sets.json"))
 classifier = load_classifier(weights)
@@ -70,9 +70,9 @@ def main() -> None:
     sys.path.insert(0, str(args.new.resolve()))
     import cv2
 
-    from vision.classifier import DEFAULT_WEIGHTS
-    from vision.data import HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, TEST_SEED
-    from vision.data.frames import make_frame
+    from ncbot.vision.classifier import DEFAULT_WEIGHTS
+    from ncbot.vision.data import HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, TEST_SEED
+    from ncbot.vision.data.frames import make_frame
 
     if args.split == "tuning":
         specs = [(f"{grid}x{grid} {conditions}", grid, seed + 1000 * grid, ("pen",), conditions)

@@ -7,7 +7,7 @@
     python bench/studies/vision_style_candidates.py score DIR W.pt [W.pt ...]
     python bench/studies/vision_style_candidates.py styles OUT.png          the five handwriting styles, clean and harsh cells
 
-Scored sets, every candidate classifying the same crops (`vision.grid.extract_cells`, then
+Scored sets, every candidate classifying the same crops (`ncbot.vision.grid.extract_cells`, then
 `cell_probabilities` as `read_page` does; unread photos count as all cells wrong):
 - tuning view: harsh photos from HARSH_TUNING_SEED + 100,000 x grid + 50,000 with "marker" marks (the tuning
   handwriting, never trained on), 9x9 and 3x3; harsh "marker" cells from HARSH_TUNING_SEED + 500,000;
@@ -27,14 +27,14 @@ import cv2
 import numpy as np
 import torch
 
-from vision.classifier import TrainConfig, fit, load_classifier, save_weights
-from vision.data import HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, TEST_SEED
-from vision.data.cells import make_cells
-from vision.data.frames import make_frame
-from vision.data.harsh_cells import make_harsh_cells
-from vision.grid import cell_probabilities, extract_cells
-from vision.labels import LABELS
-from vision.training import DefaultTraining, frame_cells
+from ncbot.vision.classifier import TrainConfig, fit, load_classifier, save_weights
+from ncbot.vision.data import HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, TEST_SEED
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.data.harsh_cells import make_harsh_cells
+from ncbot.vision.grid import cell_probabilities, extract_cells
+from ncbot.vision.labels import LABELS
+from ncbot.vision.training import DefaultTraining, frame_cells
 
 TUNING_STYLE_OFFSET = HARSH_TUNING_STYLE_OFFSET  # beside the pen tuning photos of the same grid
 TUNING_CELL_SEED = HARSH_TUNING_SEED + 500_000
@@ -59,9 +59,9 @@ def photo_crops(grid: int, n: int, seed: int, styles: tuple[str, ...], condition
 def true_crossing_crops(grid: int, n: int, seed: int, styles: tuple[str, ...]) -> dict[str, np.ndarray]:
     """Cells cut at the photos' TRUE grid-line crossings (as bench/studies/vision_harsh_diagnose.py: the classifier's
     part alone, the reader's geometry errors left out)."""
-    from vision.data.frames import random_board, random_scene, render
-    from vision.grid import DEFAULT_RHO, cut_cells
-    from vision.illumination import balance_frame
+    from ncbot.vision.data.frames import random_board, random_scene, render
+    from ncbot.vision.grid import DEFAULT_RHO, cut_cells
+    from ncbot.vision.illumination import balance_frame
 
     cells, truth = [], []
     for i in range(n):
@@ -114,7 +114,7 @@ def score(classifier, crops: dict[str, np.ndarray]) -> dict[str, float]:
 def streaked(cells: np.ndarray, share: float, seed: int) -> np.ndarray:
     """A share of reader-cut 9x9 cells streaked as a harsh photo's motion blur would (1-7 frame px, a 9x9 cell
     being ~26 frame px per 40 cell px), with sensor noise: the harsh streak on real reader crops."""
-    from vision.data.conditions import HARSH, motion_kernel
+    from ncbot.vision.data.conditions import HARSH, motion_kernel
 
     rng = np.random.default_rng(seed)
     out = cells.copy()

@@ -26,8 +26,8 @@ def main() -> None:
     args = parser.parse_args()
     import torch
 
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.play import play_robot_games
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import play_robot_games
 
     torch.set_num_threads(1)
     print("| preset | games | moves asked about | settled by an answer | misheard cells | looked again | answers spoken | "

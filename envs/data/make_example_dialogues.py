@@ -9,7 +9,7 @@ implies (paper-notes section 3): the opening in full (after the user agrees the 
 The dialogue skeletons (who starts, how the user is asked to play, what the user says) are written out
 below by hand; only the game moves inside them are sampled (seeded) by playing legal games with the exact
 rules (robot: take a winning square if there is one, else random; user: random), keeping games whose result
-matches the skeleton's feedback. Run ``python -m envs.data.make_example_dialogues`` to regenerate both files
+matches the skeleton's feedback. Run ``python -m ncbot.envs.data.make_example_dialogues`` to regenerate both files
 (same seeds -> same files; each set has its own random stream, so adding one never changed the other).
 
 ``example_dialogues_paper_extra.yaml`` (ours, authored): dialogues 13-24 per game in the paper's shape, so the
@@ -20,7 +20,7 @@ from __future__ import annotations
 import random
 from pathlib import Path
 
-from envs.rules import Standard, Ultimate
+from ncbot.envs.rules import Standard, Ultimate
 
 OUT = Path(__file__).with_name("example_dialogues.yaml")
 OUT_PAPER = Path(__file__).with_name("example_dialogues_paper.yaml")

@@ -8,22 +8,22 @@ what makes the one-step look-ahead of all 81 Ultimate moves cheap: it is a handf
 instead of replaying 81 boards.
 
 Marks: 0 empty, 1 and 2 the two players (in the env 1 = robot, 2 = human, whoever starts). Cells are numbered
-row-major on the full grid (as in ``envs.rules``). Boards are ``(B, cells)`` int8.
+row-major on the full grid (as in ``ncbot.envs.rules``). Boards are ``(B, cells)`` int8.
 
-Outcome codes (``envs.core``): 0 game on, 1 / 2 that player won, 3 draw.
+Outcome codes (``ncbot.envs.core``): 0 game on, 1 / 2 that player won, 3 draw.
 
 Layout: ``tables`` (grid tables and gathers), ``base`` (the state and shared helpers), ``standard`` and
 ``ultimate`` (one engine each); this module picks one by name.
 """
 from __future__ import annotations
 
-from envs.core import DRAWN, FREE_MOVE_CHOICES, check_game  # noqa: F401  (re-exported)
-from envs.engine.base import Boards
-from envs.engine.standard import StandardEngine
-from envs.engine.tables import (  # noqa: F401  (re-exported)
+from ncbot.envs.core import DRAWN, FREE_MOVE_CHOICES, check_game  # noqa: F401  (re-exported)
+from ncbot.envs.engine.base import Boards
+from ncbot.envs.engine.standard import StandardEngine
+from ncbot.envs.engine.tables import (  # noqa: F401  (re-exported)
     REWARD_ABOUT_TO_DRAW, REWARD_ABOUT_TO_WIN, GridTables, grid_tables, lookup, lookup_rows, uniform_choice,
 )
-from envs.engine.ultimate import UltimateEngine
+from ncbot.envs.engine.ultimate import UltimateEngine
 
 __all__ = ["Boards", "StandardEngine", "UltimateEngine", "make_engine", "grid_tables", "uniform_choice"]
 
@@ -33,7 +33,7 @@ def make_engine(game: str, free_move: str = "anywhere", win_set: str = "wins_and
     """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise.
 
     ``win_set`` (which moves the env's ``winning_actions`` holds) and ``about_to`` (when "about to win" pays +5)
-    are the paper's readings of ``envs.core``; the defaults are this project's original rewards."""
+    are the paper's readings of ``ncbot.envs.core``; the defaults are this project's original rewards."""
     if check_game(game) == "standard":
         return StandardEngine(win_set=win_set, about_to=about_to)
     return UltimateEngine(free_move, win_set=win_set, about_to=about_to)

@@ -1,12 +1,12 @@
-"""The batched game state and what both engines share (see ``envs.engine``)."""
+"""The batched game state and what both engines share (see ``ncbot.envs.engine``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import torch
 
-from envs.core import ABOUT_TO_CHOICES, WIN_SET_CHOICES, check_choice
-from envs.engine.tables import grid_tables, uniform_choice
+from ncbot.envs.core import ABOUT_TO_CHOICES, WIN_SET_CHOICES, check_choice
+from ncbot.envs.engine.tables import grid_tables, uniform_choice
 
 
 @dataclass

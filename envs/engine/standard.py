@@ -5,9 +5,9 @@ from functools import lru_cache
 
 import torch
 
-from envs.core import DRAWN, REWARD_WIN
-from envs.engine.base import Boards, _Engine
-from envs.engine.tables import grid_tables, lookup, prioritise
+from ncbot.envs.core import DRAWN, REWARD_WIN
+from ncbot.envs.engine.base import Boards, _Engine
+from ncbot.envs.engine.tables import grid_tables, lookup, prioritise
 
 
 class StandardEngine(_Engine):

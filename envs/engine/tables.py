@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from envs.core import LINES_3X3 as _LINES, REWARD_DRAW, REWARD_LOSE, REWARD_WIN
+from ncbot.envs.core import LINES_3X3 as _LINES, REWARD_DRAW, REWARD_LOSE, REWARD_WIN
 
 LINES_3X3 = np.array(_LINES)
 # Look-ahead rewards of a move (see ``move_rewards``), in priority order; "about to" events pay as the event.

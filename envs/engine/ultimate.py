@@ -5,9 +5,9 @@ from functools import lru_cache
 
 import torch
 
-from envs.core import DRAWN, REWARD_LOSE, REWARD_WIN, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, check_free_move
-from envs.engine.base import Boards, _Engine
-from envs.engine.tables import grid_tables, lookup, lookup_rows, prioritise, uniform_choice_by_rows
+from ncbot.envs.core import DRAWN, REWARD_LOSE, REWARD_WIN, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, check_free_move
+from ncbot.envs.engine.base import Boards, _Engine
+from ncbot.envs.engine.tables import grid_tables, lookup, lookup_rows, prioritise, uniform_choice_by_rows
 
 
 class UltimateEngine(_Engine):

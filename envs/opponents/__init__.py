@@ -7,11 +7,11 @@ Built-in names: ``random``, ``rule``, ``minimax`` (3x3 only), ``mcts:N``, ``open
 ``MCTSBot``; needs the optional package open_spiel, imported only when such an opponent is built). Higher layers add their own kinds
 with ``register_opponent`` (the learning pipeline registers ``agent:CHECKPOINT``).
 """
-from envs.opponents.base import Opponent, make_opponent, opponent_choices, register_opponent
-from envs.opponents import simple, minimax, mcts, openspiel  # noqa: F401  (importing registers the built-in kinds)
-from envs.opponents.mcts import MCTSOpponent, uct_search
-from envs.opponents.minimax import MinimaxOpponent
-from envs.opponents.simple import RandomOpponent, RuleOpponent
+from ncbot.envs.opponents.base import Opponent, make_opponent, opponent_choices, register_opponent
+from ncbot.envs.opponents import simple, minimax, mcts, openspiel  # noqa: F401  (importing registers the built-in kinds)
+from ncbot.envs.opponents.mcts import MCTSOpponent, uct_search
+from ncbot.envs.opponents.minimax import MinimaxOpponent
+from ncbot.envs.opponents.simple import RandomOpponent, RuleOpponent
 
 __all__ = [
     "Opponent",

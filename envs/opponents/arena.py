@@ -1,7 +1,7 @@
 """Play opponents against each other with the exact rules: for tests, benchmarks and the ladder.
 
 All games of a match advance in lockstep (the same side is to move in every unfinished game), so each ply
-is one batched ``select`` call. Moves are applied through ``envs.rules``, which therefore referees every
+is one batched ``select`` call. Moves are applied through ``ncbot.envs.rules``, which therefore referees every
 opponent: an illegal choice raises at once instead of skewing the statistics.
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import torch
 
-from envs.opponents.base import Opponent
-from envs.rules import make_game
+from ncbot.envs.opponents.base import Opponent
+from ncbot.envs.rules import make_game
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from typing import Callable, Protocol
 
 import torch
 
-from envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, check_free_move, check_game  # noqa: F401
+from ncbot.envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, check_free_move, check_game  # noqa: F401
 
 class Opponent:
     """A move chooser for batches of games; subclasses implement ``_select``.

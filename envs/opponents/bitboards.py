@@ -1,10 +1,10 @@
-"""Bitboard game engines for tree search: the same rules as ``envs.rules``, cut down for speed.
+"""Bitboard game engines for tree search: the same rules as ``ncbot.envs.rules``, cut down for speed.
 
 MCTS spends nearly all its time in random playouts, so positions here are small tuples of 9-bit ints and
 every question ("is this a line?", "which squares of this subgrid are free?") is one lookup in a table
 precomputed over all 512 masks. Sides are 0 (to move first in the position we were given) and 1; results are
 ``ONGOING`` (-1), 0 or 1 (that side won) or ``DRAW`` (2). ``tests/envs/test_opponents.py`` checks these engines
-against ``envs.rules`` on random games of both games and both free-move variants.
+against ``ncbot.envs.rules`` on random games of both games and both free-move variants.
 
 Ultimate positions: ``(subs0, subs1, decided, macro0, macro1, target, turn, n_empty, result)`` with
 ``subs*`` tuples of nine 9-bit masks (bit p = square p of subgrid k), ``decided`` a 9-bit mask of won or
@@ -13,7 +13,7 @@ drawn subgrids, ``macro*`` the subgrids each side owns, ``target`` the subgrid t
 """
 from __future__ import annotations
 
-from envs.core import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
+from ncbot.envs.core import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
 
 ONGOING, DRAW = -1, 2
 FULL = 0b111111111
@@ -105,7 +105,7 @@ class UltimateBits:
 
         ``owners`` (9 codes: 0 open, a player's code, 3 drawn) makes ownership exact. Without it owners are
         read from the board; a subgrid holding lines of both sides (possible only with ``anywhere``, where the
-        board cannot tell who was first) is credited to code 1, as ``envs.opponents.lines.subgrid_owners`` does.
+        board cannot tell who was first) is credited to code 1, as ``ncbot.envs.opponents.lines.subgrid_owners`` does.
         """
         subs0 = tuple(sum(1 << p for p in range(9) if board[CELL_OF[k][p]] == mover) for k in range(9))
         subs1 = tuple(sum(1 << p for p in range(9) if board[CELL_OF[k][p]] not in (0, mover)) for k in range(9))

@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import torch
 
-from envs.core import DRAWN, LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL as _SUBGRID_OF_CELL
+from ncbot.envs.core import DRAWN, LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL as _SUBGRID_OF_CELL
 
 OPEN = 0
 SENTINEL = -1  # value of the padding column: never a player's code, never empty

@@ -1,6 +1,6 @@
 """``mcts:N``: plain UCT with N simulations and uniformly random playouts, for both games and both rule variants.
 
-The search itself is the shared loop of ``envs.opponents.search`` (UCT selection, ``RandomRollout`` evaluator).
+The search itself is the shared loop of ``ncbot.envs.opponents.search`` (UCT selection, ``RandomRollout`` evaluator).
 
 One search per game in the batch, each on the bitboard engines of ``bitboards.py`` (the random playouts are
 the hot loop). Each decision draws one seed from the caller's torch generator for a private ``random.Random``,
@@ -13,9 +13,9 @@ import random
 
 import torch
 
-from envs.opponents.base import Opponent, register_opponent, simulation_count
-from envs.opponents.bitboards import make_bits
-from envs.opponents.search import UCT, RandomRollout, run_search
+from ncbot.envs.opponents.base import Opponent, register_opponent, simulation_count
+from ncbot.envs.opponents.bitboards import make_bits
+from ncbot.envs.opponents.search import UCT, RandomRollout, run_search
 
 DEFAULT_EXPLORATION = 0.7  # UCB1 constant for rewards in [0, 1]; 0.5-0.7 beat 1.0-1.4 vs random at 100 sims (docs)
 
@@ -24,7 +24,7 @@ def uct_search(engine, pos: tuple, root_moves: list[int], simulations: int, rng:
                exploration: float = DEFAULT_EXPLORATION) -> tuple[int, dict[int, tuple[int, float]]]:
     """Run ``simulations`` UCT iterations from ``pos``; the most visited root move and per-move (visits, win rate).
 
-    The search loop of ``envs.opponents.search`` with UCB1 selection and random-playout evaluation."""
+    The search loop of ``ncbot.envs.opponents.search`` with UCB1 selection and random-playout evaluation."""
     rand = rng.random
     policy = UCT(engine, exploration)
     root = policy.root(pos, root_moves)

@@ -10,8 +10,8 @@ from functools import lru_cache
 
 import torch
 
-from envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
-from envs.core import LINES_3X3
+from ncbot.envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
+from ncbot.envs.core import LINES_3X3
 
 POWERS_OF_3 = torch.tensor([3**i for i in range(9)], dtype=torch.long)
 

@@ -25,8 +25,8 @@ from typing import Any
 
 import torch
 
-from envs.core import SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
-from envs.opponents.base import Opponent, register_opponent, simulation_count
+from ncbot.envs.core import SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
+from ncbot.envs.opponents.base import Opponent, register_opponent, simulation_count
 
 OPENSPIEL_GAMES = {"standard": "tic_tac_toe", "ultimate": "ultimate_tic_tac_toe"}
 OPENSPIEL_FREE_MOVE = "open_subgrids"  # OpenSpiel's Ultimate: sent to a decided subgrid -> any undecided one

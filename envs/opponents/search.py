@@ -3,10 +3,10 @@
 As OpenSpiel's ``MCTSBot`` separates the search from its evaluator, the loop here only walks the tree, asks the
 evaluator for a leaf's value and backs it up. Two child-selection rules: ``UCT`` (UCB1, one random untried move
 expanded per simulation: plain ``mcts:N``) and ``PUCT`` (AlphaZero-style, priors set by the evaluator when it
-expands a node: the Q-guided search of ``modules.guided_mcts``). One evaluator lives here, ``RandomRollout``
+expands a node: the Q-guided search of ``ncbot.modules.guided_mcts``). One evaluator lives here, ``RandomRollout``
 (a uniformly random playout); the Q-guided one lives in ``modules`` beside the network it reads.
 
-Positions and moves are those of the bitboard engines (``envs.opponents.bitboards``): sides 0 / 1 relative to
+Positions and moves are those of the bitboard engines (``ncbot.envs.opponents.bitboards``): sides 0 / 1 relative to
 the mover of the searched position, results ``ONGOING``, 0, 1 or ``DRAW``. A node's ``value`` sums the leaf
 values (win 1, draw 0.5, loss 0) for its ``mover``, the side whose move led to it (the root's mover is -1).
 """
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import Callable, Protocol
 
-from envs.opponents.bitboards import DRAW
+from ncbot.envs.opponents.bitboards import DRAW
 
 Rand = Callable[[], float]  # random.Random.random: all chance of a search comes from one such stream
 

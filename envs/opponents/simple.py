@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import torch
 
-from envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
-from envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
+from ncbot.envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
+from ncbot.envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
 
 
 class RandomOpponent(Opponent):

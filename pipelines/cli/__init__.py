@@ -1,1 +1,1 @@
-"""The `ncbot` command line: the root app (`pipelines.cli.app`) and one module of commands per area."""
+"""The `ncbot` command line: the root app (`ncbot.pipelines.cli.app`) and one module of commands per area."""

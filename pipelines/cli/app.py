@@ -15,14 +15,14 @@ import warnings
 
 import typer
 
-import pipelines.cli.env as cli_env
-import pipelines.cli.learn as cli_learn
-import pipelines.cli.logs as cli_logs
-import pipelines.cli.play as cli_play
-import pipelines.cli.reproduce as cli_reproduce
-import pipelines.cli.robot as cli_robot
-import pipelines.cli.vision as cli_vision
-from pipelines.errors import Terminated, one_line, squeeze  # light: no torch
+import ncbot.pipelines.cli.env as cli_env
+import ncbot.pipelines.cli.learn as cli_learn
+import ncbot.pipelines.cli.logs as cli_logs
+import ncbot.pipelines.cli.play as cli_play
+import ncbot.pipelines.cli.reproduce as cli_reproduce
+import ncbot.pipelines.cli.robot as cli_robot
+import ncbot.pipelines.cli.vision as cli_vision
+from ncbot.pipelines.errors import Terminated, one_line, squeeze  # light: no torch
 
 app = typer.Typer(
     name="ncbot",
@@ -34,7 +34,7 @@ app = typer.Typer(
 
 
 def ncbot_version() -> str:
-    """The installed package's version, else (a source checkout run as `python -m pipelines.cli`) pyproject's."""
+    """The installed package's version, else (a source checkout run as `python -m ncbot`) pyproject's."""
     from importlib.metadata import PackageNotFoundError, version as installed_version
     from pathlib import Path
 
@@ -103,6 +103,10 @@ def main(args: list[str] | None = None) -> None:
         where = f" (see: {usage.ctx.command_path} --help)" if getattr(usage, "ctx", None) else ""
         print(f"ncbot: error: {squeeze(usage.format_message())}{where}", file=sys.stderr)
         code = usage.exit_code
+    except BrokenPipeError:  # `ncbot configs | head`: the reader left; stop quietly, as a killed writer would
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        code = 141
     except (KeyboardInterrupt, click.Abort):
         print(f"\nncbot: interrupted (Ctrl-C){resume_advice(argv)}", file=sys.stderr)
         code = 130

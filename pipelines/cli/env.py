@@ -8,7 +8,7 @@ env_app = typer.Typer(help="The multimodal dialogue game env: describe its featu
 
 def feature_meaning(key: str, game: str) -> str:
     """A one-line meaning of a feature key such as ``robot_move[04]`` or ``word[hello]``."""
-    from envs.rules import make_game
+    from ncbot.envs.rules import make_game
 
     kind, _, rest = key.partition("[")
     value = rest.rstrip("]")
@@ -31,8 +31,8 @@ def describe(
     """Print the feature table (index, key, meaning) and the action table (index, act, template, command)."""
     import re
 
-    from envs import make_env
-    from envs.rules import make_game
+    from ncbot.envs import make_env
+    from ncbot.envs.rules import make_game
 
     env = make_env(game, temporal=temporal)
     rules = make_game(game)

@@ -1,7 +1,7 @@
 """`ncbot train`, `ncbot eval`, `ncbot ablate`, `ncbot table`: the learning area's commands.
 
 Heavy imports (torch, torchrl) happen inside the commands so `ncbot --help` stays fast. Library errors
-(ValueError / FileNotFoundError) become one line and exit code 2 in `pipelines.cli.app.main`.
+(ValueError / FileNotFoundError) become one line and exit code 2 in `ncbot.pipelines.cli.app.main`.
 """
 from __future__ import annotations
 
@@ -10,15 +10,15 @@ from typing import Optional
 
 import typer
 
-from pipelines.agents import check_value_option  # light: pathlib only
-from pipelines.config import MAX_GAMES, MAX_SEED  # light: pydantic and yaml, no torch
-from pipelines.outputs import check_writable_dir, check_writable_file  # light: os and pathlib only
+from ncbot.pipelines.agents import check_value_option  # light: pathlib only
+from ncbot.pipelines.config import MAX_GAMES, MAX_SEED  # light: pydantic and yaml, no torch
+from ncbot.pipelines.outputs import check_writable_dir, check_writable_file  # light: os and pathlib only
 
 CHECKPOINT_HELP = "A checkpoint .pt written by ncbot train, or its run folder."
 
 
 def train_command(
-    config: Optional[str] = typer.Argument(None, help="YAML run config, e.g. pipelines/configs/default.yaml."),
+    config: Optional[str] = typer.Argument(None, help="YAML run config: a file or a shipped name (default, ultimate, paper/standard_original; ncbot configs lists them)."),
     overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides, e.g. optim.lr=0.0005."),
     out: Optional[str] = typer.Option(None, "--out", "-o", help="Run folder (default runs/<config name>)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed (overrides train.seed)."),
@@ -30,7 +30,7 @@ def train_command(
                                    "log, eval.json); without it such a folder is refused."),
 ) -> None:
     """Train an agent (competitive DQN or a baseline) and write checkpoint, eval.json, curve PNG and MCAP log."""
-    from pipelines.train.run import resolve_run, train
+    from ncbot.pipelines.train.run import resolve_run, train
 
     config_path, extra = config, list(overrides or [])
     if resume and config_path and "=" in config_path:  # `ncbot train --resume DIR key=value`
@@ -55,6 +55,43 @@ def train_command(
                f"train wall time {report['train_wall_time_s']:.1f} s, " + (
                    f"periodic task success first reached 0.995 at {reached:.1f} s" if reached is not None
                    else "periodic task success never reached 0.995"))
+
+
+def configs_command(
+    name: Optional[str] = typer.Argument(None, help="A shipped config's name: print its YAML (e.g. ncbot configs default > mine.yaml)."),
+) -> None:
+    """List the configs shipped with ncbot (name, kind, what it is), or print one to start your own from."""
+    from ncbot.pipelines.config import shipped_configs
+
+    configs = shipped_configs()
+    if name is not None:
+        path = configs.get(name.removesuffix(".yaml"))
+        if path is None:
+            raise ValueError(f"no shipped config named {name!r}; shipped: {', '.join(configs)}")
+        typer.echo(path.read_text(encoding="utf-8"), nl=False)
+        return
+    typer.echo(f"{'name':<36} {'kind':<5} what it is (ncbot train NAME, ncbot ablate NAME; ncbot configs NAME prints it)")
+    for config_name, path in configs.items():
+        typer.echo(f"{config_name:<36} {_config_kind(path):<5} {_config_summary(path)}")
+
+
+def _config_kind(path) -> str:
+    """`grid` for an ablation grid (ncbot ablate), `run` for a run config (ncbot train)."""
+    import yaml
+
+    data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    return "grid" if isinstance(data, dict) and "suites" in data and "grid" in data else "run"
+
+
+def _config_summary(path, width: int = 90) -> str:
+    """The first sentence of the file's opening comment, cut to `width` characters."""
+    lines = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if not line.startswith("#"):
+            break
+        lines.append(line.lstrip("#").strip())
+    first = " ".join(lines).split(". ", 1)[0].rstrip(".")
+    return first if len(first) <= width else first[: width - 3].rstrip() + "..."
 
 
 def _results_header() -> str:
@@ -83,7 +120,7 @@ def eval_command(
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
-    from pipelines.run_env import check_first, robot_seat
+    from ncbot.pipelines.run_env import check_first, robot_seat
 
     check_first(first, name="--first")
     check_value_option(value, search)
@@ -91,8 +128,8 @@ def eval_command(
         check_writable_dir(out, "--out")
     import torch
 
-    from pipelines.evaluate.games import evaluate_checkpoint
-    from pipelines.agents import register_agent_opponent
+    from ncbot.pipelines.evaluate.games import evaluate_checkpoint
+    from ncbot.pipelines.agents import register_agent_opponent
 
     torch.set_num_threads(1)
     if exhaustive:
@@ -110,7 +147,7 @@ def eval_command(
 
 def _exhaustive_eval(checkpoint: str, first: str, seed: int, dialogue_seeds: int, as_json: bool) -> None:
     """`ncbot eval --exhaustive`: exact win/draw/loss per seat and the lost games, if any."""
-    from pipelines.evaluate.exact import exact_checkpoint
+    from ncbot.pipelines.evaluate.exact import exact_checkpoint
 
     results = exact_checkpoint(checkpoint, first=first, seed=seed, dialogue_seeds=dialogue_seeds)
     if as_json:
@@ -131,7 +168,7 @@ def _exhaustive_eval(checkpoint: str, first: str, seed: int, dialogue_seeds: int
 
 
 def ablate_command(
-    config: str = typer.Argument(..., help="Ablation grid YAML, e.g. pipelines/configs/ablation.yaml."),
+    config: str = typer.Argument(..., help="Ablation grid YAML: a file or a shipped name (ablation, ablation_paper, screening; ncbot configs lists them)."),
     overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides applied to every run of "
                                                     "the grid, e.g. collector.total_frames=20000 (finished runs in the "
                                                     "runs folder are skipped: give another --out for other values)."),
@@ -146,7 +183,7 @@ def ablate_command(
                                        help="With --backend ray: GPUs each CUDA run asks for (a fraction shares one)."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
-    from pipelines.train.ablate import run_ablation
+    from ncbot.pipelines.train.ablate import run_ablation
 
     if out is not None:
         check_writable_dir(out, "--out")
@@ -170,7 +207,7 @@ def table_command(
     import shlex
     import sys
 
-    from pipelines.reproduce.table import write_report
+    from ncbot.pipelines.reproduce.table import write_report
 
     for path, option in ((out, "--out"), (claims, "--claims")):
         if path is not None:
@@ -198,7 +235,7 @@ def train_value_command(
     check_writable_dir(out, "--out")
     import torch
 
-    from pipelines.train.value_training import train_value
+    from ncbot.pipelines.train.value_training import train_value
 
     torch.set_num_threads(1)
     report = train_value(out, free_move=free_move, positions=positions, simulations=simulations, hidden=sizes,
@@ -216,3 +253,4 @@ def register(app: typer.Typer) -> None:
     app.command("train-value")(train_value_command)
     app.command("ablate")(ablate_command)
     app.command("table")(table_command)
+    app.command("configs")(configs_command)

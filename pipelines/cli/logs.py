@@ -1,7 +1,7 @@
 """`ncbot logs ...`: look into the MCAP episode logs of a run (logic in `logs/`; this file only parses options).
 
 Bad input (missing path, empty or non-MCAP file, an MCAP without ncbot channels, an unknown episode) raises
-ValueError/FileNotFoundError, which `pipelines.cli.app.main` prints as one line with exit code 2.
+ValueError/FileNotFoundError, which `ncbot.pipelines.cli.app.main` prints as one line with exit code 2.
 """
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Optional
 
 import typer
 
-from pipelines.extras import require
-from pipelines.outputs import check_writable_file
-from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
+from ncbot.pipelines.extras import require
+from ncbot.pipelines.outputs import check_writable_file
+from ncbot.pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
 logs_app = typer.Typer(help="Inspect, replay, plot and export the MCAP episode logs of a run.",
                        no_args_is_help=True)
@@ -25,8 +25,8 @@ PATH_HELP = "an episodes-NNNN.mcap file or a run directory holding them"
 def inspect_log(path: Path = typer.Argument(..., help=PATH_HELP),
                 as_json: bool = typer.Option(False, "--json", help="print one JSON object instead of text")) -> None:
     """Channels and schemas, message counts, time span, episodes by phase, and whether a file was cut off."""
-    from logs.reader import LogReader
-    from logs.summary import format_study, format_summary, study_sessions, summarize, summarize_study
+    from ncbot.logs.reader import LogReader
+    from ncbot.logs.summary import format_study, format_summary, study_sessions, summarize, summarize_study
 
     if study_sessions(path):  # a browser study: one session-<id>/ folder per tab (`ncbot robot serve`)
         study = summarize_study(path)
@@ -43,8 +43,8 @@ def list_episodes(path: Path = typer.Argument(..., help=PATH_HELP),
                   agent: Optional[str] = typer.Option(None, help="only this agent"),
                   limit: int = typer.Option(50, min=1, help="show at most this many (the first matches)")) -> None:
     """A table of the episodes that match the filters."""
-    from logs.reader import LogReader
-    from logs.schemas import EPISODE_TOPIC, OUTCOMES, PHASES
+    from ncbot.logs.reader import LogReader
+    from ncbot.logs.schemas import EPISODE_TOPIC, OUTCOMES, PHASES
 
     if phase is not None and phase not in PHASES:
         raise ValueError(f"--phase must be one of {', '.join(PHASES)}, got {phase!r}")
@@ -74,7 +74,7 @@ def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
                  episode_id: int = typer.Argument(..., help="episode id (see `ncbot logs episodes`)"),
                  max_q: int = typer.Option(8, min=1, help="Q-values shown per decision (highest first)")) -> None:
     """Replay one dialogue: utterances, the board after each move, Q-values and masks of each robot decision."""
-    from logs.replay import format_episode, load_episode
+    from ncbot.logs.replay import format_episode, load_episode
 
     record, names = load_episode(path, episode_id, progress=progress_bar)
     typer.echo(format_episode(record, names, max_q=max_q))
@@ -85,7 +85,7 @@ def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
                    output: Path = typer.Option(..., "--out", "-o", help="PNG file to write"),
                    window: int = typer.Option(200, min=1, help="moving-average window over training episodes")) -> None:
     """Draw the learning curve (task success, reward per step, dialogue length) from the log alone."""
-    from logs.curve import plot_learning_curve
+    from ncbot.logs.curve import plot_learning_curve
 
     check_writable_file(output, "--out", (".png",))
 
@@ -109,7 +109,7 @@ def to_rerun(path: Path = typer.Argument(..., help=PATH_HELP),
              max_episodes: int = typer.Option(200, min=1, help="cap on exported episodes")) -> None:
     """Export episodes to a rerun recording: boards, dialogue text, Q-values and rewards, camera frames."""
     require("rerun", "rerun", what="ncbot logs to-rerun")
-    from logs.rerun_export import export_to_rerun, parse_episode_spec
+    from ncbot.logs.rerun_export import export_to_rerun, parse_episode_spec
 
     check_writable_file(output, "--out", (".rrd",))
 

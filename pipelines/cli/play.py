@@ -5,10 +5,10 @@ from typing import Optional
 
 import typer
 
-from pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
-from pipelines.config import MAX_GAMES, MAX_SEED
-from pipelines.agents import check_value_option  # light: pathlib only
-from pipelines.outputs import check_writable_dir
+from ncbot.pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
+from ncbot.pipelines.config import MAX_GAMES, MAX_SEED
+from ncbot.pipelines.agents import check_value_option  # light: pathlib only
+from ncbot.pipelines.outputs import check_writable_dir
 
 
 def play_command(
@@ -25,14 +25,14 @@ def play_command(
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None and game not in ("standard", "ultimate"):
         raise ValueError(f"--game must be standard or ultimate, got {game!r}")
-    from pipelines.run_env import check_first
+    from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"), "--first")
     if free_move is not None and free_move not in ("anywhere", "open_subgrids"):
         raise ValueError(f"--free-move must be anywhere or open_subgrids, got {free_move!r}")
     if not no_log:
         check_writable_dir(out, "--out")
-    from pipelines.evaluate.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
+    from ncbot.pipelines.evaluate.play import QuitGame, play_dialogue  # torch and the env load only now: errors above stay fast
 
     try:
         summary = play_dialogue(game=game, checkpoint=checkpoint, first=first, free_move=free_move, seed=seed,
@@ -82,7 +82,7 @@ def ladder_command(
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
     if out is not None:
         check_writable_dir(out, "--out")
-    from pipelines.evaluate.ladder import run_ladder  # torch and the env load only now: errors above stay fast
+    from ncbot.pipelines.evaluate.ladder import run_ladder  # torch and the env load only now: errors above stay fast
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents is not None else None
     if names is not None and not names:
@@ -106,10 +106,10 @@ def match_command(
         raise ValueError(f"--games must be a positive number of games, got {games}")
     import torch
 
-    from envs.opponents import make_opponent
-    from envs.opponents.arena import play_match
-    from pipelines.agents import register_agent_opponent
-    from pipelines.progress import progress_bar
+    from ncbot.envs.opponents import make_opponent
+    from ncbot.envs.opponents.arena import play_match
+    from ncbot.pipelines.agents import register_agent_opponent
+    from ncbot.pipelines.progress import progress_bar
 
     torch.set_num_threads(1)
     register_agent_opponent()

@@ -25,7 +25,7 @@ def reproduce_command(
     import shlex
     import sys
 
-    from pipelines.reproduce.grid import reproduce
+    from ncbot.pipelines.reproduce.grid import reproduce
 
     command = "ncbot " + shlex.join(sys.argv[1:])
     result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,

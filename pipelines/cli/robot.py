@@ -1,7 +1,7 @@
 """`ncbot robot ...`: the simulated Pepper (SAPIEN) — play whole games, render the mouth camera, write the URDF.
 
 The logic lives in `robot_sim`; this module parses options, builds the policy (a trained checkpoint through
-`pipelines.agents.load_agent`, or the look-ahead filter alone), and prints results. SAPIEN, torch and cv2 are
+`ncbot.pipelines.agents.load_agent`, or the look-ahead filter alone), and prints results. SAPIEN, torch and cv2 are
 imported inside the commands so `ncbot --help` stays fast.
 """
 from __future__ import annotations
@@ -12,8 +12,8 @@ from typing import Optional
 
 import typer
 
-from pipelines.extras import require
-from pipelines.outputs import check_writable_dir, check_writable_file
+from ncbot.pipelines.extras import require
+from ncbot.pipelines.outputs import check_writable_dir, check_writable_file
 
 MAX_PIXELS = 4096  # camera width/height bound: a 4K frame; 100000 x 100000 would need 30 GB (docs/reliability.md)
 
@@ -46,14 +46,14 @@ GAME_HELP = "standard (3x3) or ultimate (9x9), without a checkpoint (a checkpoin
 
 def game_and_agent(checkpoint: Optional[Path], game: Optional[str]):
     """(game, checkpoint file or None, (config, policy) or None): the game is the checkpoint's where one is given."""
-    from robot_sim.scene import check_game
+    from ncbot.robot_sim.scene import check_game
 
     if checkpoint is None:
         game = game or "standard"
         check_game(game)
         return game, None, None
-    from pipelines.agents import load_agent
-    from pipelines.checkpoint import FINAL_NAME
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.checkpoint import FINAL_NAME
 
     agent = load_agent(checkpoint)  # a missing file, a run folder without checkpoint.pt, a foreign file: one line
     trained = agent[0].env.game
@@ -87,7 +87,7 @@ def play(
     as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
-    from pipelines.run_env import check_first
+    from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human", "alternate", "random"), "--first")
     if not 1 <= games <= 10_000:
@@ -110,10 +110,10 @@ def play(
         require("rerun", "rerun", what="ncbot robot play --rrd")
     import torch
 
-    from robot_sim.human import HumanConfig
-    from robot_sim.play import RobotPlayConfig, play_robot_games
-    from pipelines.progress import progress_bar
-    from robot_sim.render_system import SimulatorUnavailable
+    from ncbot.robot_sim.human import HumanConfig
+    from ncbot.robot_sim.play import RobotPlayConfig, play_robot_games
+    from ncbot.pipelines.progress import progress_bar
+    from ncbot.robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
     game, checkpoint, agent = game_and_agent(checkpoint, game)
@@ -134,7 +134,7 @@ def play(
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     if rrd and out is not None:
-        from logs.rerun_export import export_to_rerun
+        from ncbot.logs.rerun_export import export_to_rerun
 
         export_to_rerun(out, out / "run.rrd")
         report["rrd"] = str(out / "run.rrd")
@@ -159,7 +159,7 @@ def serve(
     parallel: bool = typer.Option(True, help="Sessions render at once (--no-parallel: one simulator lock for all)."),
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
-    from robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.conditions import load_conditions
 
     load_conditions(conditions)  # a bad preset or file: one line now, not a failed game later
     if answer_seconds <= 0:
@@ -171,9 +171,9 @@ def serve(
     require("serve", "fastapi", "uvicorn", "websockets", what="ncbot robot serve")
     import torch
 
-    from pipelines.serve.app import serve as run_server
-    from pipelines.serve.session import ServeConfig
-    from robot_sim.render_system import SimulatorUnavailable
+    from ncbot.pipelines.serve.app import serve as run_server
+    from ncbot.pipelines.serve.session import ServeConfig
+    from ncbot.robot_sim.render_system import SimulatorUnavailable
 
     torch.set_num_threads(1)
     game, checkpoint, _ = game_and_agent(checkpoint, game)  # a checkpoint of either game serves its own game
@@ -213,11 +213,11 @@ def render(
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
     check_writable_file(output, "--out", IMAGE_SUFFIXES)
     require("robot", "sapien", what="ncbot robot render")
-    from envs.rules import make_game
-    from robot_sim.conditions import load_conditions
-    from robot_sim.render_system import SimulatorUnavailable
-    from robot_sim.scene import PepperScene, SceneConfig
-    from robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
+    from ncbot.envs.rules import make_game
+    from ncbot.robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.render_system import SimulatorUnavailable
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
     ranges = load_conditions(conditions)
     try:
@@ -263,7 +263,7 @@ def urdf(
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes named after the links (<Link>.dae)."),
 ) -> None:
     """Write the primitive Pepper URDF (optionally with licensed meshes swapped in for the primitives)."""
-    from robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
+    from ncbot.robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
 
     if output is not None:
         check_writable_file(output, "--out", (".urdf",))

@@ -12,9 +12,9 @@ from typing import Optional
 
 import typer
 
-from fileio import atomic_write_text
-from pipelines.outputs import check_writable_dir, check_writable_file
-from pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.outputs import check_writable_dir, check_writable_file
+from ncbot.pipelines.progress import progress_bar  # light: tqdm loads only when a bar is drawn
 
 vision_app = typer.Typer(help="Visual perception: read game sheets, classify cells, train/evaluate the CNN, generate data.",
                          no_args_is_help=True)
@@ -42,7 +42,7 @@ def _load_image(path: Path):
 
 
 def _classifier(weights: Optional[Path]):
-    from vision.classifier import load_classifier
+    from ncbot.vision.classifier import load_classifier
 
     return load_classifier(weights)
 
@@ -59,8 +59,8 @@ def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."
          weights: Optional[Path] = typer.Option(None, help="Classifier weights (default: the shipped ones)."),
          rho: Optional[int] = typer.Option(None, min=8, max=256, help="Pixels per cell of the grid warp (default 64 / 40; 8..256).")) -> None:
     """Read the board on each photo: row-major cells "x" / "o" / "" over the full grid."""
-    from vision.grid import read_board
-    from vision.sheet import check_grid
+    from ncbot.vision.grid import read_board
+    from ncbot.vision.sheet import check_grid
 
     check_grid(grid)
     _setup_threads()
@@ -123,14 +123,14 @@ def train(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to
           ) -> None:
     """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data, or with
     --budget N the same recipe on N labelled cells (109 : 201 clean : noisy, as the paper)."""
-    from vision.classifier import DEFAULT_WEIGHTS, TrainConfig, save_weights
-    from vision.data import TRAIN_SEED
-    from vision.training import DefaultTraining, train_default
+    from ncbot.vision.classifier import DEFAULT_WEIGHTS, TrainConfig, save_weights
+    from ncbot.vision.data import TRAIN_SEED
+    from ncbot.vision.training import DefaultTraining, train_default
 
     if out is not None:
         check_writable_file(out, "--out", (".pt",))
     if budget is not None:
-        from vision.budget import train_budget
+        from ncbot.vision.budget import train_budget
 
         if out is None:
             raise ValueError("--budget needs --out WEIGHTS.pt (it never overwrites the shipped weights)")
@@ -144,7 +144,7 @@ def train(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to
         return
     if updates is not None:
         raise ValueError("--updates applies only with --budget (the shipped recipe counts --epochs)")
-    from vision.strokes import TRAINING_STYLES
+    from ncbot.vision.strokes import TRAINING_STYLES
 
     styles = tuple(s.strip() for s in harsh_styles.split(",") if s.strip())
     if not styles or set(styles) - set(TRAINING_STYLES):
@@ -175,7 +175,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), "--out", "-o", help="
     """Reproduce the paper's three experiments (LOO clean, clean->noisy, noisy->clean) and measure reading
     (clean and "harsh" photo conditions) and the move recogniser (Algorithm 1 on drawing sequences with a
     hand over the sheet)."""
-    from vision import experiments as ex
+    from ncbot.vision import experiments as ex
 
     parts = [p.strip() for p in what.split(",") if p.strip()]
     unknown = set(parts) - {"paper", "cells", "reading", "recogniser", "harsh"}
@@ -211,7 +211,7 @@ def evaluate(out: Path = typer.Option(Path("runs/vision"), "--out", "-o", help="
             written.append(out / "reading_harsh_frames.png")
         typer.echo(ex.markdown(results))
     if "recogniser" in parts:
-        from vision import recogniser_eval as rx
+        from ncbot.vision import recogniser_eval as rx
 
         base = rx.HELDOUT_SEED if seed_set == "heldout" else rx.TUNING_SEED
         sets = [rx.evaluate_sequences(grid, n, base + offset, styles, classifier, progress=progress_bar)
@@ -237,9 +237,9 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     """Write generated data to disk to look at or to feed other tools."""
     import cv2
 
-    from vision.data.conditions import CONDITIONS
-    from vision.sheet import check_grid
-    from vision.strokes import STYLES
+    from ncbot.vision.data.conditions import CONDITIONS
+    from ncbot.vision.sheet import check_grid
+    from ncbot.vision.strokes import STYLES
 
     styles = tuple(s.strip() for s in style.split(",") if s.strip())
     if not styles or set(styles) - set(STYLES):
@@ -253,8 +253,8 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     out.mkdir(parents=True, exist_ok=True)
     records = []
     if kind == "cells":
-        from vision.data.cells import make_cells
-        from vision.labels import LABELS
+        from ncbot.vision.data.cells import make_cells
+        from ncbot.vision.labels import LABELS
 
         images, labels = make_cells(n, seed, noisy=noisy, styles=styles)
         for i, (image, label) in enumerate(zip(images, labels)):
@@ -262,7 +262,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
             cv2.imwrite(str(out / name), image)
             records.append({"image": name, "label": LABELS[int(label)]})
     elif kind == "frames":
-        from vision.data.frames import make_frame
+        from ncbot.vision.data.frames import make_frame
 
         for i in range(n):
             frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=quality)
@@ -271,7 +271,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
             records.append({"image": name, "cells": frame.board, "hand": hand,
                             "page_corners": frame.page_corners.astype(float).round(1).tolist()})
     else:
-        from vision.data.sequences import make_move_sequence
+        from ncbot.vision.data.sequences import make_move_sequence
 
         seq = make_move_sequence(grid, seed, styles=styles, conditions=quality)
         for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):

@@ -1,4 +1,4 @@
-"""pydantic's error list -> one line naming the config key and what is allowed (`pipelines.config` raises it as a
+"""pydantic's error list -> one line naming the config key and what is allowed (`ncbot.pipelines.config` raises it as a
 `ValueError`; the CLI prints it and exits 2). Light: pydantic only, no torch.
 """
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Run configs from files: `key=value` overrides, the shipped configs by path, loading and dumping YAML
-(the sections themselves: `pipelines.config.sections`)."""
+"""Run configs from files: `key=value` overrides, the shipped configs by name or path, loading and dumping YAML
+(the sections themselves: `ncbot.pipelines.config.sections`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,9 +8,9 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from fileio.yaml_file import read_yaml
-from pipelines.config.errors import validation_line
-from pipelines.config.sections import RunConfig
+from ncbot.fileio.yaml_file import read_yaml
+from ncbot.pipelines.config.errors import validation_line
+from ncbot.pipelines.config.sections import RunConfig
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:
@@ -55,15 +55,34 @@ def config_from_dict(data: dict[str, Any]) -> RunConfig:
         raise ValueError(validation_line(error, RunConfig)) from None
 
 
+SHIPPED_DIR = Path(__file__).resolve().parents[1] / "configs"
+
+
+def shipped_configs() -> dict[str, Path]:
+    """{name: file} of the configs shipped in the package, named by their path under configs/ without .yaml
+    (`default`, `ultimate`, `ablation`, `paper/ultimate100_proposed_temporal`, ...)."""
+    return {path.relative_to(SHIPPED_DIR).with_suffix("").as_posix(): path for path in sorted(SHIPPED_DIR.rglob("*.yaml"))}
+
+
 def shipped_config(path: str | Path) -> Path:
-    """`path`, or for a missing `pipelines/configs/...` path the config of that name shipped in the installed
-    package: the README's `ncbot train pipelines/configs/default.yaml` then works outside a clone (a wheel install)."""
+    """`path` when it exists; else the shipped config it names: a name (`default`, `paper/standard_original`) or a
+    checkout path (`pipelines/configs/default.yaml`, so the README's commands also work outside a clone).
+
+    A text that looks like a name (no .yaml/.yml suffix) and names neither a file nor a shipped config is a one-line
+    ValueError listing the names; a missing file path is left to the reader's own error."""
     path = Path(path)
+    if path.exists():
+        return path
     parts = path.parts
-    if not path.exists() and len(parts) > 2 and parts[:2] == ("pipelines", "configs"):
-        shipped = Path(__file__).resolve().parents[1].joinpath(*parts[1:])
-        if shipped.is_file():
-            return shipped
+    if len(parts) > 2 and parts[:2] == ("pipelines", "configs") and SHIPPED_DIR.joinpath(*parts[2:]).is_file():
+        return SHIPPED_DIR.joinpath(*parts[2:])
+    names = shipped_configs()
+    name = path.as_posix().removesuffix(".yaml")
+    if name in names:
+        return names[name]
+    if path.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"config {str(path)!r} is neither a file nor a shipped config; shipped: "
+                         f"{', '.join(n for n in names if '/' not in n)}, paper/... (ncbot configs lists them)")
     return path
 
 

@@ -1,9 +1,9 @@
 """Typed run configuration, grouped by concern like TorchRL's sota configs, loaded from YAML and validated by pydantic.
 
 Every hyper-parameter is named and documented here, in one place (CleanRL style). Validation is pydantic's
-(strict types, `extra="forbid"`, range constraints on the fields); `pipelines.config.files.load_config` reads a
+(strict types, `extra="forbid"`, range constraints on the fields); `ncbot.pipelines.config.files.load_config` reads a
 YAML file with `section.key=value` overrides and raises `ValueError` with ONE line naming the bad key and what is
-allowed (`pipelines.config.errors`); the CLI turns that into exit code 2.
+allowed (`ncbot.pipelines.config.errors`); the CLI turns that into exit code 2.
 
 Importing this module stays light (pydantic and yaml, no torch): the CLI and tools read configs without paying
 for torch.
@@ -118,7 +118,7 @@ class EnvConfig(Section):
             raise ValueError(f"env.misread_rate must be set (a number in (0, 1)) with env.taken_squares: misread and "
                              f"unset otherwise; got taken_squares {self.taken_squares!r}, misread_rate {self.misread_rate!r}")
         if self.asr_channel is not None and not Path(self.asr_channel).is_file():
-            raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m speech.fit)")
+            raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m ncbot.speech.fit)")
         return self
 
 
@@ -335,7 +335,7 @@ class RunConfig(Section):
         if self.agent.memory != "none":
             self._check_memory()
         if self.agent.lookahead is not None:
-            from modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
+            from ncbot.modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
 
             if self.agent.lookahead not in LOOKAHEAD_RULES:
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
@@ -366,7 +366,7 @@ class RunConfig(Section):
     @property
     def lookahead(self) -> str:
         """The mask rule this run uses: the override, else the agent's own."""
-        from modules.masks import AGENT_LOOKAHEAD
+        from ncbot.modules.masks import AGENT_LOOKAHEAD
 
         return self.agent.lookahead or AGENT_LOOKAHEAD[self.agent.name]
 

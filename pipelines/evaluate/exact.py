@@ -22,7 +22,7 @@ from typing import Any
 
 import torch
 
-from pipelines.evaluate.games import OUTCOME_DRAW, OUTCOME_ROBOT_WON, play_games
+from ncbot.pipelines.evaluate.games import OUTCOME_DRAW, OUTCOME_ROBOT_WON, play_games
 
 USER_MARK = 2
 CELLS = 9
@@ -125,7 +125,7 @@ class ExactResult:
 def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactResult:
     """Enumerate every user-move branch with ``first`` (robot | human) opening, under each dialogue draw; see the
     module doc. The result's ``seat`` is the robot's (``run_env.robot_seat``)."""
-    from pipelines.run_env import make_run_env, robot_seat
+    from ncbot.pipelines.run_env import make_run_env, robot_seat
 
     if config.env.game != "standard":
         raise ValueError(f"exact evaluation enumerates 3x3 games only; this agent plays {config.env.game!r}")
@@ -160,9 +160,9 @@ def exact_checkpoint(checkpoint_path, *, first: str = "alternate", seed: int = 0
 
     Dialogue draws use env seeds seed, seed + 1, ..., seed + dialogue_seeds - 1.
     """
-    from pipelines.agents import load_agent
+    from ncbot.pipelines.agents import load_agent
 
-    from pipelines.run_env import check_first
+    from ncbot.pipelines.run_env import check_first
 
     check_first(first)
     if dialogue_seeds < 1:

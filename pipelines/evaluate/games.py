@@ -12,8 +12,8 @@ from typing import Any
 
 import torch
 
-from envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
-from modules.mask_rules import all_moves_negative
+from ncbot.envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
+from ncbot.modules.mask_rules import all_moves_negative
 
 MAX_EVAL_BATCH = 4096
 
@@ -100,7 +100,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
     whose network lives on a GPU reads each step there and hands its action back on the CPU (the env's device)."""
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-    from modules.device import on_device
+    from ncbot.modules.device import on_device
 
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
@@ -150,8 +150,8 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
     `alternate` plays half of the games robot-first, then half human-first; `seats` then holds each half under
     "robot_" + its `run_env.robot_seat` name.
     """
-    from modules.recurrent import memory_env
-    from pipelines.run_env import check_first, make_run_env, robot_seat
+    from ncbot.modules.recurrent import memory_env
+    from ncbot.pipelines.run_env import check_first, make_run_env, robot_seat
 
     check_first(first)
     if games <= 0:
@@ -185,7 +185,7 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     """
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
-    from pipelines.agents import load_agent, load_guided_agent
+    from ncbot.pipelines.agents import load_agent, load_guided_agent
 
     if search:
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
@@ -194,7 +194,7 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     if mcap_dir is None:
         result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent)
     else:
-        from logs import EpisodeLogger
+        from ncbot.logs import EpisodeLogger
 
         with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
             result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,

@@ -1,7 +1,7 @@
 """`ncbot ladder`: how good is a trained agent against more than a random player?
 
 The agent plays its full dialogues in the real env, greedy with its own look-ahead masks, while the simulated
-user's game moves come from each opponent of the ladder (``envs.opponents``), from both seats. Scores count a
+user's game moves come from each opponent of the ladder (``ncbot.envs.opponents``), from both seats. Scores count a
 win 1 and a draw 0.5. The project's goals are checked and printed with the table: on 3x3 never lose to
 ``minimax`` or ``random``; on Ultimate score at least 0.5 against ``mcts:100``, 0.75 against
 ``mcts:1000``, 0.5 against ``mcts:10000`` and against OpenSpiel's ``openspiel-mcts:1000`` when played.
@@ -16,8 +16,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from fileio import atomic_write_text
-from pipelines.evaluate.games import wilson_interval
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.evaluate.games import wilson_interval
 
 DEFAULT_LADDERS = {
     "standard": ["random", "rule", "minimax"],
@@ -44,7 +44,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     """
     import torch
 
-    from envs.opponents import make_opponent
+    from ncbot.envs.opponents import make_opponent
 
     if games < 1:
         raise ValueError(f"--games must be a positive number of games per opponent and seat, got {games}")
@@ -63,7 +63,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
                for index, (name, first, who) in enumerate(pairs)]
     bar = None
     if progress:
-        from pipelines.progress import progress_bar
+        from ncbot.pipelines.progress import progress_bar
 
         bar = progress_bar(total=len(matches), desc="ladder", unit="match")
     rows: list[dict[str, Any]] = [{} for _ in matches]
@@ -113,8 +113,8 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
 def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None, seed: int, value: str | None,
                       baseline: bool) -> tuple[Any, str, dict[str, Any]]:
     """(config, description of how the robot decides, {"agent": policy[, "look-ahead only": masks alone]})."""
-    from modules.masks import LookaheadOnlyPolicy
-    from pipelines.agents import load_robot, register_agent_opponent
+    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.pipelines.agents import load_robot, register_agent_opponent
 
     register_agent_opponent()
     config, policy, robot = load_robot(checkpoint, search=search, lookahead=lookahead, seed=seed, value=value)
@@ -131,8 +131,8 @@ def play_ladder_match(config, chooser, who: str, opponent: str, first: str, matc
 
     The chooser's own random stream (the search's per-move seeds, the baseline's choice) restarts from
     ``match_seed``, so a match's games do not depend on which matches ran before it in the same process."""
-    from pipelines.evaluate.games import evaluate_agent
-    from pipelines.run_env import robot_seat
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.run_env import robot_seat
 
     generator = getattr(chooser, "generator", None)
     if generator is not None:
@@ -229,7 +229,7 @@ def ladder_markdown(checkpoint: str, game: str, agent: str, rows: list[dict[str,
 
 def draw_ladder(rows: list[dict[str, Any]], path: Path, title: str) -> Path:
     """Stacked win/draw/loss bars per opponent and seat (what a reader checks first: where does it lose?)."""
-    from pipelines.plots import pyplot, save_figure
+    from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
 

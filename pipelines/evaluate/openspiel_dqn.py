@@ -22,7 +22,7 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
     from open_spiel.python.algorithms import random_agent
     from open_spiel.python.pytorch import dqn
 
-    from envs.opponents.openspiel import OPENSPIEL_GAMES
+    from ncbot.envs.opponents.openspiel import OPENSPIEL_GAMES
 
     torch.set_num_threads(1)
     np.random.seed(seed)
@@ -72,7 +72,7 @@ def _save_dqn_snapshots(out: Path, snapshots: list[dict[str, Any]], size: int, a
     """Write the DQN's snapshots so far, atomically (a reader never sees half a file)."""
     import torch
 
-    from fileio import atomic_path
+    from ncbot.fileio import atomic_path
 
     with atomic_path(out) as temp:
         torch.save({"snapshots": snapshots, "state_size": size, "num_actions": actions, "settings": settings,
@@ -103,7 +103,7 @@ class DQNPlayer:
 
     @staticmethod
     def build(q_state: dict, meta: dict[str, Any], game: str, free_move: str, seed: int):
-        from envs.opponents.openspiel import OpenSpielOpponent
+        from ncbot.envs.opponents.openspiel import OpenSpielOpponent
 
         network = dqn_network(q_state, meta)
 
@@ -117,8 +117,8 @@ class DQNPlayer:
 
 
 def evaluate_dqn(snapshot: dict[str, Any], meta: dict[str, Any], game: str, games: int, seed: int) -> dict[str, float]:
-    from envs.opponents import make_opponent
-    from envs.opponents.arena import play_match
+    from ncbot.envs.opponents import make_opponent
+    from ncbot.envs.opponents.arena import play_match
 
     free_move = "open_subgrids" if game == "ultimate" else "anywhere"
     players = [DQNPlayer.build(snapshot["q"][p], meta, game, free_move, seed) for p in range(2)]
@@ -132,7 +132,7 @@ def exact_dqn(snapshot: dict[str, Any], meta: dict[str, Any]) -> dict[str, float
     """Exact task success of a 3x3 DQN snapshot from each seat: the game tree of OpenSpiel's tic_tac_toe with the
     DQN's greedy move at its turns and every move of the uniform random player at the other's (probabilities
     averaged), positions memoised (the greedy move depends on the board only)."""
-    from envs.opponents.openspiel import import_pyspiel
+    from ncbot.envs.opponents.openspiel import import_pyspiel
 
     pyspiel = import_pyspiel()
     success = {}

@@ -18,8 +18,8 @@ from typing import Callable
 
 import torch
 
-from envs import dialogue as dlg
-from envs.rules import make_game
+from ncbot.envs import dialogue as dlg
+from ncbot.envs.rules import make_game
 
 QUIT_WORDS = {"quit", "exit", "q"}
 HELP_WORDS = {"help", "?"}
@@ -138,8 +138,8 @@ class HeardReplies:
 
 def _build(game: str | None, checkpoint: str | None, free_move: str | None, first: str, seed: int, human_factory):
     """(env, policy, agent name) from a checkpoint (its own game and features) or the look-ahead policy."""
-    from envs import make_env
-    from modules.masks import LookaheadOnlyPolicy
+    from ncbot.envs import make_env
+    from ncbot.modules.masks import LookaheadOnlyPolicy
 
     if checkpoint is None:
         game = game or "standard"
@@ -148,8 +148,8 @@ def _build(game: str | None, checkpoint: str | None, free_move: str | None, firs
         env = make_env(game, batch_size=(1,), temporal=True, free_move=free_move, seed=seed, first=first,
                        opponent=human, asr_confidence=(1.0, 1.0))
         return env, LookaheadOnlyPolicy(seed), "lookahead"
-    from pipelines.agents import load_agent
-    from pipelines.run_env import make_run_env
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.run_env import make_run_env
 
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"checkpoint {checkpoint!r} not found (expected a checkpoint.pt written by ncbot train)")
@@ -175,7 +175,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
     """
     from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
-    from pipelines.run_env import check_first
+    from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"))
     console = console or Console()
@@ -193,7 +193,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
     rules = human.rules
     logger = None
     if log_dir is not None:
-        from logs import EpisodeLogger, PHASES
+        from ncbot.logs import EpisodeLogger, PHASES
 
         phase = "play" if "play" in PHASES else "robot"
         logger = EpisodeLogger(log_dir, run_info={"command": "play", "game": env.game, "agent": agent,

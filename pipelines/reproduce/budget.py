@@ -16,9 +16,9 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from fileio import atomic_write_text
-from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS
-from pipelines.reproduce.dialogues import dialogue_records, dialogue_section, plot_dialogues
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS
+from ncbot.pipelines.reproduce.dialogues import dialogue_records, dialogue_section, plot_dialogues
 
 
 
@@ -48,7 +48,7 @@ def games_budget(runs_dir: Path, points: tuple[int, ...]) -> list[dict[str, Any]
 
 
 def _plot(dialogues: list[dict], games: list[dict], out: Path, label: str) -> list[Path]:
-    from pipelines.plots import pyplot, save_figure
+    from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
     paths = [plot_dialogues(dialogues, out / "data_budget_dialogues.png", label)]
@@ -92,7 +92,7 @@ def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str,
     """Write out/data_budget.md and its PNGs; return the `--json` object {vision, dialogues, games} (+ label).
     ``dialogue_runs``: the dialogue-budget agents' runs folder (pipelines/reproduce/dialogues.py)."""
     games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
-    from pipelines.reproduce.vision import vision_budget_part
+    from ncbot.pipelines.reproduce.vision import vision_budget_part
 
     data = {"label": budget.label, "command": command,
             **vision_budget_part(budget, runs_dir=Path(runs_dir), out=out, command=command),

@@ -21,7 +21,7 @@ import statistics
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from pipelines.reproduce.seed_stats import mean_and_variance
+from ncbot.pipelines.reproduce.seed_stats import mean_and_variance
 
 ALPHA = 0.05
 POWER = 0.8  # the power below which a claim that is not reproduced counts as untested
@@ -162,7 +162,7 @@ def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: s
            comparisons: list[tuple[str, str, str]]) -> float | None:
     """The smallest power over the claim's comparisons to detect the paper's own difference (its table's two
     numbers) with our seeds and our pooled spread; None where the paper gives no number or a side has < 2 seeds."""
-    from pipelines.reproduce.seed_stats import power_of
+    from ncbot.pipelines.reproduce.seed_stats import power_of
 
     powers = []
     for metric, larger, smaller in comparisons:

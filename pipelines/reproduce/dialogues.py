@@ -28,7 +28,7 @@ def filter_agreement(game: str, k: int, seed: int, dialogues: str = "paper", ref
     """Share of the reference's example turns whose allowed acts (Pr > 0.001) the filter from a seeded subset of
     ``k`` dialogues allows exactly as the reference's filter does. ``reference``: how many dialogues the reference
     filter learns from (default: every one the set has, 24 for the paper set; 12 = the paper's dozen)."""
-    import envs.dialogue as dlg
+    import ncbot.envs.dialogue as dlg
 
     chosen = dlg.dialogue_set(dialogues)
     everything = len(dlg.example_pool(game, chosen))
@@ -55,10 +55,10 @@ def dialogue_budget(games: tuple[str, ...]) -> list[dict[str, Any]]:
 def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
     """The dialogue budget's training runs: Proposed + temporal on 3x3 (paper config, env.dialogues: paper) learnt
     from k example dialogues, k in ``budget.dialogue_points``, ``budget.dialogue_subsets`` subsets each; subset s
-    also trains with seed s; ``config``: the 3x3 paper config (`pipelines.reproduce.grid.row_config`). Runs go to RUNS_DIR/kNN/seedS
+    also trains with seed s; ``config``: the 3x3 paper config (`ncbot.pipelines.reproduce.grid.row_config`). Runs go to RUNS_DIR/kNN/seedS
     (resumable like the table's)."""
-    from pipelines.train.ablate import PlannedRun
-    from pipelines.config import load_config
+    from ncbot.pipelines.train.ablate import PlannedRun
+    from ncbot.pipelines.config import load_config
 
     config = Path(config).resolve()
     planned = []
@@ -77,7 +77,7 @@ def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
 def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: int, backend: str = "local",
                         address: str | None = None) -> dict[str, Any]:
     """Train the unfinished dialogue-budget runs through `ncbot ablate`'s runner (local processes or Ray)."""
-    from pipelines.train.ablate import execute_runs
+    from ncbot.pipelines.train.ablate import execute_runs
 
     planned = plan_dialogue_runs(budget, Path(runs_dir), config)
     todo = [run for run in planned if not run.finished]
@@ -90,8 +90,8 @@ def agent_budget(runs_dir: Path | None) -> dict[int, dict[str, Any]]:
     """Per k: robot-first task success and dialogue length of the finished dialogue-budget runs, mean and 95 %
     interval over the subsets (the unit is a subset with its training seed; task success on the logit scale, so it
     stays inside [0, 1]: pipelines.reproduce.seed_stats)."""
-    from pipelines.reproduce.seed_stats import proportion_interval, t_interval
-    from pipelines.reproduce.table import DEFAULT_GAMES, read_eval
+    from ncbot.pipelines.reproduce.seed_stats import proportion_interval, t_interval
+    from ncbot.pipelines.reproduce.table import DEFAULT_GAMES, read_eval
 
     by_k: dict[int, list[dict[str, Any]]] = defaultdict(list)
     for path in sorted(Path(runs_dir).glob("k*/seed*/eval.json")) if runs_dir is not None else []:
@@ -153,7 +153,7 @@ def dialogue_section(records: list[dict[str, Any]], budget: Any) -> list[str]:
 
 def plot_dialogues(records: list[dict[str, Any]], path: Path, label: str) -> Path:
     """data_budget_dialogues.png: filter agreement, the agents' task success and dialogue length against k."""
-    from pipelines.plots import pyplot, save_figure
+    from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))

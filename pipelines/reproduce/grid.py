@@ -3,7 +3,7 @@
 Why one command: the paper's findings need dozens of runs with the faithful options on (pipelines/configs/paper/)
 and a fixed protocol (seeds, games, test games). `table` writes an ablation grid for the budget and runs it
 through the same runner as `ncbot ablate` (pipelines/train/ablate.py: parallel processes, finished runs skipped, a
-killed run resumed from its checkpoint), then `pipelines.reproduce.table.write_report` writes the table and the claims.
+killed run resumed from its checkpoint), then `ncbot.pipelines.reproduce.table.write_report` writes the table and the claims.
 `budget` reads the data budgets off those runs and the example dialogues, and trains the dialogue-budget agents
 (pipelines/reproduce/budget.py). `vision` trains the cell classifier on N labelled cells and runs the paper's
 vision experiments (pipelines/reproduce/vision.py); it needs no RL runs. `--backend ray [--address HOST:PORT]`
@@ -21,7 +21,7 @@ from typing import Any
 
 import yaml
 
-from fileio import atomic_write_text
+from ncbot.fileio import atomic_write_text
 
 PAPER_CONFIGS = Path(__file__).parents[1] / "configs" / "paper"
 PARTS = ("table", "vision", "budget", "all")
@@ -132,7 +132,7 @@ def runs_progress(budget: Budget, runs_dir: Path) -> tuple[int, int]:
 def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
              configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
     """Run the budget's grid through `ncbot ablate`'s runner: finished runs skipped, killed ones resumed."""
-    from pipelines.train.ablate import run_ablation
+    from ncbot.pipelines.train.ablate import run_ablation
 
     grid = write_grid(budget, runs_dir, configs)
     return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir, address=address)
@@ -141,7 +141,7 @@ def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
 def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
     """out/paper_table.md and out/paper_claims.md (pipelines.reproduce.table.write_report), each labelled with the budget,
     and marked PARTIAL (with how many runs are finished) while the budget's runs are not all done."""
-    from pipelines.reproduce.table import write_report
+    from ncbot.pipelines.reproduce.table import write_report
 
     out.mkdir(parents=True, exist_ok=True)
     table, claims = out / "paper_table.md", out / "paper_claims.md"
@@ -180,13 +180,13 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
                 "table": write_table_report(budget, runs_dir=runs_dir, out=Path(out), command=command)}
     if workers <= 0:
         raise ValueError(f"--workers must be positive, got {workers}")
-    from pipelines.train.ablate import check_backend
+    from ncbot.pipelines.train.ablate import check_backend
 
     check_backend(backend, workers, address)  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
     result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command}
     if part in ("vision", "budget", "all"):  # the vision trainings in parallel; the vision files (vision, all)
-        from pipelines.reproduce.vision import run_vision_part
+        from ncbot.pipelines.reproduce.vision import run_vision_part
 
         result.update(run_vision_part(part, budget, runs_dir=runs_dir, out=out, command=command, workers=workers))
         if part == "vision":
@@ -196,8 +196,8 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
     if part in ("table", "all"):
         result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
     if part in ("budget", "all"):
-        from pipelines.reproduce.budget import write_budget_report
-        from pipelines.reproduce.dialogues import run_dialogue_agents
+        from ncbot.pipelines.reproduce.budget import write_budget_report
+        from ncbot.pipelines.reproduce.dialogues import run_dialogue_agents
 
         dialogue_runs = Path(runs) / f"dialogues-{budget.name}"
         result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs,

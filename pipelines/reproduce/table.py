@@ -1,12 +1,12 @@
 """`ncbot table`: the paper-style results table (mean over seeds with a 95 % confidence interval, the prediction
 interval of one new run, the paper's numbers beside ours and whether the paper's single run lies inside that
 prediction interval), every seed's values as CSV beside it, the paper's claims tested over seeds
-(`pipelines.reproduce.claims`) and learning-curve PNGs per agent, read from the run folders of `ncbot ablate`.
+(`ncbot.pipelines.reproduce.claims`) and learning-curve PNGs per agent, read from the run folders of `ncbot ablate`.
 
 Runs are found as RUNS_DIR/<suite>/<game row>/<agent cell>/seed<N>/eval.json. The table reports the robot-first
 seat (the paper's set-up), the outcome broken down (truncated games, games that reached an all-negative state) and
 the robot-second task success. Seeds are the repetitions: each seed's evaluation mean is one sample, so the
-intervals describe how much a result moves between training runs (`pipelines.reproduce.seed_stats`). Two seed
+intervals describe how much a result moves between training runs (`ncbot.pipelines.reproduce.seed_stats`). Two seed
 folders holding the same run (a copied folder) are refused, since they would count one run twice.
 """
 from __future__ import annotations
@@ -18,9 +18,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from fileio import atomic_write_text
-from pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims
-from pipelines.reproduce.seed_stats import CONFIDENCE, Interval, proportion_interval, t_interval
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims
+from ncbot.pipelines.reproduce.seed_stats import CONFIDENCE, Interval, proportion_interval, t_interval
 
 GAME_ORDER = list(GAME_LABELS)
 CELL_ORDER = list(CELL_LABELS)
@@ -285,7 +285,7 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
                  command: str | None = None) -> Report:
     """Write the table (default RUNS_DIR/table.md), the claims (default paper_claims.md beside it) and
     curves_<suite>_<game>.png next to the table."""
-    from pipelines.plots import plot_agent_curves
+    from ncbot.pipelines.plots import plot_agent_curves
 
     runs_dir = Path(runs_dir)
     out = Path(out) if out else runs_dir / "table.md"

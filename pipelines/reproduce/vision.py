@@ -6,7 +6,7 @@ Every training is a folder `RUNS/vision/n<N>_seed<S>/` with `weights.pt` and `re
 skipped, a killed one retrained (a training is 1-3 CPU minutes), so `full` is resumable like the table's runs.
 Outputs (drawn by pipelines/reproduce/vision_report.py): `OUT/data_budget_vision.png` (the curve, the paper's 310 marked), `OUT/vision_experiments.md` + `.png`
 (the paper's three numbers and confusion matrix beside ours), and the vision section of `OUT/data_budget.md`
-(`pipelines.reproduce.budget` renders it with `vision_section`).
+(`ncbot.pipelines.reproduce.budget` renders it with `vision_section`).
 """
 from __future__ import annotations
 
@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from fileio import atomic_path, atomic_write_text
+from ncbot.fileio import atomic_path, atomic_write_text
 
-from pipelines.reproduce.vision_report import plot_confusions, plot_curve, records, render_experiments, vision_section
+from ncbot.pipelines.reproduce.vision_report import plot_confusions, plot_curve, records, render_experiments, vision_section
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ def _heldout_path(root: Path, vb: VisionBudget) -> Path:
 
 def _heldout(root: Path, vb: VisionBudget, progress: Any = None):
     """The held-out data of this budget, cut once and kept beside the runs (every worker scores on the same)."""
-    from vision.budget import HeldOut, heldout
+    from ncbot.vision.budget import HeldOut, heldout
 
     path = _heldout_path(root, vb)
     if path.is_file():
@@ -77,7 +77,7 @@ def _heldout(root: Path, vb: VisionBudget, progress: Any = None):
 
 
 def _spec(vb: VisionBudget, n: int, seed: int) -> dict[str, Any]:
-    from vision.budget import BUDGET_UPDATES
+    from ncbot.vision.budget import BUDGET_UPDATES
 
     return {"images": n, "seed": seed, "updates_target": vb.updates or BUDGET_UPDATES, "heldout_cells": vb.cells,
             "heldout_photos": vb.photos}
@@ -101,8 +101,8 @@ def train_and_score(root: str, spec: dict[str, Any], heldout_file: str) -> dict[
     import cv2
     import torch
 
-    from vision.budget import HeldOut, evaluate, train_budget
-    from vision.classifier import load_classifier, save_weights
+    from ncbot.vision.budget import HeldOut, evaluate, train_budget
+    from ncbot.vision.classifier import load_classifier, save_weights
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -142,7 +142,7 @@ def run_vision_budget(vb: VisionBudget, root: Path, workers: int = 1, progress: 
     data_file = _heldout_path(root, vb)
     _heldout(root, vb, progress)
     # the paper's 310 first (the target check), then seed by seed: a run stopped early still has whole curves
-    from vision.budget import PAPER_IMAGES
+    from ncbot.vision.budget import PAPER_IMAGES
 
     order = sorted(((n != PAPER_IMAGES, seed, n) for seed in range(vb.seeds) for n in vb.points))
     specs = [_spec(vb, n, seed) for _, seed, n in order]
@@ -167,15 +167,15 @@ def run_vision_budget(vb: VisionBudget, root: Path, workers: int = 1, progress: 
 
 def shipped_reference(vb: VisionBudget, root: Path) -> dict[str, Any]:
     """The shipped weights (40,002 training cells) on the very same held-out data: the curve's ceiling."""
-    from vision.budget import SHIPPED_CELLS, evaluate
-    from vision.classifier import load_classifier
+    from ncbot.vision.budget import SHIPPED_CELLS, evaluate
+    from ncbot.vision.classifier import load_classifier
 
     return {"images": SHIPPED_CELLS, **evaluate(load_classifier(), _heldout(Path(root), vb))}
 
 
 def paper_experiments(vb: VisionBudget, root: Path, progress: Any = None) -> list[dict[str, Any]]:
-    """`vision.experiments.paper_experiments` at this budget's leave-one-out folds, kept beside the runs."""
-    from vision import experiments as ex
+    """`ncbot.vision.experiments.paper_experiments` at this budget's leave-one-out folds, kept beside the runs."""
+    from ncbot.vision import experiments as ex
 
     path = Path(root) / f"paper_experiments_{vb.loo_folds or 'all'}folds.json"
     if path.is_file():
@@ -242,7 +242,7 @@ def vision_budget_part(budget: Any, *, runs_dir: Path, out: Path, command: str =
 def run_vision_part(part: str, budget: Any, *, runs_dir: Path, out: Path, command: str, workers: int) -> dict[str, Any]:
     """`reproduce`'s hook: part vision (or all, when the budget has vision points) writes the vision files; part
     budget only trains the missing points in parallel (data_budget.md then reads them back)."""
-    from pipelines.progress import progress_bar
+    from ncbot.pipelines.progress import progress_bar
 
     vb = vision_budget_of(budget)
     if part == "vision" or (part == "all" and vb is not None):

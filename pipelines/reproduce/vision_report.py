@@ -16,7 +16,7 @@ TARGET = 0.98  # our target: >= 98 % of held-out cells right at the paper's budg
 
 def _interval(values: list[float], items: int) -> list[float] | None:
     """The 95 % interval over seeds of an accuracy measured on ``items`` held-out items (logit scale: inside [0, 1])."""
-    from pipelines.reproduce.seed_stats import proportion_interval
+    from ncbot.pipelines.reproduce.seed_stats import proportion_interval
 
     found = proportion_interval(values, max(1, items))
     return None if found.low is None else [found.low, found.high]
@@ -24,7 +24,7 @@ def _interval(values: list[float], items: int) -> list[float] | None:
 
 def records(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One record per N (the `--json` "vision" list): means over seeds, the 95 % interval (Student t of the
-    per-seed logits, `pipelines.reproduce.seed_stats.proportion_interval`), every seed's value."""
+    per-seed logits, `ncbot.pipelines.reproduce.seed_stats.proportion_interval`), every seed's value."""
     by_n: dict[int, list[dict[str, Any]]] = {}
     for r in results:
         by_n.setdefault(r["spec"]["images"], []).append(r)
@@ -50,7 +50,7 @@ def records(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def target_text(recs: list[dict[str, Any]]) -> str:
     """Whether N = 310 reaches the target, and where the mean cell accuracy falls below it."""
-    from vision.budget import PAPER_IMAGES
+    from ncbot.vision.budget import PAPER_IMAGES
 
     at_paper = next((r for r in recs if r["images"] == PAPER_IMAGES), None)
     below = [r["images"] for r in recs if not r["meets_target"]]
@@ -86,7 +86,7 @@ def vision_section(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, l
     """The data-budget table (markdown), shared by data_budget.md and vision_experiments.md."""
     if not recs:
         return (note or "No vision points at this budget.") + "\n"
-    from vision.budget import BUDGET_UPDATES
+    from ncbot.vision.budget import BUDGET_UPDATES
 
     first = recs[0]
     updates_note = ("as many as the shipped run on its clean and noisy cells" if abs(first["updates"] - BUDGET_UPDATES) < 64
@@ -127,8 +127,8 @@ def _suptitle(fig: Any, label: str, command: str) -> None:
 def plot_curve(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, path: Path, label: str,
                command: str) -> Path:
     """Cells and boards right against N (log axis), every seed a dot, the paper's 310 and the 98 % target marked."""
-    from pipelines.plots import pyplot, save_figure
-    from vision.budget import PAPER_IMAGES
+    from ncbot.pipelines.plots import pyplot, save_figure
+    from ncbot.vision.budget import PAPER_IMAGES
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -180,7 +180,7 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
                        shipped: dict[str, Any], command: str) -> str:
     """results/vision_experiments.md: the paper's three numbers and its confusion matrix beside ours (vb: the
     VisionBudget, for its label and photo count)."""
-    from vision.budget import PAPER_IMAGES
+    from ncbot.vision.budget import PAPER_IMAGES
 
     ours = {r["name"]: r for r in paper}
     folds = ours["leave-one-out, clean"]["n"]
@@ -197,7 +197,7 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
     for key, text, value in PAPER_EXPERIMENTS:
         r = ours[key]
         how = (f"{loo_note}; " if key.startswith("leave") else "") + \
-            "`vision.experiments.paper_experiments` (40 epochs, batch 16); alone: `ncbot vision eval --what paper`"
+            "`ncbot.vision.experiments.paper_experiments` (40 epochs, batch 16); alone: `ncbot vision eval --what paper`"
         lines.append(f"| {text} | {100 * value:.1f} % | **{100 * r['accuracy']:.1f} %** | {r['n']} | {how} |")
     pooled, seeds = _pooled(results, PAPER_IMAGES)
     columns = [("paper (its one matrix)", np.array(PAPER_CONFUSION), "the paper"),
@@ -222,8 +222,8 @@ def render_experiments(vb: Any, paper: list[dict[str, Any]], results: list[dict[
 def plot_confusions(paper: list[dict[str, Any]], results: list[dict[str, Any]], shipped: dict[str, Any],
                     path: Path, label: str, command: str) -> Path:
     """The paper's matrix and ours side by side (row percentages)."""
-    from pipelines.plots import pyplot, save_figure
-    from vision.budget import PAPER_IMAGES
+    from ncbot.pipelines.plots import pyplot, save_figure
+    from ncbot.vision.budget import PAPER_IMAGES
 
     pooled, seeds = _pooled(results, PAPER_IMAGES)
     panels = [("paper", np.array(PAPER_CONFUSION))]

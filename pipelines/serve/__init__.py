@@ -1,4 +1,4 @@
 """`ncbot robot serve`: people play the simulated robot in a browser (one SAPIEN scene and MCAP log per tab)."""
-from pipelines.serve.session import ServeConfig, Session, SessionError
+from ncbot.pipelines.serve.session import ServeConfig, Session, SessionError
 
 __all__ = ["ServeConfig", "Session", "SessionError"]

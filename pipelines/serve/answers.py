@@ -2,17 +2,17 @@
 
 Why through the env: in `ncbot robot play` the env's simulated user answers each robot act with an utterance
 learnt from the example dialogues, and that utterance (its words and act) is what the robot's state, the act
-filter and the policy see next. A person in the browser takes that user's place: `pipelines.evaluate.play.HeardReplies`
+filter and the policy see next. A person in the browser takes that user's place: `ncbot.pipelines.evaluate.play.HeardReplies`
 (the same hook `ncbot play` uses for typed text) makes the env's reply table hold the person's utterance, so
 the env's own step turns it into words, a user act and its effect (a "no" to "shall we play?" never agrees to
-play; silence is silence). Typed text is understood with `speech.understand.closest_utterance` (each typed word
+play; silence is silence). Typed text is understood with `ncbot.speech.understand.closest_utterance` (each typed word
 heard at confidence 1); text it cannot place is silence, a legal result ("I did not understand").
 """
 from __future__ import annotations
 
 from typing import Any
 
-import envs.dialogue as dlg
+import ncbot.envs.dialogue as dlg
 
 #: The answer buttons (`data-act`) and the user act each stands for; "silence" says nothing.
 BUTTONS: dict[str, str | None] = {
@@ -40,8 +40,8 @@ class EnvAnswers:
     """One env's reply hook: which buttons fit a robot act, what a button or typed text means, and setting it."""
 
     def __init__(self, env: Any) -> None:
-        from pipelines.evaluate.play import HeardReplies
-        from speech.understand import utterance_table
+        from ncbot.pipelines.evaluate.play import HeardReplies
+        from ncbot.speech.understand import utterance_table
 
         model = env.model  # the env's own tables, before HeardReplies swaps in its private copy
         self._options, self._counts = model.reply_options, model.reply_counts
@@ -73,7 +73,7 @@ class EnvAnswers:
         """The example utterance closest to the typed words (confidence 1 each); None when nothing fits."""
         import torch
 
-        from speech.understand import closest_utterance
+        from ncbot.speech.understand import closest_utterance
 
         words = dlg.tokenize(text)
         known = [self.words[w] for w in words if w in self.words]

@@ -21,7 +21,7 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 
-from pipelines.serve.session import SIM_LOCK, ServeConfig, Session, SessionError
+from ncbot.pipelines.serve.session import SIM_LOCK, ServeConfig, Session, SessionError
 
 PAGE = Path(__file__).with_name("page.html")
 MAX_MESSAGE_BYTES = 4096
@@ -32,10 +32,10 @@ SESSION_ID = re.compile(r"^[0-9a-f]{16}$")
 def load_policy(config: ServeConfig) -> tuple[Callable, str]:
     """The robot's policy: a trained checkpoint, or the paper's look-ahead filter alone."""
     if config.checkpoint is None:
-        from modules.masks import LookaheadOnlyPolicy
+        from ncbot.modules.masks import LookaheadOnlyPolicy
 
         return LookaheadOnlyPolicy(seed=config.seed), "lookahead"
-    from pipelines.agents import load_agent
+    from ncbot.pipelines.agents import load_agent
 
     agent_config, policy = load_agent(config.checkpoint)
     if agent_config.env.game != config.game:
@@ -46,8 +46,8 @@ def load_policy(config: ServeConfig) -> tuple[Callable, str]:
 
 def warm_up(config: ServeConfig) -> None:
     """Build and render one scene so the first person does not wait for shader start-up (seconds on lavapipe)."""
-    from robot_sim.conditions import load_conditions
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     with SIM_LOCK:
         scene = PepperScene(SceneConfig(game=config.game, camera_width=config.camera_width,

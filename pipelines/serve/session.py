@@ -1,11 +1,11 @@
 """One browser tab's game with the simulated robot: its own SAPIEN scene, game thread, MCAP log and event stream.
 
-Why a thread per session: `robot_sim.play.RobotGameRunner` is a blocking loop (policy, speech, motion, and
+Why a thread per session: `ncbot.robot_sim.play.RobotGameRunner` is a blocking loop (policy, speech, motion, and
 inside the env's step the human's turn). The person's click reaches it through the runner's `human_cell`
 hook: the thread waits for the click, the simulated hand draws that mark into the scene, and the robot learns
 the move only through its camera and the move recogniser, exactly as in `ncbot robot play`. The person's
 answers (buttons, typed words) reach it through the runner's `user_reply` hook and go through the env as the
-user's dialogue act (`pipelines.serve.answers`). Sessions render in parallel (each has its own SAPIEN scene and
+user's dialogue act (`ncbot.pipelines.serve.answers`). Sessions render in parallel (each has its own SAPIEN scene and
 render world; `ServeConfig.parallel`), or, with `parallel=False`, one at a time under one process-wide lock.
 """
 from __future__ import annotations
@@ -172,7 +172,7 @@ class Session:
                 raise SessionError("it is not your turn; wait for the robot")
             if cell not in self._legal:
                 taken = self.snapshot.board[cell] if self.snapshot.board else ""
-                from envs.rules import make_game
+                from ncbot.envs.rules import make_game
 
                 name = make_game(self.config.game).cell_name(cell)  # what the person reads on the board
                 raise SessionError(f"cell {name} is taken" if taken else
@@ -185,7 +185,7 @@ class Session:
 
     def act(self, name: Any) -> None:
         """An answer button: the user act it stands for goes through the env (only buttons that fit now)."""
-        from pipelines.serve.answers import BUTTONS
+        from ncbot.pipelines.serve.answers import BUTTONS
 
         if not isinstance(name, str) or name not in BUTTONS:
             raise SessionError(f"unknown dialogue act {str(name)[:40]!r}; acts: {', '.join(BUTTONS)}")
@@ -198,7 +198,7 @@ class Session:
 
     def say(self, text: Any) -> None:
         """A typed answer: understood on the server (words the env does not know: silence, not an error)."""
-        from pipelines.serve.answers import MAX_TYPED
+        from ncbot.pipelines.serve.answers import MAX_TYPED
 
         if not isinstance(text, str):
             raise SessionError("text must be a string")
@@ -272,10 +272,10 @@ class Session:
     def _run(self) -> None:
         import torch
 
-        from logs import EpisodeLogger
-        from pipelines.serve.voice import BroadcastSpeaker, Voice
-        from robot_sim.human import HumanConfig
-        from robot_sim.play import RobotGameRunner, RobotPlayConfig
+        from ncbot.logs import EpisodeLogger
+        from ncbot.pipelines.serve.voice import BroadcastSpeaker, Voice
+        from ncbot.robot_sim.human import HumanConfig
+        from ncbot.robot_sim.play import RobotGameRunner, RobotPlayConfig
 
         torch.set_num_threads(1)
         config = RobotPlayConfig(game=self.config.game, games=1, seed=self.config.seed, first=self._first,
@@ -384,7 +384,7 @@ class Session:
 
     def _wait_for_answer(self, env, action: int) -> None:
         """The runner's `user_reply` hook: the person answers the robot's utterance; the env hears it as the user."""
-        from pipelines.serve.answers import EnvAnswers, act_type_of, answer_turn, needs_answer
+        from ncbot.pipelines.serve.answers import EnvAnswers, act_type_of, answer_turn, needs_answer
 
         if self._answer_model is None or self._answer_model.replies.model is not env.model:
             self._answer_model = EnvAnswers(env)  # a new game: a new env

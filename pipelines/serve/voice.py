@@ -35,8 +35,8 @@ class Voice:
         while (job := self._jobs.get()) is not None:
             text, seq = job
             try:
-                from speech.audio import write_wav
-                from speech.tts import ROBOT_VOICE, speak
+                from ncbot.speech.audio import write_wav
+                from ncbot.speech.tts import ROBOT_VOICE, speak
 
                 samples = speak(text, ROBOT_VOICE)
             except (ValueError, OSError, RuntimeError):

@@ -30,8 +30,8 @@ class PlannedRun:
 
     def command(self) -> list[str]:
         if (self.run_dir / "checkpoints").is_dir() and any((self.run_dir / "checkpoints").glob("step-*.pt")):
-            return [sys.executable, "-m", "pipelines.cli", "train", "--resume", str(self.run_dir), "--no-progress"]
-        return [sys.executable, "-m", "pipelines.cli", "train", str(self.config), *self.overrides,
+            return [sys.executable, "-m", "ncbot", "train", "--resume", str(self.run_dir), "--no-progress"]
+        return [sys.executable, "-m", "ncbot", "train", str(self.config), *self.overrides,
                 "--out", str(self.run_dir), "--no-progress", "--overwrite"]  # no checkpoint yet: start it again
 
     @property
@@ -41,11 +41,11 @@ class PlannedRun:
     def settings(self) -> tuple[str, int, str]:
         """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it
         resumes, else its config and overrides (what a Ray task asks for: pipelines/train/ray_backend.py)."""
-        from pipelines.config import config_from_dict, load_config
+        from ncbot.pipelines.config import config_from_dict, load_config
 
         saved = self.run_dir / "config.yaml"
         if "--resume" in self.command() and saved.is_file():
-            from fileio.yaml_file import read_yaml
+            from ncbot.fileio.yaml_file import read_yaml
 
             config = config_from_dict(read_yaml(saved, "run config", "the config.yaml ncbot train wrote"))
         else:
@@ -55,9 +55,10 @@ class PlannedRun:
 
 def load_grid(path: str | Path) -> dict[str, Any]:
     """The ablation grid, read through the one safe YAML loader and checked shape by shape (one line each)."""
-    from fileio.yaml_file import read_yaml
+    from ncbot.fileio.yaml_file import read_yaml
+    from ncbot.pipelines.config import shipped_config
 
-    path = Path(path)
+    path = shipped_config(path)
     expected = "a YAML mapping with 'suites' and 'grid', e.g. pipelines/configs/ablation.yaml"
     grid = read_yaml(path, "ablation grid", expected)
     if not isinstance(grid, dict):
@@ -99,7 +100,7 @@ def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None 
     ``overrides`` (key=value) apply to every run, after its suite's own overrides; the keys a cell sets itself
     (``CELL_KEYS``) are refused, since they would make the cells one run.
     """
-    from pipelines.config import load_config
+    from ncbot.pipelines.config import load_config
 
     common = list(overrides or [])
     for override in common:
@@ -110,7 +111,9 @@ def plan_runs(grid_path: str | Path, *, seeds: int, runs_dir: str | Path | None 
             raise ValueError(f"override {override!r} sets {key}, which each grid cell sets itself; change the grid "
                              "file's axes instead")
 
-    grid_path = Path(grid_path)
+    from ncbot.pipelines.config import shipped_config
+
+    grid_path = shipped_config(grid_path)
     grid = load_grid(grid_path)
     if not 0 < seeds <= 1000:
         raise ValueError(f"--seeds must be a positive number (at most 1000), got {seeds}")
@@ -199,7 +202,7 @@ def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str,
 
 def check_backend(backend: str, workers: int, address: str | None = None) -> None:
     """One-line ValueError for a backend, worker count or address that cannot run (before anything is planned)."""
-    from pipelines.extras import require
+    from ncbot.pipelines.extras import require
 
     if backend not in ("local", "ray"):
         raise ValueError(f"unknown backend {backend!r}; expected 'local' or 'ray'")
@@ -219,8 +222,8 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
     every node must see ``runs_dir`` at the same absolute path (checked before any run starts). Each Ray task asks for
     its run's `train.num_threads` CPUs and, when it runs on CUDA, ``gpus_per_run`` GPUs (a fraction shares one).
     """
-    from pipelines.progress import progress_bar
-    from pipelines.train.ray_backend import run_on_ray
+    from ncbot.pipelines.progress import progress_bar
+    from ncbot.pipelines.train.ray_backend import run_on_ray
 
     check_backend(backend, workers, address)
     failed: list[str] = []

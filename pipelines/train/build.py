@@ -12,7 +12,7 @@ from typing import Any
 
 import torch
 
-from pipelines.config import RunConfig
+from ncbot.pipelines.config import RunConfig
 
 
 @dataclass
@@ -42,7 +42,7 @@ def frames_per_batch(config: RunConfig) -> int:
 
 def env_sizes(config: RunConfig) -> tuple[int, int]:
     """(observation features, actions) of the run's env, read from a one-game env built from `config.env`."""
-    from pipelines.run_env import make_run_env
+    from ncbot.pipelines.run_env import make_run_env
 
     env = make_run_env(config.env, batch_size=1, seed=0)
     try:
@@ -62,8 +62,8 @@ def checkpoint_bytes(config: RunConfig, features: int, actions: int) -> int:
 
 
 def learner_settings(config: RunConfig):
-    """The learner's `modules.learner.LearnerSettings` from the run's loss and optim sections."""
-    from modules.learner import LearnerSettings
+    """The learner's `ncbot.modules.learner.LearnerSettings` from the run's loss and optim sections."""
+    from ncbot.modules.learner import LearnerSettings
 
     loss, optim = config.loss, config.optim
     return LearnerSettings(loss_function=loss.loss_function, double_dqn=loss.double_dqn, precision=optim.precision,
@@ -98,18 +98,18 @@ def make_collector(env: Any, policy: Any, frames_per_batch: int, total_frames: i
 def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts:
     """Env, Q-network, policies, learner, search teacher and replay buffer of a run (`frames_done`: the frames of
     the checkpoint it resumes from, which also seed the env so a resumed run plays new games)."""
-    from modules.device import resolve_device
-    from modules.learner import Learner, make_replay_buffer
-    from modules.policy import make_policies
-    from modules.recurrent import SequenceRows, make_agent_qnet, memory_env
-    from modules.symmetry import make_symmetries
-    from modules.transitions import make_multistep
-    from pipelines.run_env import make_run_env
+    from ncbot.modules.device import resolve_device
+    from ncbot.modules.learner import Learner, make_replay_buffer
+    from ncbot.modules.policy import make_policies
+    from ncbot.modules.recurrent import SequenceRows, make_agent_qnet, memory_env
+    from ncbot.modules.symmetry import make_symmetries
+    from ncbot.modules.transitions import make_multistep
+    from ncbot.pipelines.run_env import make_run_env
 
     # --- env and agent -------------------------------------------------------------------------------------------
     selfplay_pool = None
     if config.selfplay.enabled:  # the user's moves come from frozen snapshots of this agent (pipelines/train/selfplay.py)
-        from pipelines.train.selfplay import make_selfplay_pool
+        from ncbot.pipelines.train.selfplay import make_selfplay_pool
 
         selfplay_pool = make_selfplay_pool(config.env, config.selfplay, seed)
     env = make_run_env(config.env, batch_size=config.env.batch_size, seed=seed + frames_done, opponent=selfplay_pool)
@@ -175,7 +175,7 @@ def _storage_to(buffer: Any, device: torch.device) -> None:
 def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_time: float) -> dict[str, Any]:
     """What a periodic checkpoint holds: everything `restore` loads back, every tensor on the CPU (a GPU run's
     checkpoint loads on any machine)."""
-    from modules.device import to_cpu
+    from ncbot.modules.device import to_cpu
 
     counters, teacher = parts.counters, parts.teacher
     cuda_rng = {"cuda_rng": torch.cuda.get_rng_state(parts.device)} if parts.device.type == "cuda" else {}
@@ -199,7 +199,7 @@ def check_teacher_value(config: RunConfig) -> None:
     if config.env.game != "ultimate":
         raise ValueError(f"config key 'search_targets.value' scores Ultimate positions; this run plays "
                          f"{config.env.game} (leave it null)")
-    from modules.value_net import load_value_net
+    from ncbot.modules.value_net import load_value_net
 
     with torch.random.fork_rng():
         load_value_net(settings.value, config.env.free_move)
@@ -210,8 +210,8 @@ def make_teacher(config: RunConfig, greedy: Any, seed: int):
     settings = config.search_targets
     if not settings.enabled:
         return None
-    from modules.search_targets import SearchTeacher
-    from pipelines.agents import guided_search
+    from ncbot.modules.search_targets import SearchTeacher
+    from ncbot.pipelines.agents import guided_search
 
     with torch.random.fork_rng():  # building it draws no number from the run's stream: same run up to start_frames
         search = guided_search(config, greedy, settings.simulations, value=settings.value)

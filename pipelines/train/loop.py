@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
-from pipelines.config import RunConfig
-from pipelines.run_folder import MCAP_KEY
-from pipelines.train.build import TrainingParts, training_state
+from ncbot.pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
+from ncbot.pipelines.config import RunConfig
+from ncbot.pipelines.run_folder import MCAP_KEY
+from ncbot.pipelines.train.build import TrainingParts, training_state
 
 SUCCESS_THRESHOLD = 0.995
 EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
@@ -60,8 +60,8 @@ class TrainingLoop:
 
     def evaluate(self) -> dict[str, Any]:
         """A periodic greedy evaluation, recorded in the history (and the scalar log)."""
-        from pipelines.evaluate.games import evaluate_agent
-        from pipelines.scalars import eval_scalars
+        from ncbot.pipelines.evaluate.games import evaluate_agent
+        from ncbot.pipelines.scalars import eval_scalars
 
         config, counters, agent = self.config, self.counters, self.parts.agent
         result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, first="alternate",
@@ -77,7 +77,7 @@ class TrainingLoop:
     def store(self, batch: Any) -> None:
         """A collected batch into the replay buffer (learning reward, bootstrap mask and n-step windows under their
         own keys: modules/transitions.py), the search teacher, the MCAP log; then epsilon and self-play move on."""
-        from modules.transitions import prepare_transitions
+        from ncbot.modules.transitions import prepare_transitions
 
         config, parts, counters = self.config, self.parts, self.counters
         loss = config.loss
@@ -99,7 +99,7 @@ class TrainingLoop:
 
     def learn(self) -> bool:
         """Several updates per collected batch once the burn-in is in the buffer; False before that."""
-        from modules.learner import scheduled_lr
+        from ncbot.modules.learner import scheduled_lr
 
         config, learner = self.config, self.parts.learner
         if len(self.parts.buffer) < config.collector.init_random_frames:
@@ -134,7 +134,7 @@ class TrainingLoop:
 
     def run(self, collector: Any) -> None:
         """Collect, store, learn, evaluate and checkpoint until the run's frames (or games) are done."""
-        from pipelines.progress import progress_bar
+        from ncbot.pipelines.progress import progress_bar
 
         config, counters, agent = self.config, self.counters, self.parts.agent
         next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
@@ -174,13 +174,13 @@ class TrainingLoop:
 
     def finish(self) -> dict[str, Any]:
         """The final agent (checkpoint.pt) and its evaluation from both seats; returns the run's report."""
-        from pipelines.evaluate.games import evaluate_agent
-        from pipelines.run_env import robot_seat
+        from ncbot.pipelines.evaluate.games import evaluate_agent
+        from ncbot.pipelines.run_env import robot_seat
 
         config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
         if not history or history[-1]["frames"] != counters["frames"]:
             self.evaluate()
-        from modules.device import to_cpu
+        from ncbot.modules.device import to_cpu
 
         final = {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
                  "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
@@ -200,7 +200,7 @@ class TrainingLoop:
             report["search_targets"] = {"searched": parts.teacher.searched, "labels": parts.teacher.kept,
                                         "search_cpu_s": round(parts.teacher.cpu_seconds, 2)}
         if parts.selfplay_pool is not None:
-            from pipelines.train.selfplay import pool_summary
+            from ncbot.pipelines.train.selfplay import pool_summary
 
             report["selfplay"] = pool_summary(parts.selfplay_pool)
         report["history"] = history

@@ -2,8 +2,8 @@
 
 config -> batched dialogue env -> Q-network + look-ahead policies -> Collector -> replay buffer -> competitive DQN
 loss + target updater -> periodic greedy evaluation and checkpoints -> MCAP log -> final checkpoint, eval.json and
-learning-curve PNG. Building the run's objects and restoring them: `pipelines.train.build`; the loop:
-`pipelines.train.loop`.
+learning-curve PNG. Building the run's objects and restoring them: `ncbot.pipelines.train.build`; the loop:
+`ncbot.pipelines.train.loop`.
 
 Resuming (`resume=True`) reloads the newest periodic checkpoint, which holds the networks, optimiser, epsilon,
 counters, RNG state, evaluation history AND the replay buffer (config `checkpoint.save_buffer`; when it is off the
@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from fileio import atomic_write_text
-from pipelines.config import RunConfig, config_from_dict, dump_config
-from pipelines.train.build import (build_parts, check_teacher_value, checkpoint_bytes, env_sizes, frames_per_batch,
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.config import RunConfig, config_from_dict, dump_config
+from ncbot.pipelines.train.build import (build_parts, check_teacher_value, checkpoint_bytes, env_sizes, frames_per_batch,
                                    make_collector, restore)
-from pipelines.train.loop import TrainingLoop
+from ncbot.pipelines.train.loop import TrainingLoop
 
 
 def seed_everything(seed: int) -> None:
@@ -47,11 +47,11 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
     checkpoint), locked against a second writer, then claimed (a folder holding another run is refused unless
     `overwrite`) or, with `resume`, its newest checkpoint of this run that loads is picked (and named on stderr).
     """
-    from pipelines.checkpoint import check_training_state
-    from pipelines.outputs import check_free_space, check_writable_dir
-    from pipelines.run_folder import RunFolder
+    from ncbot.pipelines.checkpoint import check_training_state
+    from ncbot.pipelines.outputs import check_free_space, check_writable_dir
+    from ncbot.pipelines.run_folder import RunFolder
 
-    from modules.device import resolve_device
+    from ncbot.modules.device import resolve_device
 
     resolve_device(config.train.device)  # before the run folder is claimed: no GPU here is one line, nothing written
     check_teacher_value(config)  # before the run folder is claimed: a bad path must not leave a started run
@@ -63,7 +63,7 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
         for note in run.notes:
             print(f"ncbot: note: {note}", file=sys.stderr)
         if config.agent.name == "uniform":
-            from pipelines.train.uniform import evaluate_uniform
+            from ncbot.pipelines.train.uniform import evaluate_uniform
 
             return evaluate_uniform(config, run)
         return _train(config, run)
@@ -73,8 +73,8 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
 
 def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
-    from pipelines.plots import plot_learning_curve
-    from pipelines.scalars import open_scalar_log
+    from ncbot.pipelines.plots import plot_learning_curve
+    from ncbot.pipelines.scalars import open_scalar_log
 
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     started = time.monotonic()
@@ -119,7 +119,7 @@ def _open_mcap(config: RunConfig, out_dir: Path):
     """The run's MCAP episode log (logs.EpisodeLogger), or None when switched off."""
     if not config.logger.mcap:
         return None
-    from logs import EpisodeLogger
+    from ncbot.logs import EpisodeLogger
 
     return EpisodeLogger(out_dir, run_info={"command": "train", "config": config.to_dict()})
 
@@ -128,8 +128,8 @@ def resolve_run(config_path: str | None, overrides: list[str], *, out: str | Non
                 episodes: int | None, resume: str | None, mcap: bool) -> tuple[RunConfig, Path, bool]:
     """CLI arguments -> (config, run folder, resume?). With --resume the run's own config.yaml is the base.
     --seed and --episodes are validated with the config (same bounds, one line naming the option)."""
-    from fileio.yaml_file import read_yaml
-    from pipelines.config import MAX_SEED, apply_overrides, load_config
+    from ncbot.fileio.yaml_file import read_yaml
+    from ncbot.pipelines.config import MAX_SEED, apply_overrides, load_config
 
     if seed is not None and not 0 <= seed <= MAX_SEED:
         raise ValueError(f"--seed must be between 0 and {MAX_SEED}, got {seed}")

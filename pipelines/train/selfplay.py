@@ -16,7 +16,7 @@ learnt to see its own moves, so every snapshot plays to win for the user's side.
 
 Each snapshot move: the paper's one-step masks with the exact rules (take a winning cell; never a cell after
 which the robot wins at once, unless every cell is such), then the best Q-value, with ``epsilon`` random moves.
-Wired into ``pipelines.train.run`` by the ``selfplay`` config section (see ``SelfPlayConfig``); snapshots live in
+Wired into ``ncbot.pipelines.train.run`` by the ``selfplay`` config section (see ``SelfPlayConfig``); snapshots live in
 memory, so a resumed run restarts its pool from the resumed weights.
 """
 from __future__ import annotations
@@ -25,11 +25,11 @@ import copy
 import torch
 from torch import nn
 
-from envs.opponents.base import Opponent
-from envs.opponents.bitboards import make_bits
-from modules.deep_lookahead import win_in_one
-from modules.guided_mcts import TurnFeatures
-from pipelines.config import SelfPlayConfig
+from ncbot.envs.opponents.base import Opponent
+from ncbot.envs.opponents.bitboards import make_bits
+from ncbot.modules.deep_lookahead import win_in_one
+from ncbot.modules.guided_mcts import TurnFeatures
+from ncbot.pipelines.config import SelfPlayConfig
 
 
 class SnapshotPool(Opponent):

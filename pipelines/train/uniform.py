@@ -10,16 +10,16 @@ import json
 import time
 from typing import Any
 
-from fileio import atomic_write_text
-from pipelines.config import RunConfig, dump_config
-from pipelines.train.loop import EVAL_SEED_OFFSET
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.config import RunConfig, dump_config
+from ncbot.pipelines.train.loop import EVAL_SEED_OFFSET
 
 
 def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     """eval.json of the uniform-inside-the-masks agent of ``config.lookahead`` (`train.seed` seeds its choices)."""
-    from modules.masks import LookaheadOnlyPolicy
-    from pipelines.evaluate.games import evaluate_agent
-    from pipelines.run_env import robot_seat
+    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.run_env import robot_seat
 
     started = time.monotonic()
     atomic_write_text(dump_config(config), run.path / "config.yaml")  # every run folder keeps what it ran

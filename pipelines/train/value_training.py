@@ -1,6 +1,6 @@
 """``ncbot train-value``: the value network of the Q-guided search, trained on search results (expert iteration).
 
-Why: the search's leaves were scored by one random playout each (``modules.value_net`` says what that cost). Here
+Why: the search's leaves were scored by one random playout each (``ncbot.modules.value_net`` says what that cost). Here
 plain UCT (``mcts:N``, random playouts) plays games against itself and, at every position it decides, its root
 value (the visit-weighted score of the mover's moves) becomes the label of that position; a network trained on
 those labels gives a leaf what N playouts would, in one forward pass.
@@ -25,14 +25,14 @@ from typing import Any
 
 import torch
 
-from envs.core import FREE_MOVE_CHOICES
-from envs.opponents.bitboards import ONGOING, make_bits
-from envs.opponents.mcts import DEFAULT_EXPLORATION
-from envs.opponents.search import UCT, RandomRollout, run_search
-from fileio.atomic import atomic_write_text
-from modules.value_net import DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
+from ncbot.envs.core import FREE_MOVE_CHOICES
+from ncbot.envs.opponents.bitboards import ONGOING, make_bits
+from ncbot.envs.opponents.mcts import DEFAULT_EXPLORATION
+from ncbot.envs.opponents.search import UCT, RandomRollout, run_search
+from ncbot.fileio.atomic import atomic_write_text
+from ncbot.modules.value_net import DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
     value_checkpoint
-from pipelines.checkpoint import atomic_save
+from ncbot.pipelines.checkpoint import atomic_save
 
 RANDOM_MOVE_SHARE = 0.15
 MAX_OPENING = 8
@@ -44,7 +44,7 @@ def labelled_games(free_move: str, positions: int, simulations: int, seed: int, 
     """Self-play games of UCT; per game, (features, UCT root value for the side to move) of each decided position.
 
     The features (all 0 or 1) are kept as one byte each: 120K positions as Python float lists took ~200 MB."""
-    from pipelines.progress import progress_bar
+    from ncbot.pipelines.progress import progress_bar
 
     engine = make_bits("ultimate", free_move)
     rng = random.Random(seed)
@@ -120,7 +120,7 @@ def fit_value_net(x: torch.Tensor, y: torch.Tensor, x_val: torch.Tensor, y_val: 
 
 def draw_value_curve(history: list[dict], baseline: float, path: Path) -> Path:
     """Validation error per epoch against the error of predicting the mean label (the labels' variance)."""
-    from pipelines.plots import pyplot, save_figure
+    from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 3.5))

@@ -4,6 +4,6 @@ import sys
 
 
 def test_ncbot_help_runs() -> None:
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "--help"], capture_output=True, text=True)
+    result = subprocess.run([sys.executable, "-m", "ncbot", "--help"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert "ncbot" in result.stdout

@@ -12,8 +12,8 @@ import pytest
 import torch
 import yaml
 
-from pipelines.checkpoint import FORMAT, atomic_save
-from pipelines.config import RunConfig
+from ncbot.pipelines.checkpoint import FORMAT, atomic_save
+from ncbot.pipelines.config import RunConfig
 from tests.learning_helpers import ncbot
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,7 +35,7 @@ def agent_checkpoint(path: Path, game: str = "standard") -> Path:
     config = RunConfig.model_validate({"agent": {"hidden": [8]}, "env": {"game": game}})
     features, actions = (73, 18) if game == "standard" else (None, None)
     if game != "standard":
-        from envs import make_env
+        from ncbot.envs import make_env
 
         env = make_env(game)
         features, actions = env.n_features, env.n_actions
@@ -100,7 +100,7 @@ def test_checkpoint_is_positional_and_says_what_it_expects(tmp_path: Path) -> No
 
 
 def test_the_game_is_read_from_the_checkpoint(tmp_path: Path) -> None:
-    from pipelines.cli.robot import game_and_agent
+    from ncbot.pipelines.cli.robot import game_and_agent
 
     standard = agent_checkpoint(tmp_path / "run" / "checkpoint.pt")
     game, path, agent = game_and_agent(standard.parent, None)  # a run folder: its checkpoint.pt, its game
@@ -114,7 +114,7 @@ def test_the_game_is_read_from_the_checkpoint(tmp_path: Path) -> None:
 
 # ------------------------------------------------------------------------------------------------ cells
 def test_cells_a_person_reads_are_written_b2() -> None:
-    from logs.names import NameTables
+    from ncbot.logs.names import NameTables
 
     standard = NameTables(action_names=[f"GameMove(gridloc={c})" for c in range(9)] + ["Provide(feedback)"])
     assert standard.action_name(4) == "GameMove(b2)" and standard.action_name(9) == "Provide(feedback)"
@@ -161,7 +161,7 @@ def test_ablate_only_that_matches_nothing_is_an_error(tmp_path: Path) -> None:
 
 
 def test_ablate_overrides_apply_to_every_run(tmp_path: Path) -> None:
-    from pipelines.train.ablate import plan_runs
+    from ncbot.pipelines.train.ablate import plan_runs
 
     grid = write_grid(tmp_path)
     runs = plan_runs(grid, seeds=2, overrides=["optim.lr=0.002"])
@@ -173,15 +173,15 @@ def test_ablate_overrides_apply_to_every_run(tmp_path: Path) -> None:
 
 
 def test_ctrl_c_advises_what_fits_the_command(tmp_path: Path, monkeypatch, capsys) -> None:
-    import pipelines.evaluate.games
-    import pipelines.train.ablate
-    from pipelines.cli.app import main, resume_advice
+    import ncbot.pipelines.evaluate.games as evaluate_games
+    import ncbot.pipelines.train.ablate as ablate
+    from ncbot.pipelines.cli.app import main, resume_advice
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pipelines.train.ablate, "run_ablation", interrupted)
-    monkeypatch.setattr(pipelines.evaluate.games, "evaluate_checkpoint", interrupted)
+    monkeypatch.setattr(ablate, "run_ablation", interrupted)
+    monkeypatch.setattr(evaluate_games, "evaluate_checkpoint", interrupted)
     checkpoint = agent_checkpoint(tmp_path / "checkpoint.pt")
     for args, expected in ((["eval", str(checkpoint), "--games", "1"], "ncbot: interrupted (Ctrl-C)"),
                            (["ablate", str(write_grid(tmp_path))],
@@ -195,7 +195,7 @@ def test_ctrl_c_advises_what_fits_the_command(tmp_path: Path, monkeypatch, capsy
 
 
 def test_table_labels_rows_by_the_runs_hidden_widths(tmp_path: Path) -> None:
-    from pipelines.reproduce.table import write_report
+    from ncbot.pipelines.reproduce.table import write_report
 
     for seed in range(2):
         folder = tmp_path / "fast" / "standard" / "proposed-temporal" / f"seed{seed}"

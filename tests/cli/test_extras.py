@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.extras import MissingExtra, OPTIONAL_MODULES, extra_line, require
+from ncbot.pipelines.extras import MissingExtra, OPTIONAL_MODULES, extra_line, require
 
 ROOT = Path(__file__).resolve().parents[2]
 BASE_PACKAGES = ("fileio", "envs", "modules", "vision", "speech", "logs", "robot_sim", "pipelines")
 #: modules that exist only for an extra and may import it at the top (only that extra's commands import them)
-EXTRA_ONLY_MODULES = {"pipelines.serve.app"}
+EXTRA_ONLY_MODULES = {"ncbot.pipelines.serve.app"}
 
 
 def _run_without(blocked: list[str], code: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -30,7 +30,7 @@ def _run_without(blocked: list[str], code: str, cwd: Path) -> subprocess.Complet
 
 
 def _ncbot_without(blocked: list[str], args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return _run_without(blocked, f"from pipelines.cli.app import main\nmain({args!r})\n", cwd)
+    return _run_without(blocked, f"from ncbot.pipelines.cli.app import main\nmain({args!r})\n", cwd)
 
 
 def _assert_one_line(result: subprocess.CompletedProcess, extra: str) -> None:
@@ -63,7 +63,7 @@ def test_base_packages_import_without_any_optional_dependency(tmp_path):
     code = f"""
 import importlib, pkgutil
 failed = []
-for package in {BASE_PACKAGES!r}:
+for package in {["ncbot." + package for package in BASE_PACKAGES]!r}:
     for info in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
         if info.name in {sorted(EXTRA_ONLY_MODULES)!r}:
             continue
@@ -79,7 +79,7 @@ print("\\n".join(failed))
 
 
 def test_require_and_the_error_boundary_name_the_extra(monkeypatch):
-    from pipelines.errors import one_line
+    from ncbot.pipelines.errors import one_line
 
     monkeypatch.setitem(sys.modules, "pyspiel", None)
     with pytest.raises(MissingExtra, match=r"pip install 'ncbot\[openspiel\]'"):

@@ -4,7 +4,7 @@ Every `import` statement of every module is read with `ast`, wherever it sits (t
 a class), so a cycle hidden behind a function-local import is found as well. ``from pkg import name`` counts as an
 import of ``pkg`` itself (the statement reads ``name`` off the package, so it needs ``pkg/__init__`` to have run)
 and, when ``pkg.name`` is a module, of that module too. Inside a package, siblings are therefore imported by their
-full module name (``from logs.schemas import X`` or ``import logs.schemas as schemas``), never through the package.
+full module name (``from ncbot.logs.schemas import X`` or ``import ncbot.logs.schemas as schemas``), never through the package.
 The package direction is the one of docs/design.md and docs/architecture.md.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ ALLOWED = {
 
 
 def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    parts = ["ncbot", *path.relative_to(ROOT).with_suffix("").parts]
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
@@ -111,10 +111,10 @@ def _describe(cycle: list[str], graph: dict[str, dict[str, int]]) -> str:
 def test_the_walker_sees_every_kind_of_import() -> None:
     """The graph must hold module-level and function-local imports, or the cycle test could never fail."""
     graph = import_edges()
-    assert set(PACKAGES) <= set(graph), "every package's __init__ is a node"
-    assert "logs.reader" in graph["logs"]  # logs/__init__ re-exports from logs.reader (module level)
-    assert "pipelines.agents" in graph["pipelines.evaluate.games"]  # imported inside evaluate_checkpoint
-    assert "logs.reader" in graph["logs.writer"] and "logs.schemas" in graph["logs.writer"]  # import a.b as c
+    assert {f"ncbot.{p}" for p in PACKAGES} <= set(graph), "every package's __init__ is a node"
+    assert "ncbot.logs.reader" in graph["ncbot.logs"]  # logs/__init__ re-exports from ncbot.logs.reader (module level)
+    assert "ncbot.pipelines.agents" in graph["ncbot.pipelines.evaluate.games"]  # imported inside evaluate_checkpoint
+    assert "ncbot.logs.reader" in graph["ncbot.logs.writer"] and "ncbot.logs.schemas" in graph["ncbot.logs.writer"]  # import a.b as c
     assert import_cycles({"a": {"b": 1}, "b": {"c": 2}, "c": {"a": 3}, "d": {"a": 4}}) == [["a", "b", "c"]]
 
 
@@ -127,17 +127,21 @@ def test_no_import_cycles() -> None:
 def test_packages_import_only_downward() -> None:
     wrong = []
     for name, edges in import_edges().items():
-        package = name.split(".")[0]
+        package = name.split(".")[1]
         for target, line in sorted(edges.items()):
-            other = target.split(".")[0]
+            other = target.split(".")[1]
             if other != package and other not in ALLOWED[package]:
                 wrong.append(f"{name}:{line} imports {target} ({package} may import {sorted(ALLOWED[package]) or 'nothing'})")
     assert not wrong, "imports against the package direction:\n" + "\n".join(wrong)
 
 
 def test_every_package_is_walked_and_installed() -> None:
-    """A new top-level package must join the walk (with its place in ALLOWED) and ship (pyproject's include)."""
-    found = {p.parent.name for p in ROOT.glob("*/__init__.py")} - {"tests", "bench", "scripts"}
+    """A new top-level package must join the walk (with its place in ALLOWED) and ship (pyproject's package list)."""
+    found = {p.parent.name for p in ROOT.glob("*/__init__.py")} - {"tests", "bench", "scripts", "ncbot"}
     assert found <= set(PACKAGES), f"add {sorted(found - set(PACKAGES))} to PACKAGES and ALLOWED"
-    text = (ROOT / "pyproject.toml").read_text()
-    assert all(f'"{package}*"' in text for package in PACKAGES), "add the package to [tool.setuptools.packages.find]"
+    import tomllib
+
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    folders = {".".join(p.parent.relative_to(ROOT).parts) for package in PACKAGES for p in (ROOT / package).rglob("__init__.py")}
+    assert set(setuptools["packages"]) == {"ncbot"} | {f"ncbot.{f}" for f in folders}, "list every package under [tool.setuptools] packages"
+    assert setuptools["package-dir"] == {"ncbot": "ncbot"} | {f"ncbot.{p}": p for p in PACKAGES}

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.checkpoint import FORMAT, atomic_save, load_checkpoint, periodic_checkpoints
+from ncbot.pipelines.checkpoint import FORMAT, atomic_save, load_checkpoint, periodic_checkpoints
 from tests.learning_helpers import ncbot, write_tiny_config
 from tests.cli.test_reliability_fuzz import _valid_agent, assert_refused
 
@@ -41,7 +41,7 @@ def tmpfs(folder: Path, size: str, read_only: bool = False):
 
 
 def start_training(config: Path, run: Path, *extra: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "pipelines.cli", "train", str(config), "--out", str(run), *extra],
+    return subprocess.Popen([sys.executable, "-m", "ncbot", "train", str(config), "--out", str(run), *extra],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
@@ -54,7 +54,7 @@ def wait_for(condition, process: subprocess.Popen, what: str, timeout: float = 2
 
 
 def train_episodes_in_log(run: Path) -> int:
-    from logs.reader import read_episodes
+    from ncbot.logs.reader import read_episodes
 
     return sum(1 for path in sorted(run.glob("episodes-*.mcap"))
                for episode in read_episodes(path) if episode["phase"] == "train")

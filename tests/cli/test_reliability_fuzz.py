@@ -1,7 +1,7 @@
 """Property-based fuzzing of the CLI's error boundary: generated bad files, values and paths given to the
 subcommands must end in exit code 2, ONE line on stderr, no traceback and no file left behind.
 
-Runs in-process through `pipelines.cli.app.main` (no interpreter start per example) so a few hundred inputs take
+Runs in-process through `ncbot.pipelines.cli.app.main` (no interpreter start per example) so a few hundred inputs take
 seconds. Examples per property: NCBOT_FUZZ_EXAMPLES (default 6, for CI; `NCBOT_FUZZ_EXAMPLES=200` for a deep run).
 """
 from __future__ import annotations
@@ -18,9 +18,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pipelines.checkpoint import FORMAT, atomic_save
-from pipelines.cli.app import main
-from pipelines.config import RunConfig
+from ncbot.pipelines.checkpoint import FORMAT, atomic_save
+from ncbot.pipelines.cli.app import main
+from ncbot.pipelines.config import RunConfig
 from tests.learning_helpers import TINY
 
 FUZZ = settings(max_examples=int(os.environ.get("NCBOT_FUZZ_EXAMPLES", "6")), deadline=None, derandomize=True, database=None,
@@ -381,7 +381,7 @@ def test_resume_of_a_run_whose_config_yaml_is_bad_is_one_line(tmp_path: Path) ->
 ])
 def test_the_boundary_sorts_bugs_from_expected_failures(monkeypatch, raised: BaseException, code: int,
                                                         expected: str) -> None:
-    import envs
+    import ncbot.envs as envs
 
     def broken(*args, **kwargs):
         raise raised
@@ -404,7 +404,7 @@ def test_ncbot_debug_shows_the_traceback_of_an_expected_failure(monkeypatch, tmp
 def test_a_cv2_error_is_one_line(monkeypatch) -> None:
     import cv2
 
-    import envs
+    import ncbot.envs as envs
 
     def broken(*args, **kwargs):
         raise cv2.error("OpenCV(4.9) error: (-4:Insufficient memory) Failed to allocate 40000000000 bytes")

@@ -12,10 +12,10 @@ import pytest
 import torch
 import yaml
 
-import envs.dialogue as dlg
-from envs import make_env
-from envs.fingerprint import fingerprint
-from pipelines.config import load_config
+import ncbot.envs.dialogue as dlg
+from ncbot.envs import make_env
+from ncbot.envs.fingerprint import fingerprint
+from ncbot.pipelines.config import load_config
 
 torch.set_num_threads(1)
 ROOT = Path(__file__).resolve().parents[2]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from envs.engine import grid_tables, make_engine
-from envs.rules import LINES_3X3, SUBGRID_CELLS, Standard, Ultimate
+from ncbot.envs.engine import grid_tables, make_engine
+from ncbot.envs.rules import LINES_3X3, SUBGRID_CELLS, Standard, Ultimate
 
 torch.set_num_threads(1)
 VARIANTS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]

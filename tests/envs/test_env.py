@@ -7,10 +7,10 @@ import torch
 from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
 
-from envs import make_env
-from envs.dialogue import ROBOT_COMMANDS
-from envs.external_opponent import ExternalOpponent
-from envs.rules import LINES_3X3
+from ncbot.envs import make_env
+from ncbot.envs.dialogue import ROBOT_COMMANDS
+from ncbot.envs.external_opponent import ExternalOpponent
+from ncbot.envs.rules import LINES_3X3
 
 torch.set_num_threads(1)
 

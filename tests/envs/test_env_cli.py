@@ -6,7 +6,7 @@ import sys
 
 from typer.testing import CliRunner
 
-from pipelines.cli.app import app
+from ncbot.pipelines.cli.app import app
 
 
 def run(*args: str):
@@ -31,6 +31,6 @@ def test_describe_ultimate_without_temporal() -> None:
 
 
 def test_bad_game_is_one_line_exit_2() -> None:
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "env", "describe", "--game", "chess"], capture_output=True, text=True)
+    result = subprocess.run([sys.executable, "-m", "ncbot", "env", "describe", "--game", "chess"], capture_output=True, text=True)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == ["ncbot: error: game must be one of standard, ultimate; got 'chess'"]

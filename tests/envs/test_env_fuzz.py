@@ -9,8 +9,8 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from envs import make_env
-from envs.rules import LINES_3X3
+from ncbot.envs import make_env
+from ncbot.envs.rules import LINES_3X3
 
 torch.set_num_threads(1)
 LINES = torch.tensor(LINES_3X3)

@@ -6,10 +6,10 @@ import torch
 from torchrl.envs import EnvBase
 from torchrl.envs.utils import step_mdp
 
-from envs import make_env
-from envs.dialogue_env import uniform_choice
-from envs.engine import make_engine
-from envs.engine.tables import uniform_choice_by_rows
+from ncbot.envs import make_env
+from ncbot.envs.dialogue_env import uniform_choice
+from ncbot.envs.engine import make_engine
+from ncbot.envs.engine.tables import uniform_choice_by_rows
 
 
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
@@ -178,8 +178,8 @@ def test_ultimate_random_legal_and_legal_rows(free_move: str) -> None:
 
 def test_stage_table_equals_phase_rules() -> None:
     """Every stage (board status + dialogue flags) maps to the phase ``dialogue.phase_of`` gives."""
-    from envs import dialogue as dlg
-    from envs.dialogue_env import AGREED, CLOSED, ROBOT_FIRST
+    from ncbot.envs import dialogue as dlg
+    from ncbot.envs.dialogue_env import AGREED, CLOSED, ROBOT_FIRST
 
     env = make_env("standard", batch_size=(1,))
     for outcome in range(4):
@@ -219,7 +219,7 @@ def test_reply_tables_equal_model_tables_and_follow_edits() -> None:
     tables (what ``ncbot play`` does) is picked up."""
     import dataclasses
 
-    from envs import dialogue as dlg
+    from ncbot.envs import dialogue as dlg
 
     env = make_env("standard", batch_size=(4,))
     env.model = dataclasses.replace(env.model, reply_options=env.model.reply_options.clone(),

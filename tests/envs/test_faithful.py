@@ -12,11 +12,11 @@ import pytest
 import torch
 import yaml
 
-import envs.dialogue as dlg
-from envs import make_env
-from envs.fingerprint import CONFIGS, fingerprint
-from pipelines.config import load_config
-from pipelines.train.run import train
+import ncbot.envs.dialogue as dlg
+from ncbot.envs import make_env
+from ncbot.envs.fingerprint import CONFIGS, fingerprint
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 from tests.envs.helpers import to_robot_move
 
@@ -153,7 +153,7 @@ def test_max_games_stops_training_before_the_frames(tmp_path: Path) -> None:
 
 
 def test_an_option_set_twice_is_one_clear_error() -> None:
-    from pipelines.run_env import make_run_env
+    from ncbot.pipelines.run_env import make_run_env
 
     config = load_config(ROOT / "pipelines" / "configs" / "default.yaml", ["env.options={dialogues: paper}"])
     with pytest.raises(ValueError, match="env.options.dialogues repeats the config key env.dialogues"):

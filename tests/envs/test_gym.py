@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import envs
-from envs.gym_wrapper import NoughtsCrossesGymEnv
+import ncbot.envs as envs
+from ncbot.envs.gym_wrapper import NoughtsCrossesGymEnv
 
 GAMES = ["standard", "ultimate"]
 

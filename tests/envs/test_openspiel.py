@@ -14,11 +14,11 @@ import torch
 
 pyspiel = pytest.importorskip("pyspiel")
 
-from envs.opponents import make_opponent  # noqa: E402
-from envs.opponents.arena import play_match  # noqa: E402
-from envs.opponents.openspiel import apply_cell, legal_cells, load_openspiel_game  # noqa: E402
-from envs.core import SUBGRID_OF_CELL  # noqa: E402
-from envs.rules import make_game  # noqa: E402
+from ncbot.envs.opponents import make_opponent  # noqa: E402
+from ncbot.envs.opponents.arena import play_match  # noqa: E402
+from ncbot.envs.opponents.openspiel import apply_cell, legal_cells, load_openspiel_game  # noqa: E402
+from ncbot.envs.core import SUBGRID_OF_CELL  # noqa: E402
+from ncbot.envs.rules import make_game  # noqa: E402
 
 OUTCOMES = {1.0: "x", -1.0: "o", 0.0: "draw"}  # OpenSpiel's return of player 0 (x) -> our outcome
 
@@ -104,7 +104,7 @@ def test_openspiel_mcts_same_seed_same_moves() -> None:
 
 def test_openspiel_mcts_as_the_envs_user() -> None:
     """The dialogue env asks it for the user's squares (robot-first and human-first games, partial batches)."""
-    from envs import make_env
+    from ncbot.envs import make_env
 
     env = make_env("ultimate", batch_size=(4,), free_move="open_subgrids", opponent="openspiel-mcts:5", seed=0,
                    first="alternate")
@@ -129,7 +129,7 @@ def test_openspiel_errors_are_one_line() -> None:
         make_opponent("openspiel-mcts:10", game="ultimate", free_move="anywhere")
     with pytest.raises(ValueError, match="positive simulation count"):
         make_opponent("openspiel-mcts:zero")
-    run = subprocess.run([sys.executable, "-m", "pipelines.cli", "match", "openspiel-mcts:10", "random", "--game",
+    run = subprocess.run([sys.executable, "-m", "ncbot", "match", "openspiel-mcts:10", "random", "--game",
                           "ultimate", "--games", "2"], capture_output=True, text=True)
     assert run.returncode == 2 and "Traceback" not in run.stderr
     assert "uses the 'open_subgrids' rule, not 'anywhere'" in run.stderr.strip().splitlines()[-1]
@@ -147,7 +147,7 @@ BENCH = Path(__file__).resolve().parents[2] / "bench" / "time_to_quality.py"
 def test_time_to_quality_trains_and_evaluates_openspiel_dqn(tmp_path) -> None:
     """The DQN side of the bench for real (2 s of training): snapshots on its clock, evaluated by our referee."""
     pytest.importorskip("tree")  # open_spiel.python.pytorch.dqn needs dm-tree (in the openspiel extra)
-    from pipelines.evaluate.openspiel_dqn import dqn_worker, evaluate_dqn, first_time
+    from ncbot.pipelines.evaluate.openspiel_dqn import dqn_worker, evaluate_dqn, first_time
 
     out = tmp_path / "dqn.pt"
     dqn_worker("standard", cap=2.0, clock_name="wall_time", every=0.5, opponent="random", hidden=[32, 32], out=out,
@@ -174,7 +174,7 @@ def test_time_to_quality_exact_dqn_score_equals_an_enumeration_with_our_rules() 
     pytest.importorskip("tree")
     from open_spiel.python.pytorch.dqn import MLP
 
-    from envs.rules import Standard
+    from ncbot.envs.rules import Standard
 
     network = MLP(27, [32, 32], 9)
     with torch.no_grad():
@@ -191,7 +191,7 @@ def test_time_to_quality_exact_dqn_score_equals_an_enumeration_with_our_rules() 
         return sum(loss(rules.play(state, move), mark) for move in moves) / len(moves)
 
     meta = {"state_size": 27, "num_actions": 9, "settings": {"hidden_layers_sizes": [32, 32]}}
-    from pipelines.evaluate.openspiel_dqn import exact_dqn
+    from ncbot.pipelines.evaluate.openspiel_dqn import exact_dqn
 
     success = exact_dqn({"q": [network.state_dict()] * 2}, meta)
     expected = {"first": 1 - loss(rules.new(), "x"), "second": 1 - loss(rules.new(), "o")}
@@ -201,11 +201,11 @@ def test_time_to_quality_exact_dqn_score_equals_an_enumeration_with_our_rules() 
 
 def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
     """`ncbot ladder --opponents openspiel-mcts:N`: a real (untrained) Ultimate checkpoint of the open_subgrids rule."""
-    from envs import make_env
-    from modules.qnet import make_qnet
-    from pipelines.checkpoint import FORMAT, atomic_save
-    from pipelines.config import RunConfig
-    from pipelines.evaluate.ladder import check_goals, run_ladder
+    from ncbot.envs import make_env
+    from ncbot.modules.qnet import make_qnet
+    from ncbot.pipelines.checkpoint import FORMAT, atomic_save
+    from ncbot.pipelines.config import RunConfig
+    from ncbot.pipelines.evaluate.ladder import check_goals, run_ladder
 
     config = RunConfig()
     config.env.game, config.env.free_move = "ultimate", "open_subgrids"
@@ -226,7 +226,7 @@ def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
 def test_time_to_quality_search_option_errors_stop_before_any_training(tmp_path) -> None:
     """`--ours-search N --ours-value V`: bad options stop before any training with one line, exit 2 (the bench run
     as a script, as it is used)."""
-    from modules.value_net import make_value_net, value_checkpoint
+    from ncbot.modules.value_net import make_value_net, value_checkpoint
 
     value = tmp_path / "value" / "value.pt"
     value.parent.mkdir()

@@ -1,4 +1,4 @@
-"""Opponents (`envs.opponents`): legality, strength, determinism, names, and the bitboards behind MCTS."""
+"""Opponents (`ncbot.envs.opponents`): legality, strength, determinism, names, and the bitboards behind MCTS."""
 from __future__ import annotations
 
 import random
@@ -6,12 +6,12 @@ import random
 import pytest
 import torch
 
-from envs.opponents import make_opponent, opponent_choices, register_opponent
-from envs.opponents.arena import play_match
-from envs.opponents.base import Opponent
-from envs.opponents.bitboards import DRAW, ONGOING, StandardBits, UltimateBits
-from envs.opponents.minimax import position_values
-from envs.rules import Standard, Ultimate, make_game
+from ncbot.envs.opponents import make_opponent, opponent_choices, register_opponent
+from ncbot.envs.opponents.arena import play_match
+from ncbot.envs.opponents.base import Opponent
+from ncbot.envs.opponents.bitboards import DRAW, ONGOING, StandardBits, UltimateBits
+from ncbot.envs.opponents.minimax import position_values
+from ncbot.envs.rules import Standard, Ultimate, make_game
 
 torch.set_num_threads(1)
 
@@ -86,7 +86,7 @@ def _rule_choice(game: str, board: list[int], last_move: int, player: int, seed:
     boards = torch.tensor([board], dtype=torch.int8)
     legal = torch.tensor([[v == 0 for v in board]])
     if game == "ultimate":  # the caller's legal mask: the forced subgrid of the last move
-        from envs.rules import SUBGRID_CELLS, TARGET_OF_CELL
+        from ncbot.envs.rules import SUBGRID_CELLS, TARGET_OF_CELL
 
         target = SUBGRID_CELLS[TARGET_OF_CELL[last_move]]
         legal = torch.tensor([[v == 0 and c in target for c, v in enumerate(board)]])
@@ -130,7 +130,7 @@ def test_rule_takes_the_win_before_blocking_and_blocks_otherwise() -> None:
 
 
 def test_rule_on_ultimate_takes_a_subgrid_and_blocks_one() -> None:
-    from envs.rules import SUBGRID_CELLS
+    from ncbot.envs.rules import SUBGRID_CELLS
 
     board = [0] * 81
     # in subgrid 4 (the centre) the robot holds squares 0 and 1, the human squares 3 and 4
@@ -304,7 +304,7 @@ def test_random_playouts_match_the_rules_statistics(game: str, free_move: str) -
 
 def test_rule_on_ultimate_prefers_winning_the_game() -> None:
     """Owners passed explicitly: the robot owns subgrids 0 and 1; taking subgrid 2 wins the game at once."""
-    from envs.rules import SUBGRID_CELLS
+    from ncbot.envs.rules import SUBGRID_CELLS
 
     board = [0] * 81
     for k in (0, 1):
@@ -330,7 +330,7 @@ def test_rule_on_ultimate_prefers_winning_the_game() -> None:
 @pytest.mark.parametrize("game,free_move", SETTINGS)
 def test_batched_line_helpers_agree_with_the_rules(game: str, free_move: str) -> None:
     """``winning_cells`` / ``subgrid_owners`` (the rule opponent's view) against playing each legal cell exactly."""
-    from envs.opponents.lines import subgrid_owners, winning_cells
+    from ncbot.envs.opponents.lines import subgrid_owners, winning_cells
 
     rules, states = _random_positions(game, free_move, 150, seed=21)
     boards, _, legal = _batch(rules, states)
@@ -353,7 +353,7 @@ def test_batched_line_helpers_agree_with_the_rules(game: str, free_move: str) ->
 
 
 def test_uct_search_spends_every_simulation_below_the_root() -> None:
-    from envs.opponents.mcts import uct_search
+    from ncbot.envs.opponents.mcts import uct_search
 
     engine = UltimateBits("open_subgrids")
     pos = engine.from_board([0] * 81, 1)
@@ -364,12 +364,12 @@ def test_uct_search_spends_every_simulation_below_the_root() -> None:
 
 
 def test_shared_search_loop_makes_the_decisions_of_the_former_uct_loop() -> None:
-    """envs.opponents.search replaced mcts.py's own loop: the hash of root moves and root statistics on
+    """ncbot.envs.opponents.search replaced mcts.py's own loop: the hash of root moves and root statistics on
     120 positions, pinned from the former loop (commit 1c89ae0), must not move."""
     import hashlib
 
-    from envs.opponents.bitboards import make_bits
-    from envs.opponents.mcts import uct_search
+    from ncbot.envs.opponents.bitboards import make_bits
+    from ncbot.envs.opponents.mcts import uct_search
 
     digest = hashlib.sha256()
     for game, free_move, simulations in (("standard", "anywhere", 50), ("ultimate", "anywhere", 60), ("ultimate", "open_subgrids", 60)):

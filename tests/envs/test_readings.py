@@ -8,12 +8,12 @@ from __future__ import annotations
 import pytest
 import torch
 
-from envs import make_env
-from envs.core import LINES_3X3
-from modules.mask_rules import all_moves_negative, untaken_actions
-from modules.masks import LookaheadMasks, LookaheadOnlyPolicy
-from modules.policy import make_policies
-from modules.qnet import make_qnet
+from ncbot.envs import make_env
+from ncbot.envs.core import LINES_3X3
+from ncbot.modules.mask_rules import all_moves_negative, untaken_actions
+from ncbot.modules.masks import LookaheadMasks, LookaheadOnlyPolicy
+from ncbot.modules.policy import make_policies
+from ncbot.modules.qnet import make_qnet
 from tests.envs.helpers import to_robot_move
 
 torch.set_num_threads(1)
@@ -203,8 +203,8 @@ def test_bad_values_are_one_line_errors() -> None:
 def test_config_fields_reach_the_env_and_the_masks() -> None:
     from pathlib import Path
 
-    from pipelines.config import load_config
-    from pipelines.run_env import make_run_env
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.run_env import make_run_env
 
     default = Path(__file__).resolve().parents[2] / "pipelines" / "configs" / "default.yaml"
     config = load_config(default, ["env.taken_squares=misread", "env.misread_rate=0.1", "env.win_set=wins",

@@ -1,4 +1,4 @@
-"""The exact rules (`envs.rules`): lines, redirects, drawn subgrids, draws, illegal moves, immutability."""
+"""The exact rules (`ncbot.envs.rules`): lines, redirects, drawn subgrids, draws, illegal moves, immutability."""
 from __future__ import annotations
 
 import dataclasses
@@ -6,7 +6,7 @@ import random
 
 import pytest
 
-from envs.rules import (
+from ncbot.envs.rules import (
     DRAWN,
     EMPTY,
     LINES_3X3,

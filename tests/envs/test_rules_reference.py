@@ -1,6 +1,6 @@
-"""An independent check of `envs.rules`: known counts, hand-made playthroughs and a second implementation.
+"""An independent check of `ncbot.envs.rules`: known counts, hand-made playthroughs and a second implementation.
 
-Nothing here imports rule logic from `envs.rules` except the two games under test: the reference game below
+Nothing here imports rule logic from `ncbot.envs.rules` except the two games under test: the reference game below
 is written from the rule text with (row, col) coordinates and direction vectors instead of line tables, so a
 shared mistake would have to be made twice in different ways.
 """
@@ -11,7 +11,7 @@ from functools import lru_cache
 
 import pytest
 
-from envs.rules import Standard, Ultimate
+from ncbot.envs.rules import Standard, Ultimate
 
 DIRECTIONS = ((0, 1), (1, 0), (1, 1), (1, -1))
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from envs import make_env
-from envs.core import HUMAN, LINES_3X3, ROBOT, SUBGRID_CELLS
-from envs.threat_features import threat_names, threat_planes
+from ncbot.envs import make_env
+from ncbot.envs.core import HUMAN, LINES_3X3, ROBOT, SUBGRID_CELLS
+from ncbot.envs.threat_features import threat_names, threat_planes
 
 torch.set_num_threads(1)
 
@@ -74,8 +74,8 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
     """The search's and self-play's features (``TurnFeatures``) of real positions: the same planes as the env's
     observation (robot to move), seen from the other side too, and the one-position paths (cell lists, the search's
     bitboards) equal to the batch."""
-    from envs.opponents.bitboards import make_bits
-    from modules.guided_mcts import TurnFeatures
+    from ncbot.envs.opponents.bitboards import make_bits
+    from ncbot.modules.guided_mcts import TurnFeatures
 
     env = make_env(game, batch_size=(16,), threat_features=True, free_move="open_subgrids", seed=5, first="alternate")
     features = TurnFeatures(game, True, "open_subgrids", threats=True)
@@ -111,10 +111,10 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
 
 
 def test_a_threat_reading_agent_is_searched_and_a_mismatched_reader_is_refused() -> None:
-    from envs.opponents import make_opponent
-    from envs.opponents.arena import play_match
-    from modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
-    from modules.qnet import make_qnet
+    from ncbot.envs.opponents import make_opponent
+    from ncbot.envs.opponents.arena import play_match
+    from ncbot.modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
+    from ncbot.modules.qnet import make_qnet
 
     env = make_env("ultimate", batch_size=(1,), threat_features=True)
     qnet = make_qnet(env.n_features, env.n_actions, [8])

@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from pipelines.config import load_config
-from modules.mask_rules import all_moves_negative
-from pipelines.evaluate.games import GameRecords, evaluate_checkpoint, summarise, wilson_interval
-from pipelines.train.run import train
+from ncbot.pipelines.config import load_config
+from ncbot.modules.mask_rules import all_moves_negative
+from ncbot.pipelines.evaluate.games import GameRecords, evaluate_checkpoint, summarise, wilson_interval
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)
@@ -84,8 +84,8 @@ def test_first_is_the_one_name_of_who_opens(checkpoint: Path) -> None:
 
 
 def test_games_cut_at_the_act_cap_are_truncated_not_lost(checkpoint: Path) -> None:
-    from pipelines.agents import load_agent
-    from pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.evaluate.games import evaluate_agent
 
     config, policy = load_agent(checkpoint)
     config.env.max_steps = 5  # greeting, name, play request and two moves: no game can end

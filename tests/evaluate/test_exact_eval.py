@@ -14,11 +14,11 @@ from pathlib import Path
 import pytest
 import torch
 
-from modules.policy import make_policies
-from modules.qnet import make_qnet
-from pipelines.config import load_config
-from pipelines.evaluate.exact import BranchUser, branch_digits, exact_seat
-from pipelines.train.run import train
+from ncbot.modules.policy import make_policies
+from ncbot.modules.qnet import make_qnet
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.evaluate.exact import BranchUser, branch_digits, exact_seat
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)
@@ -53,7 +53,7 @@ def reference(board: tuple[int, ...], robot_to_move: bool, lowest_first: bool) -
 
 def preference_policy(config, lowest_first: bool):
     """A greedy dqn_original policy whose Q-values are a fixed bias: moves above every other act, in cell order."""
-    from envs import make_env
+    from ncbot.envs import make_env
 
     env = make_env("standard", batch_size=(1,), temporal=config.env.temporal)
     qnet = make_qnet(env.n_features, env.n_actions, [4])

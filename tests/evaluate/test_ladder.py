@@ -8,15 +8,15 @@ import sys
 import pytest
 import torch
 
-from pipelines.evaluate.ladder import check_goals, run_ladder
+from ncbot.pipelines.evaluate.ladder import check_goals, run_ladder
 
 
 def _checkpoint(tmp_path, game: str = "standard"):
     """A checkpoint in the format ncbot train writes (an untrained Q-network: the look-ahead masks still apply)."""
-    from envs import make_env
-    from modules.qnet import make_qnet
-    from pipelines.checkpoint import FORMAT, atomic_save
-    from pipelines.config import RunConfig
+    from ncbot.envs import make_env
+    from ncbot.modules.qnet import make_qnet
+    from ncbot.pipelines.checkpoint import FORMAT, atomic_save
+    from ncbot.pipelines.config import RunConfig
 
     config = RunConfig()
     config.env.game = game
@@ -114,7 +114,7 @@ def test_a_stopped_ladder_stops_its_workers(tmp_path) -> None:
     import time
 
     checkpoint = _checkpoint(tmp_path)
-    ladder = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--opponents",
+    ladder = subprocess.Popen([sys.executable, "-m", "ncbot", "ladder", str(checkpoint), "--opponents",
                                "random", "--games", "100000", "--workers", "2", "--out", str(tmp_path / "l")],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -157,16 +157,16 @@ def test_cli_errors_are_one_line(tmp_path) -> None:
                           ([str(checkpoint), "--opponents", "chess"], "unknown opponent 'chess'"),
                           ([str(checkpoint), "--games", "0"], "--games must be a positive"),
                           ([str(checkpoint), "--workers", "0"], "--workers must be a positive")):
-        done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", *args], capture_output=True, text=True)
+        done = subprocess.run([sys.executable, "-m", "ncbot", "ladder", *args], capture_output=True, text=True)
         assert done.returncode == 2, done.stderr
         assert message in done.stderr and "Traceback" not in done.stderr
 
 
 def test_agent_checkpoint_as_an_opponent(tmp_path) -> None:
     """``agent:CHECKPOINT``: legal cells, the look-ahead takes wins and blocks, and the env accepts it by name."""
-    from envs import make_env
-    from envs.opponents import make_opponent
-    from pipelines.agents import register_agent_opponent
+    from ncbot.envs import make_env
+    from ncbot.envs.opponents import make_opponent
+    from ncbot.pipelines.agents import register_agent_opponent
 
     checkpoint = _checkpoint(tmp_path)
     register_agent_opponent()
@@ -201,7 +201,7 @@ def test_baseline_rows_play_the_masks_alone(tmp_path) -> None:
 
 
 def test_match_command_plays_two_opponents() -> None:
-    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "match", "random", "minimax", "--games", "30",
+    done = subprocess.run([sys.executable, "-m", "ncbot", "match", "random", "minimax", "--games", "30",
                            "--seed", "2"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     row = [line for line in done.stdout.splitlines() if line.startswith("| random | minimax |")][0]
@@ -213,7 +213,7 @@ def test_match_command_plays_two_opponents() -> None:
 def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
     """`--lookahead k5`: the same (untrained) Q-network behind deeper masks loses less to minimax, and the table
     says which masks played; a name for the other Ultimate variant is mapped, a bad name is one line."""
-    from pipelines.agents import resolve_lookahead
+    from ncbot.pipelines.agents import resolve_lookahead
 
     checkpoint = _checkpoint(tmp_path)
     losses = {}
@@ -227,7 +227,7 @@ def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
     assert resolve_lookahead("k3", "open_subgrids") == "k3_open" and resolve_lookahead("k3", "anywhere") == "k3"
     with pytest.raises(ValueError, match="--lookahead must be one of"):
         resolve_lookahead("k9", "anywhere")
-    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "ladder", str(checkpoint), "--lookahead", "deep"],
+    done = subprocess.run([sys.executable, "-m", "ncbot", "ladder", str(checkpoint), "--lookahead", "deep"],
                           capture_output=True, text=True)
     assert done.returncode == 2 and "--lookahead must be one of" in done.stderr and "Traceback" not in done.stderr
 
@@ -235,8 +235,8 @@ def test_lookahead_option_replaces_the_masks(tmp_path) -> None:
 def test_search_option_prunes_forced_losses_at_the_root(tmp_path) -> None:
     """`--search N --lookahead k5`: the Q-guided search never plays a move the k-step rule proves lost while
     another move survives (a 3-simulation search alone would, often), in real dialogues of the env."""
-    from envs import make_env
-    from pipelines.agents import load_robot
+    from ncbot.envs import make_env
+    from ncbot.pipelines.agents import load_robot
 
     checkpoint = _checkpoint(tmp_path)
     config, policy, robot = load_robot(str(checkpoint), search=3, lookahead="k5", seed=0)

@@ -7,14 +7,14 @@ import sys
 import pexpect
 import pytest
 
-from envs.rules import make_game
+from ncbot.envs.rules import make_game
 
 PROMPTS = [r"Your move \(e\.g\. [a-i]\d\): ", r"You: ", pexpect.EOF]
 ROW = re.compile(r"^(\d)\s+(\S.*)?$")
 
 
 def _spawn(tmp_path, *args: str) -> pexpect.spawn:
-    child = pexpect.spawn(sys.executable, ["-m", "pipelines.cli", "play", *args], cwd=str(tmp_path.parent),
+    child = pexpect.spawn(sys.executable, ["-m", "ncbot", "play", *args], cwd=str(tmp_path.parent),
                           encoding="utf-8", timeout=60, env={"PYTHONUNBUFFERED": "1", "PATH": "/usr/bin:/bin",
                                                              "COLUMNS": "120", **_pythonpath()})
     return child
@@ -81,7 +81,7 @@ def test_a_full_standard_game_is_played_and_logged(tmp_path) -> None:
     assert "    a   b   c" in transcript  # the board with coordinates
     assert re.search(r"Result: (robot won|you won|draw) after \d+ robot actions", transcript)
 
-    from logs import read_episodes
+    from ncbot.logs import read_episodes
 
     episodes = read_episodes(logs)
     assert len(episodes) == 1
@@ -138,7 +138,7 @@ def test_ctrl_c_ends_cleanly(tmp_path) -> None:
     assert "interrupted (Ctrl-C)" in child.before
     assert "Traceback" not in child.before
     assert child.exitstatus == 130
-    from logs import LogReader
+    from ncbot.logs import LogReader
 
     LogReader(logs)  # the log file was closed properly and reads back
 
@@ -151,7 +151,7 @@ def test_ultimate_game_from_the_first_seat(tmp_path) -> None:
     assert child.exitstatus == 0, transcript[-1500:]
     assert "a b c   d e f   g h i" in transcript
     assert "You are x, Pepper is o" in transcript
-    from logs import read_episodes
+    from ncbot.logs import read_episodes
 
     assert len(read_episodes(logs)) == 1
 

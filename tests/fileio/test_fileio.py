@@ -1,4 +1,4 @@
-"""fileio.atomic: the one atomic write (what a reader or a crash can see, permissions, durability, cleanup)."""
+"""ncbot.fileio.atomic: the one atomic write (what a reader or a crash can see, permissions, durability, cleanup)."""
 from __future__ import annotations
 
 import os
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from fileio import TEMP_GLOB, atomic_path, atomic_write_bytes, atomic_write_text, fsync_folder
+from ncbot.fileio import TEMP_GLOB, atomic_path, atomic_write_bytes, atomic_write_text, fsync_folder
 
 
 @pytest.fixture

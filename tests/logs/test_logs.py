@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import torch
 
-from logs import EpisodeLogger, LogReader, read_episode_records, read_episodes
-from logs.summary import summarize
+from ncbot.logs import EpisodeLogger, LogReader, read_episode_records, read_episodes
+from ncbot.logs.summary import summarize
 from tests.logs.helpers import NamedEnv, expected_episodes, fake_batch
 
 torch.set_num_threads(1)
@@ -162,7 +162,7 @@ def test_cut_off_file_is_recovered_up_to_the_cut(tmp_path: Path) -> None:
 WRITER_SCRIPT = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {root!r})
-    from logs import EpisodeLogger
+    from ncbot.logs import EpisodeLogger
     from tests.logs.helpers import fake_batch
     log = EpisodeLogger({run_dir!r}, flush_interval_s=0.0)
     done_at = {{0: [3, 9], 1: [6], 2: [2, 5, 11]}}
@@ -270,7 +270,7 @@ def test_an_abandoned_episode_is_not_glued_to_the_next_one(tmp_path: Path) -> No
 
 @pytest.mark.parametrize("game", ["standard", "ultimate"])
 def test_real_env_games_round_trip(game: str, tmp_path: Path) -> None:
-    from envs import make_env
+    from ncbot.envs import make_env
 
     env = make_env(game=game, batch_size=(4,), seed=5, first="alternate")
     generator = torch.Generator().manual_seed(5)
@@ -328,7 +328,7 @@ def test_robot_steps_are_written_when_they_happen_between_camera_frames(tmp_path
 
 
 def test_curve_series_spreads_batches_and_places_final_eval() -> None:
-    from logs.curve import curve_series
+    from ncbot.logs.curve import curve_series
 
     train = [{"phase": "train", "agent": "p", "seed": 0, "env_steps": steps, "task_success": ok, "return": 1.0,
               "length": 10} for steps, ok in [(100, True), (100, False), (200, True), (200, True)]]

@@ -10,15 +10,15 @@ from pathlib import Path
 import pytest
 import torch
 
-from logs import EpisodeLogger
+from ncbot.logs import EpisodeLogger
 from tests.logs.helpers import NamedEnv, fake_batch
 
 torch.set_num_threads(1)
 
 
 def run_cli(*args: str, capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    """Run `ncbot` in-process through the real entry point (`pipelines.cli.app.main`)."""
-    from pipelines.cli.app import main
+    """Run `ncbot` in-process through the real entry point (`ncbot.pipelines.cli.app.main`)."""
+    from ncbot.pipelines.cli.app import main
 
     old_argv = sys.argv
     sys.argv = ["ncbot", *map(str, args)]
@@ -156,6 +156,6 @@ def test_truncated_run_is_reported(run_dir: Path, tmp_path: Path, capsys: pytest
 
 
 def test_console_script_prints_no_traceback(tmp_path: Path) -> None:
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "logs", "inspect", str(tmp_path / "nope")],
+    result = subprocess.run([sys.executable, "-m", "ncbot", "logs", "inspect", str(tmp_path / "nope")],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and "does not exist" in result.stderr

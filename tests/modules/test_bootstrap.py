@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from envs import make_env
-from modules.bootstrap import BOOTSTRAP_MASK_KEY, NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
-from modules.masks import GREEDY_MASK_KEY, LookaheadMasks
+from ncbot.envs import make_env
+from ncbot.modules.bootstrap import BOOTSTRAP_MASK_KEY, NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
+from ncbot.modules.masks import GREEDY_MASK_KEY, LookaheadMasks
 
 torch.set_num_threads(1)
 KEYS = ("observation", "action_mask", "action", ("next", "observation"), ("next", "action_mask"), ("next", "reward"))
@@ -55,9 +55,9 @@ def test_available_is_unchanged_and_bad_input_is_named() -> None:
 
 def test_training_applies_the_option(tmp_path) -> None:
     """Same seed, the two bootstraps: the trained weights differ, so train.py really routes loss.bootstrap."""
-    from pipelines.checkpoint import load_checkpoint
-    from pipelines.config import load_config
-    from pipelines.train.run import train
+    from ncbot.pipelines.checkpoint import load_checkpoint
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     weights = {}

@@ -4,11 +4,11 @@ from __future__ import annotations
 import pytest
 import torch
 
-from envs import make_env
-from envs.opponents.bitboards import StandardBits, UltimateBits
-from envs.rules import DRAWN, EMPTY, O, X, State, make_game
-from modules.deep_lookahead import KStepLookahead, losing_moves, owners_from_order
-from modules.masks import LOOKAHEAD_RULES
+from ncbot.envs import make_env
+from ncbot.envs.opponents.bitboards import StandardBits, UltimateBits
+from ncbot.envs.rules import DRAWN, EMPTY, O, X, State, make_game
+from ncbot.modules.deep_lookahead import KStepLookahead, losing_moves, owners_from_order
+from ncbot.modules.masks import LOOKAHEAD_RULES
 
 
 def attacker_wins(rules, state: State, plies: int, attacker: int) -> bool:
@@ -163,10 +163,10 @@ def test_greedy_mask_drops_forced_losses_and_keeps_one_step():
 
 def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
     """`agent.lookahead: k3` passes config validation, trains through the Collector and reloads for eval."""
-    from pipelines.config import load_config
-    from pipelines.agents import load_agent
-    from pipelines.evaluate.games import evaluate_agent
-    from pipelines.train.run import train
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     config = load_config(write_tiny_config(tmp_path), ["agent.lookahead=k3", "collector.total_frames=128"])
@@ -182,7 +182,7 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
 
 def test_lookahead_only_baseline_accepts_k_rules():
     """`ncbot ladder --baseline` / `ncbot play` without a checkpoint: the masks alone, k5 included."""
-    from modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(16,), seed=0, first="human", opponent="minimax")
     policy = LookaheadOnlyPolicy(0, "k5")

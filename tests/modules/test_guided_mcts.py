@@ -7,14 +7,14 @@ from pathlib import Path
 import pytest
 import torch
 
-from envs.opponents import make_opponent
-from envs.opponents.arena import play_match
-from modules.guided_mcts import parse_qmcts
-from pipelines.config import load_config
-from pipelines.evaluate.games import evaluate_agent
-from modules.guided_mcts import GuidedMCTSPolicy
-from pipelines.agents import guided_search, load_agent, load_guided_agent, register_agent_opponent
-from pipelines.train.run import train
+from ncbot.envs.opponents import make_opponent
+from ncbot.envs.opponents.arena import play_match
+from ncbot.modules.guided_mcts import parse_qmcts
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.evaluate.games import evaluate_agent
+from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+from ncbot.pipelines.agents import guided_search, load_agent, load_guided_agent, register_agent_opponent
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)
@@ -64,7 +64,7 @@ def test_legal_and_reproducible_by_seed(ultimate_checkpoint, free_move):
 
 
 def _cells_of_target(last_move: int) -> list[int]:
-    from envs.rules import SUBGRID_CELLS, TARGET_OF_CELL
+    from ncbot.envs.rules import SUBGRID_CELLS, TARGET_OF_CELL
 
     return list(SUBGRID_CELLS[TARGET_OF_CELL[last_move]])
 
@@ -119,7 +119,7 @@ def test_guided_policy_keeps_the_agents_masks_and_counts_only_scored_games(ultim
     assert policy.cpu_seconds > 0
     unscored = _CheckedPolicy(greedy, guided_search(config, greedy, 6), seed=3)
     unscored.searching = torch.zeros(4, dtype=torch.bool)
-    from pipelines.run_env import make_run_env
+    from ncbot.pipelines.run_env import make_run_env
 
     env = make_run_env(config.env, batch_size=4, seed=0, first="robot")
     td = env.reset()

@@ -7,8 +7,8 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torch import nn
 
-from modules.loss import CompetitiveDQNLoss, make_target_updater
-from modules.qnet import make_qnet
+from ncbot.modules.loss import CompetitiveDQNLoss, make_target_updater
+from ncbot.modules.qnet import make_qnet
 
 torch.set_num_threads(1)
 N_ACTIONS = 4
@@ -178,8 +178,8 @@ def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDic
 
 
 def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
-    from modules.learner import make_loss
-    from modules.qnet import seeded_init
+    from ncbot.modules.learner import make_loss
+    from ncbot.modules.qnet import seeded_init
 
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
@@ -245,7 +245,7 @@ def test_unknown_precision_is_a_clear_error() -> None:
 
 
 def _filled_buffer(size: int = 300, batch: int = 48):
-    from modules.learner import make_replay_buffer
+    from ncbot.modules.learner import make_replay_buffer
 
     buffer = make_replay_buffer(size, batch)
     for seed in range(3):  # 3 x 128 rows into 300 slots: the ring wraps
@@ -254,10 +254,10 @@ def _filled_buffer(size: int = 300, batch: int = 48):
 
 
 def _learner(batch_size: int | None = None, **loss_settings):
-    from modules.qnet import seeded_init
-    from modules.learner import Learner
-    from pipelines.config import RunConfig
-    from pipelines.train.build import learner_settings
+    from ncbot.modules.qnet import seeded_init
+    from ncbot.modules.learner import Learner
+    from ncbot.pipelines.config import RunConfig
+    from ncbot.pipelines.train.build import learner_settings
 
     config = RunConfig()
     if batch_size is not None:

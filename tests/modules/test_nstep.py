@@ -1,4 +1,4 @@
-"""n-step returns (TorchRL's MultiStepTransform as `modules.transitions` configures it): exact against a plain
+"""n-step returns (TorchRL's MultiStepTransform as `ncbot.modules.transitions` configures it): exact against a plain
 per-step loop, across collector batch boundaries, with the done flags of the window's end; and a real run."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from modules.transitions import STEPS_KEY, make_multistep
+from ncbot.modules.transitions import STEPS_KEY, make_multistep
 
 torch.set_num_threads(1)
 
@@ -70,8 +70,8 @@ def test_one_step_needs_no_transform_and_bad_arguments_are_one_line_errors() -> 
 
 def test_training_with_n_step_returns(tmp_path) -> None:
     """A real (tiny) run with loss.n_step=3 trains and differs from the one-step run."""
-    from pipelines.config import load_config
-    from pipelines.train.run import train
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.run import train
     from tests.learning_helpers import write_tiny_config
 
     results = {}

@@ -10,10 +10,10 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from pipelines.config import load_config
-from modules.learner import make_replay_buffer
-from modules.prioritized_sampler import ProportionalSampler
-from pipelines.train.run import train
+from ncbot.pipelines.config import load_config
+from ncbot.modules.learner import make_replay_buffer
+from ncbot.modules.prioritized_sampler import ProportionalSampler
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 from tests.modules.test_loss import _learner, mlp_loss, mlp_transitions
 
@@ -116,7 +116,7 @@ def test_exact_curve_bench_reads_every_snapshot_of_a_run(tmp_path: Path) -> None
     import subprocess
     import sys
 
-    from pipelines.evaluate.exact import exact_checkpoint
+    from ncbot.pipelines.evaluate.exact import exact_checkpoint
 
     config = load_config(write_tiny_config(tmp_path), ["buffer.prioritized=true", "checkpoint.keep=10"])
     train(config, tmp_path / "run")

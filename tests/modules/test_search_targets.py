@@ -9,14 +9,14 @@ from pathlib import Path
 import pytest
 import torch
 
-from modules.guided_mcts import GuidedMCTS, TurnFeatures
-from modules.policy import make_policies
-from modules.qnet import make_qnet, seeded_init
-from modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
-from pipelines.config import load_config
-from pipelines.run_env import make_run_env
-from pipelines.train.build import make_collector
-from pipelines.train.run import train
+from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
+from ncbot.modules.policy import make_policies
+from ncbot.modules.qnet import make_qnet, seeded_init
+from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.run_env import make_run_env
+from ncbot.pipelines.train.build import make_collector
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)
@@ -155,7 +155,7 @@ def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
     (["search_targets.value={value}", "env.free_move=open_subgrids"], "trained on the 'anywhere' free-move rule"),
 ])
 def test_a_bad_teacher_value_network_is_one_line_before_the_run_folder_is_made(tmp_path: Path, overrides, message) -> None:
-    from modules.value_net import make_value_net, value_checkpoint
+    from ncbot.modules.value_net import make_value_net, value_checkpoint
     from tests.learning_helpers import ncbot
 
     value = tmp_path / "value.pt"

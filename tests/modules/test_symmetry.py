@@ -7,11 +7,11 @@ from pathlib import Path
 import pytest
 import torch
 
-from envs.engine import make_engine
-from modules.symmetry import BoardSymmetries, make_symmetries, square_symmetries
-from pipelines.config import load_config
-from pipelines.run_env import make_run_env
-from pipelines.train.run import train
+from ncbot.envs.engine import make_engine
+from ncbot.modules.symmetry import BoardSymmetries, make_symmetries, square_symmetries
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.run_env import make_run_env
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

@@ -8,16 +8,16 @@ import random
 import pytest
 import torch
 
-from envs.opponents import make_opponent
-from envs.opponents.arena import play_match
-from envs.opponents.bitboards import CELL_OF, ONGOING, SQUARE_OF, SUBGRID_OF, make_bits
-from modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
-from modules.symmetry import square_symmetries
-from modules.value_net import N_FEATURES, ValueNetEvaluator, feature_symmetries, load_value_net, position_features
-from pipelines.agents import load_agent
-from pipelines.config import load_config
-from pipelines.train.run import train
-from pipelines.train.value_training import train_value
+from ncbot.envs.opponents import make_opponent
+from ncbot.envs.opponents.arena import play_match
+from ncbot.envs.opponents.bitboards import CELL_OF, ONGOING, SQUARE_OF, SUBGRID_OF, make_bits
+from ncbot.modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
+from ncbot.modules.symmetry import square_symmetries
+from ncbot.modules.value_net import N_FEATURES, ValueNetEvaluator, feature_symmetries, load_value_net, position_features
+from ncbot.pipelines.agents import load_agent
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.train.run import train
+from ncbot.pipelines.train.value_training import train_value
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)

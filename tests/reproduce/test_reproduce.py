@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pipelines.reproduce.grid import BUDGETS, Budget, reproduce, row_config, write_grid
-from pipelines.reproduce.dialogues import filter_agreement, plan_dialogue_runs
+from ncbot.pipelines.reproduce.grid import BUDGETS, Budget, reproduce, row_config, write_grid
+from ncbot.pipelines.reproduce.dialogues import filter_agreement, plan_dialogue_runs
 from tests.learning_helpers import ncbot, write_paper_configs
 
 TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4}, eval_games=20,

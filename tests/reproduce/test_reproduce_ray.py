@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.train.ablate import PlannedRun, execute_runs
-from pipelines.reproduce.grid import Budget, reproduce
+from ncbot.pipelines.train.ablate import PlannedRun, execute_runs
+from ncbot.pipelines.reproduce.grid import Budget, reproduce
 from tests.learning_helpers import write_paper_configs
 
 ray = pytest.importorskip("ray", reason="ray is an optional extra (pip install 'ncbot[ray]'); not installed here")
@@ -33,7 +33,7 @@ def test_reproduce_table_on_a_local_ray_instance_puts_every_run_under_the_runs_f
 
 
 def test_a_runs_folder_the_nodes_cannot_see_is_one_clear_error(tmp_path: Path) -> None:
-    from pipelines.train.ray_backend import _probe
+    from ncbot.pipelines.train.ray_backend import _probe
 
     where, problem = _probe(str(tmp_path / "not-shared" / ".ncbot-ray-probe-x"))
     assert where and "is not shared with node" in problem and "same absolute path on every node" in problem

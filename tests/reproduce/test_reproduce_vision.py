@@ -12,12 +12,12 @@ import numpy as np
 import torch
 from typer.testing import CliRunner
 
-from pipelines.reproduce.grid import BUDGETS, Budget
-from pipelines.reproduce.vision import VISION_BUDGETS, VisionBudget
-from vision import budget as vb
-from vision.classifier import DEFAULT_WEIGHTS
-from vision.data import TEST_SEED
-from vision.data.cells import make_cells
+from ncbot.pipelines.reproduce.grid import BUDGETS, Budget
+from ncbot.pipelines.reproduce.vision import VISION_BUDGETS, VisionBudget
+from ncbot.vision import budget as vb
+from ncbot.vision.classifier import DEFAULT_WEIGHTS
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.cells import make_cells
 
 TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4}, eval_games=20,
               eval_every_frames={"standard": 64}, game_points=(2, 4), label="TINY BUDGET (test)")
@@ -25,7 +25,7 @@ TOY = VisionBudget("tiny", (6, 9), 1, 20, 2, 1, "TOY VISION BUDGET (test)", upda
 
 
 def _vision(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", "vision", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "ncbot", "vision", *args], capture_output=True, text=True)
 
 
 def test_split_follows_the_paper_and_draws_are_nested(monkeypatch) -> None:
@@ -78,7 +78,7 @@ def test_train_budget_cli_and_weights_option(tmp_path: Path) -> None:
 
 
 def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, monkeypatch) -> None:
-    from pipelines.cli.app import app
+    from ncbot.pipelines.cli.app import app
 
     monkeypatch.setitem(BUDGETS, "tiny", TINY)
     monkeypatch.setattr(vb, "PHOTO_POOL", (3, 1))
@@ -103,7 +103,7 @@ def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, 
     again = CliRunner().invoke(app, args)
     assert again.exit_code == 0 and [p.stat().st_mtime_ns for p in results] == stamps  # finished points skipped
     # `budget` reads the same points back into data_budget.md's vision section and its --json "vision" list
-    from pipelines.reproduce.budget import write_budget_report
+    from ncbot.pipelines.reproduce.budget import write_budget_report
 
     report = write_budget_report(TINY, runs_dir=runs / "tiny", out=out, command="ncbot reproduce budget --budget tiny")
     assert [r["cell_accuracy"] for r in report["vision"]] == [r["cell_accuracy"] for r in data["vision"]]
@@ -114,7 +114,7 @@ def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, 
     # a report of a run still under way: finished points only, nothing trained, labelled PARTIAL
     import shutil
 
-    from pipelines.reproduce.vision import write_vision_report
+    from ncbot.pipelines.reproduce.vision import write_vision_report
 
     shutil.rmtree(runs / "tiny" / "vision" / "n00009_seed0")
     partial = write_vision_report(TINY, runs_dir=runs / "tiny", out=out, command="x", partial="stopped for a test.")

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from pipelines.reproduce.claims import TOO_FEW, evaluate_claims, welch_greater
-from pipelines.reproduce.table import t_interval, write_report
+from ncbot.pipelines.reproduce.claims import TOO_FEW, evaluate_claims, welch_greater
+from ncbot.pipelines.reproduce.table import t_interval, write_report
 from tests.learning_helpers import ncbot
 
 ORIGINAL, VARIANT = "dqn_original-notemporal", "dqn_variant-notemporal"
@@ -112,7 +112,7 @@ def test_a_copied_seed_folder_is_refused(tmp_path: Path) -> None:
 
 
 def test_rates_stay_inside_zero_and_one_with_few_seeds() -> None:
-    from pipelines.reproduce.seed_stats import proportion_interval, t_interval
+    from ncbot.pipelines.reproduce.seed_stats import proportion_interval, t_interval
 
     values = [0.7700, 0.9067, 0.8758]  # a raw t-interval of these reaches past 1
     assert t_interval(values).high > 1
@@ -236,7 +236,7 @@ def test_table_and_claims_cannot_share_a_file(tmp_path: Path) -> None:
 
 
 def test_claim_ii_with_too_little_power_is_untested_and_p_values_are_holm_adjusted(tmp_path: Path) -> None:
-    from pipelines.reproduce.seed_stats import power_of
+    from ncbot.pipelines.reproduce.seed_stats import power_of
 
     spread = [0.0, 0.03, -0.03, 0.015, -0.015]  # seeds that differ by more than the paper's 3x3 gain of 0.0112
     write_cell(tmp_path, NOTEMPORAL, [0.96 + j for j in spread])

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from robot_sim.conditions import PRESETS, SceneConditions, load_conditions, sample_conditions
+from ncbot.robot_sim.conditions import PRESETS, SceneConditions, load_conditions, sample_conditions
 
 SMALL = dict(camera_width=160, camera_height=120, texture_px=300)
 
@@ -46,8 +46,8 @@ def test_conditions_file_overrides_a_preset_and_bad_files_are_one_clear_error(tm
 
 
 def test_camera_post_leaves_the_lab_alone_and_adds_the_configured_noise():
-    from robot_sim.camera_post import CameraPost
-    from robot_sim.conditions import CameraEffects
+    from ncbot.robot_sim.camera_post import CameraPost
+    from ncbot.robot_sim.conditions import CameraEffects
 
     frame = np.full((120, 160, 3), 128, np.uint8)
     assert CameraPost(CameraEffects()).__call__(frame) is frame
@@ -69,7 +69,7 @@ def _stats(frame: np.ndarray) -> np.ndarray:
 
 @pytest.mark.sapien
 def test_presets_render_and_look_different(sapien_render_system):
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     stats = {}
     for name in ("lab", "office", "atrium", "random"):
@@ -87,7 +87,7 @@ def test_presets_render_and_look_different(sapien_render_system):
 
 @pytest.mark.sapien
 def test_one_seed_gives_one_frame_sequence(sapien_render_system):
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     def frames(seed: int) -> list[np.ndarray]:
         scene = PepperScene(SceneConfig(**SMALL, conditions=PRESETS["random"], conditions_seed=seed))
@@ -105,8 +105,8 @@ def test_one_seed_gives_one_frame_sequence(sapien_render_system):
 @pytest.mark.sapien
 def test_sheet_is_found_where_the_conditions_laid_it(sapien_render_system):
     """A sheet turned and moved by the conditions is still localised from the camera (the robot draws there)."""
-    from robot_sim.localise import localise_sheet
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.localise import localise_sheet
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     seed = next(s for s in range(50) if abs(np.degrees(sample_conditions(PRESETS["office"], s).sheet_yaw)) > 6)
     scene = PepperScene(SceneConfig(camera_width=320, camera_height=240, conditions=PRESETS["office"], conditions_seed=seed))
@@ -121,8 +121,8 @@ def test_sheet_is_found_where_the_conditions_laid_it(sapien_render_system):
 
 @pytest.mark.sapien
 def test_a_short_game_under_office_still_reads_the_moves(sapien_render_system, tmp_path):
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.play import play_robot_games
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import play_robot_games
 
     config = RobotPlayConfig(games=2, seed=1, camera_width=320, camera_height=240, conditions="office", first="alternate")
     report = play_robot_games(config, out_dir=tmp_path, log_mcap=False, progress=False)
@@ -140,7 +140,7 @@ def test_render_command_shows_a_preset(tmp_path, sapien_render_system):
     import cv2
 
     output = tmp_path / "atrium.png"
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "--conditions", "atrium",
+    result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "render", "--conditions", "atrium",
                              "--seed", "3", "-o", str(output), "--width", "160", "--height", "120", "--frames", "1"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -151,7 +151,7 @@ def test_render_command_shows_a_preset(tmp_path, sapien_render_system):
 def test_unknown_conditions_are_one_line(monkeypatch, capsys):
     import sys
 
-    from pipelines.cli.app import main
+    from ncbot.pipelines.cli.app import main
 
     monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", "--conditions", "moon"])
     with pytest.raises(SystemExit) as exit_info:

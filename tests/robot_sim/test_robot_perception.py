@@ -9,13 +9,13 @@ pytestmark = pytest.mark.sapien
 
 @pytest.mark.parametrize("cell, seed, nudge", [(4, 0, 0.0), (2, 1, 1.0)])
 def test_recogniser_waits_for_the_hand_and_then_reads_the_move(sapien_render_system, cell, seed, nudge):
-    from envs.rules import Standard
-    from robot_sim.human import HumanConfig, SimulatedHuman
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.envs.rules import Standard
+    from ncbot.robot_sim.human import HumanConfig, SimulatedHuman
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
     import cv2
-    from vision.page import find_page
-    from vision.recogniser import MoveRecogniser
+    from ncbot.vision.page import find_page
+    from ncbot.vision.recogniser import MoveRecogniser
 
     scene = PepperScene(SceneConfig(camera_width=320, camera_height=240))
     human = SimulatedHuman(scene, Standard(), HumanConfig(drawing_frames=4, nudge_probability=nudge), seed=seed)
@@ -59,8 +59,8 @@ def test_recogniser_waits_for_the_hand_and_then_reads_the_move(sapien_render_sys
 
 
 def test_licensed_meshes_replace_primitives(sapien_render_system, tmp_path):
-    from robot_sim.pepper_model import pepper_urdf_text
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.pepper_model import pepper_urdf_text
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "Head.obj").write_text(
@@ -75,7 +75,7 @@ def test_licensed_meshes_replace_primitives(sapien_render_system, tmp_path):
 
 
 def test_speaker_keeps_text_without_audio(tmp_path):
-    from robot_sim.speech import Speaker
+    from ncbot.robot_sim.speech import Speaker
 
     speaker = Speaker(None)
     assert speaker.say("Hello, nice to meet you!") is None
@@ -86,12 +86,12 @@ def test_a_curled_sheet_edge_is_not_a_hand_once_the_robot_has_seen_the_sheet(sap
     """A curled edge bows out of the page's four-corner quad, so a sliver of table lies along the rim in every
     frame: judged alone, every still frame looks like a hand over the sheet's edge and the move is never seen
     (the random preset's unseen moves); judged against the robot's look before the turn, the move is read."""
-    from envs.rules import Standard
-    from robot_sim.conditions import PRESETS
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.human import HumanConfig, SimulatedHuman
-    from robot_sim.scene import PepperScene, SceneConfig
-    from vision.recogniser import MoveRecogniser
+    from ncbot.envs.rules import Standard
+    from ncbot.robot_sim.conditions import PRESETS
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.human import HumanConfig, SimulatedHuman
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.vision.recogniser import MoveRecogniser
 
     # the scene of `ncbot robot play --conditions random --seed 11`, game 7: curl 15 mm, sheet turned 25 degrees
     scene = PepperScene(SceneConfig(camera_width=640, camera_height=480, conditions=PRESETS["random"],

@@ -12,11 +12,11 @@ pytestmark = pytest.mark.sapien
 def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_system, tmp_path):
     """With real speech (the CLI's default): the robot speaks, hears the person through pocketsphinx, and the
     log holds both voices' audio, decodable back to samples."""
-    from logs import LogReader, read_episodes
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.play import play_robot_games
-    from speech import SAMPLE_RATE
-    from speech.audio import samples_from_raw_audio
+    from ncbot.logs import LogReader, read_episodes
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import play_robot_games
+    from ncbot.speech import SAMPLE_RATE
+    from ncbot.speech.audio import samples_from_raw_audio
 
     config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=320, camera_height=240,
                              robot_frame_period=1.0, speech="real")
@@ -71,7 +71,7 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     assert all(0.0 <= c <= 1.0 for t in heard for _, c in t["heard_words"])
 
     # --rrd: the run exports to a rerun recording with the camera frames.
-    from logs.rerun_export import export_to_rerun
+    from ncbot.logs.rerun_export import export_to_rerun
 
     export_to_rerun(tmp_path, tmp_path / "run.rrd")
     assert (tmp_path / "run.rrd").stat().st_size > 10_000
@@ -80,10 +80,10 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
 def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_system, tmp_path):
     """Real speech, a camera that never confirms a move: every human move is asked about ("where did you draw?"),
     the person's spoken cell is heard by pocketsphinx and confirmed, and the answers are in the log."""
-    from logs import LogReader
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.play import play_robot_games
-    from robot_sim.where import ASK_WHERE
+    from ncbot.logs import LogReader
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import play_robot_games
+    from ncbot.robot_sim.where import ASK_WHERE
 
     config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=160, camera_height=120, speech="real",
                              confirm_frames=10_000, max_perception_frames=1)
@@ -106,7 +106,7 @@ def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_
 def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys):
     import sys
 
-    from pipelines.cli.app import main
+    from ncbot.pipelines.cli.app import main
 
     for args, needle in ((["--rrd"], "--rrd needs --out"), ([str(tmp_path / "missing.pt")], "not found"),
                          (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder"),
@@ -121,8 +121,8 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
 
 
 def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
-    from robot_sim.game_config import RobotPlayConfig
-    from robot_sim.report import GameRecord, games_report
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.report import GameRecord, games_report
 
     record = GameRecord(index=0, outcome="win", robot_first=True, actions=9, utterances={"robot": 9, "user": 4},
                         asr_words=10, asr_word_errors=2, asr_confidences=[0.5, 1.0], asr_understood=3)
@@ -142,8 +142,8 @@ def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
 
 def test_lookahead_policy_is_seeded_and_respects_masks():
     import torch
-    from envs import make_env
-    from modules.masks import LookaheadOnlyPolicy
+    from ncbot.envs import make_env
+    from ncbot.modules.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(1,), seed=0)
     td = env.reset()
@@ -167,7 +167,7 @@ def test_render_command_writes_the_mouth_camera_view(tmp_path):
     import cv2
 
     output = tmp_path / "mouth.png"
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(output),
+    result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "render", "-o", str(output),
                              "--width", "160", "--height", "120", "--marks", "xb2,oa1", "--frames", "2"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -183,7 +183,7 @@ def test_no_vulkan_device_is_one_line_with_the_recipe(tmp_path):
     import sys
 
     env = dict(os.environ, VK_ICD_FILENAMES=str(tmp_path / "no_such_icd.json"))
-    result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "render", "-o", str(tmp_path / "x.png")],
+    result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "render", "-o", str(tmp_path / "x.png")],
                             capture_output=True, text=True, timeout=300, env=env)
     assert result.returncode == 2
     assert "scripts/setup.sh" in result.stderr and "Traceback" not in result.stderr

@@ -11,13 +11,13 @@ SMALL = dict(camera_width=160, camera_height=120, texture_px=300)
 
 @pytest.fixture
 def scene(sapien_render_system):
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     return PepperScene(SceneConfig(**SMALL))
 
 
 def test_packaged_urdf_is_current_and_has_peppers_joints():
-    from robot_sim.pepper_model import PACKAGED_URDF, joint_limits, pepper_urdf_text
+    from ncbot.robot_sim.pepper_model import PACKAGED_URDF, joint_limits, pepper_urdf_text
 
     assert PACKAGED_URDF.read_text() == pepper_urdf_text(), "assets/pepper.urdf is stale: run `ncbot robot urdf`"
     limits = joint_limits()
@@ -50,7 +50,7 @@ def test_render_is_not_blank_and_shows_the_sheet(scene):
 
 
 def test_texture_update_is_visible_in_the_next_frame(scene):
-    from robot_sim.sheet import MarkSpec
+    from ncbot.robot_sim.sheet import MarkSpec
 
     before = scene.render().astype(int)
     scene.canvas.draw(MarkSpec(4, "cross", 3, (20, 20, 20), 0.8), 1.0)
@@ -62,7 +62,7 @@ def test_texture_update_is_visible_in_the_next_frame(scene):
 
 
 def test_ik_reaches_every_cell_within_1cm(scene):
-    from robot_sim.motion import RobotMotion
+    from ncbot.robot_sim.motion import RobotMotion
 
     motion = RobotMotion(scene)
     for cell in (0, 4, 8):
@@ -75,8 +75,8 @@ def test_ik_reaches_every_cell_within_1cm(scene):
 
 
 def test_ik_jacobian_matches_finite_differences(scene):
-    from robot_sim.ik import PositionIK
-    from robot_sim.pepper_model import ARM_JOINTS
+    from ncbot.robot_sim.ik import PositionIK
+    from ncbot.robot_sim.pepper_model import ARM_JOINTS
 
     ik = PositionIK(scene, "r_tool", ARM_JOINTS["R"])
     q = scene.home.copy()
@@ -91,7 +91,7 @@ def test_ik_jacobian_matches_finite_differences(scene):
 
 
 def test_base_tracks_goals_and_an_arc(scene):
-    from robot_sim.motion import RobotMotion
+    from ncbot.robot_sim.motion import RobotMotion
 
     motion = RobotMotion(scene)
     assert motion.drive_base_to(np.array([0.10, -0.05, 0.0])) < 0.005
@@ -107,7 +107,7 @@ def test_base_tracks_goals_and_an_arc(scene):
 
 @pytest.mark.parametrize("name", ["hello", "please", "happy", "no", "think", "asr", "read"])
 def test_gestures_move_and_return_home(scene, name):
-    from robot_sim.motion import RobotMotion
+    from ncbot.robot_sim.motion import RobotMotion
 
     motion = RobotMotion(scene)
     start = scene.qpos.copy()
@@ -127,8 +127,8 @@ def test_gestures_move_and_return_home(scene, name):
 
 
 def test_robot_draws_a_mark_that_the_camera_sees(scene):
-    from robot_sim.motion import RobotMotion
-    from robot_sim.sheet import ROBOT_INK, MarkSpec
+    from ncbot.robot_sim.motion import RobotMotion
+    from ncbot.robot_sim.sheet import ROBOT_INK, MarkSpec
 
     frames = []
     motion = RobotMotion(scene, on_frame=lambda frame, t: frames.append(frame), frame_period=0.5)
@@ -142,8 +142,8 @@ def test_robot_draws_a_mark_that_the_camera_sees(scene):
 
 
 def test_human_draws_with_an_occluding_arm(scene):
-    from envs.rules import Standard
-    from robot_sim.human import HumanConfig, SimulatedHuman
+    from ncbot.envs.rules import Standard
+    from ncbot.robot_sim.human import HumanConfig, SimulatedHuman
 
     game = Standard()
     human = SimulatedHuman(scene, game, HumanConfig(drawing_frames=3), seed=1)
@@ -159,7 +159,7 @@ def test_human_draws_with_an_occluding_arm(scene):
 
 
 def test_bad_config_is_one_clear_error(sapien_render_system):
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     with pytest.raises(ValueError, match="game must be one of"):
         PepperScene(SceneConfig(game="chess"))
@@ -168,7 +168,7 @@ def test_bad_config_is_one_clear_error(sapien_render_system):
 
 
 def test_sheet_is_localised_from_the_camera_after_a_nudge(scene):
-    from robot_sim.localise import localise_sheet
+    from ncbot.robot_sim.localise import localise_sheet
 
     scene.nudge_sheet(0.01, -0.008, np.radians(4))
     estimate = localise_sheet(scene, scene.render())
@@ -180,7 +180,7 @@ def test_sheet_is_localised_from_the_camera_after_a_nudge(scene):
 
 def test_scenes_in_one_process_do_not_light_or_show_each_other(sapien_render_system):
     """Each scene renders in its own world: a second scene (first still alive) gives the same picture."""
-    from robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
     first = PepperScene(SceneConfig(**SMALL))
     before = first.render()

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from robot_sim.camera_post import CameraPost
-from robot_sim.conditions import PRESETS, CameraEffects, load_conditions, sample_conditions
-from robot_sim.sheet_shape import SheetShape
+from ncbot.robot_sim.camera_post import CameraPost
+from ncbot.robot_sim.conditions import PRESETS, CameraEffects, load_conditions, sample_conditions
+from ncbot.robot_sim.sheet_shape import SheetShape
 
 
 def test_new_draws_leave_every_earlier_value_alone_and_ranges_are_checked(tmp_path):
@@ -57,9 +57,9 @@ def test_auto_exposure_follows_the_frame_brightness():
 
 @pytest.mark.sapien
 def test_a_folded_and_curled_sheet_renders_bent_and_is_still_read(sapien_render_system):
-    from robot_sim.scene import PepperScene, SceneConfig
-    from robot_sim.sheet import MarkSpec
-    from vision.grid import read_board
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.sheet import MarkSpec
+    from ncbot.vision.grid import read_board
 
     bent = dataclasses.replace(PRESETS["office"], curl_probability=1.0, curl_height=(0.012, 0.012),
                                fold_probability=1.0, fold_height=(0.008, 0.008), auto_exposure_rate=(0.4, 0.4))

@@ -9,14 +9,14 @@ import torch
 
 @pytest.fixture(scope="module")
 def atrium_speech():
-    from robot_sim.conditions import load_conditions
-    from robot_sim.speech import GameSpeech
+    from ncbot.robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.speech import GameSpeech
 
     return GameSpeech("standard", load_conditions("atrium"))
 
 
 def test_presets_carry_background_noise_and_yaml_can_set_it(tmp_path):
-    from robot_sim.conditions import PRESETS, load_conditions
+    from ncbot.robot_sim.conditions import PRESETS, load_conditions
 
     assert PRESETS["lab"].speech_snr_db is None  # the lab is quiet: clean speech
     assert PRESETS["atrium"].speech_snr_db[1] <= PRESETS["office"].speech_snr_db[0]  # the atrium is the noisier
@@ -32,7 +32,7 @@ def test_presets_carry_background_noise_and_yaml_can_set_it(tmp_path):
 
 
 def test_each_game_hears_a_held_out_voice_in_seeded_noise(atrium_speech):
-    from speech.fit import FIT_VOICES
+    from ncbot.speech.fit import FIT_VOICES
 
     voices = {atrium_speech.hearing(seed).voice for seed in range(12)}
     assert len(voices) > 1 and not voices & set(FIT_VOICES)  # the fit heard other rates: these are held out
@@ -52,9 +52,9 @@ def test_each_game_hears_a_held_out_voice_in_seeded_noise(atrium_speech):
 
 
 def test_robot_speaker_speaks_through_the_shared_cache(tmp_path):
-    from robot_sim.speech import Speaker
-    from speech.audio import read_wav
-    from speech.tts import ROBOT_VOICE, SpeechCache
+    from ncbot.robot_sim.speech import Speaker
+    from ncbot.speech.audio import read_wav
+    from ncbot.speech.tts import ROBOT_VOICE, SpeechCache
 
     cache = SpeechCache()
     speaker = Speaker(tmp_path, ROBOT_VOICE, cache)
@@ -67,8 +67,8 @@ def test_robot_speaker_speaks_through_the_shared_cache(tmp_path):
 
 
 def test_logger_writes_audio_and_notes_beside_the_dialogue(tmp_path):
-    from logs import EpisodeLogger, LogReader
-    from speech.audio import raw_audio, samples_from_raw_audio
+    from ncbot.logs import EpisodeLogger, LogReader
+    from ncbot.speech.audio import raw_audio, samples_from_raw_audio
 
     samples = (np.sin(np.arange(8000) / 5.0) * 8000).astype(np.int16)
     with EpisodeLogger(tmp_path) as logger:
@@ -87,10 +87,10 @@ def test_logger_writes_audio_and_notes_beside_the_dialogue(tmp_path):
 def test_misheard_replies_go_through_the_env_as_user_acts():
     """In loud white noise most replies are heard wrongly or as nothing: the dialogue goes on (the robot asks
     again), every misheard reply is an ordinary user act, and the game still ends within the env's cap."""
-    from envs import make_env
-    from modules.masks import LookaheadOnlyPolicy
-    from robot_sim.conditions import ConditionRanges
-    from robot_sim.speech import GameSpeech
+    from ncbot.envs import make_env
+    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.robot_sim.conditions import ConditionRanges
+    from ncbot.robot_sim.speech import GameSpeech
     from torchrl.envs.utils import step_mdp
 
     loud = GameSpeech("standard", ConditionRanges(name="loud", speech_noise=("white",), speech_snr_db=(-5.0, 0.0)))

@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pipelines.serve.answers import PREFERRED_ACTS
-from pipelines.serve.latency import latency_stats
+from ncbot.pipelines.serve.answers import PREFERRED_ACTS
+from ncbot.pipelines.serve.latency import latency_stats
 
 OUTCOMES = ("win", "loss", "draw")
 ANSWERING = "Answer the robot"

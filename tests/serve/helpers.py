@@ -25,7 +25,7 @@ def running_server(out: Path, *extra: str, ready_timeout: float = 240.0) -> Iter
     port = free_port()
     env = {**os.environ, "VK_ICD_FILENAMES": os.environ.get("VK_ICD_FILENAMES", "/usr/share/vulkan/icd.d/lvp_icd.json")}
     log = open(out.parent / f"server-{port}.log", "w")
-    process = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "robot", "serve", "--host", "127.0.0.1",
+    process = subprocess.Popen([sys.executable, "-m", "ncbot", "robot", "serve", "--host", "127.0.0.1",
                                 "--port", str(port), "--out", str(out), *extra], stdout=log, stderr=subprocess.STDOUT, env=env)
     url = f"http://127.0.0.1:{port}"
     try:

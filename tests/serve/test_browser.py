@@ -7,7 +7,7 @@ import httpx
 import pytest
 from selenium.webdriver.common.by import By
 
-from logs.summary import summarize_study
+from ncbot.logs.summary import summarize_study
 from tests.serve.chromium import (
     answer_with_button, board, click_cell, enabled_acts, open_chromium, page_latencies, play_to_end, start_game, status,
     type_answer, wait_for,

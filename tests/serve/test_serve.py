@@ -13,9 +13,9 @@ import httpx
 import pytest
 import websockets
 
-from logs.reader import LogReader
-from logs.summary import summarize_study
-from pipelines.serve.answers import PREFERRED_ACTS
+from ncbot.logs.reader import LogReader
+from ncbot.logs.summary import summarize_study
+from ncbot.pipelines.serve.answers import PREFERRED_ACTS
 from tests.serve.helpers import running_server
 
 pytestmark = [pytest.mark.sapien, pytest.mark.slow]
@@ -149,7 +149,7 @@ def test_several_sessions_at_once_and_idle_sessions_are_closed_with_their_log(tm
     episodes = [m.data["extra"] for folder in out.iterdir() for m in LogReader(folder).messages(["/episode"])]
     assert len(episodes) == 3 and {e["conditions"]["preset"] for e in episodes} == {"office"}  # --conditions reached the scenes
     assert study["misrecognised_moves"] == 0 and study["seconds_per_person_turn"]["median"] > 0
-    printed = subprocess.run([sys.executable, "-m", "pipelines.cli", "logs", "inspect", str(out)],
+    printed = subprocess.run([sys.executable, "-m", "ncbot", "logs", "inspect", str(out)],
                              capture_output=True, text=True, check=True).stdout
     assert "sessions 3  games 3" in printed
 
@@ -159,7 +159,7 @@ def test_serve_cli_rejects_bad_input_with_one_line(tmp_path):
     bad_yaml.write_text("base: office\nlight_intensity: [0.3, 0.5]\nglitter: 3\n")
     for args in ([str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
                  ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"]):
-        result = subprocess.run([sys.executable, "-m", "pipelines.cli", "robot", "serve", *args],
+        result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "serve", *args],
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 2, result.stderr
         assert result.stderr.strip().startswith("ncbot: error:") and len(result.stderr.strip().splitlines()) == 1
@@ -177,7 +177,7 @@ def test_serve_prints_its_url_once_it_listens(tmp_path):
 
     port = free_port()
     env = {**os.environ, "VK_ICD_FILENAMES": os.environ.get("VK_ICD_FILENAMES", "/usr/share/vulkan/icd.d/lvp_icd.json")}
-    process = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "robot", "serve", "--port", str(port),
+    process = subprocess.Popen([sys.executable, "-m", "ncbot", "robot", "serve", "--port", str(port),
                                 "--out", str(tmp_path / "study")], stderr=subprocess.PIPE, text=True, env=env)
     try:
         ready, _, _ = select.select([process.stderr], [], [], 240)

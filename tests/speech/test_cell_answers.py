@@ -9,22 +9,22 @@ import torch
 
 @pytest.fixture(scope="module")
 def ears_parts():
-    from speech.asr import Recogniser
-    from speech.cell_answers import answer_sentences, confirm_sentences
-    from speech.tts import SpeechCache
+    from ncbot.speech.asr import Recogniser
+    from ncbot.speech.cell_answers import answer_sentences, confirm_sentences
+    from ncbot.speech.tts import SpeechCache
 
     return {3: Recogniser(answer_sentences(3)), 9: Recogniser(answer_sentences(9)),
             "confirm": Recogniser(confirm_sentences()), "cache": SpeechCache()}
 
 
 def _ears(parts, grid=3, **kwargs):
-    from speech.cell_answers import AnswerEars
+    from ncbot.speech.cell_answers import AnswerEars
 
     return AnswerEars(grid, parts[grid], parts["confirm"], cache=parts["cache"], **kwargs)
 
 
 def test_every_cell_has_one_phrase_and_only_exact_phrases_are_cells():
-    from speech.cell_answers import cell_of, cell_phrase, cell_phrases, words_of, yes_or_no
+    from ncbot.speech.cell_answers import cell_of, cell_phrase, cell_phrases, words_of, yes_or_no
 
     for grid in (3, 9):
         phrases = cell_phrases(grid)
@@ -41,8 +41,8 @@ def test_every_cell_has_one_phrase_and_only_exact_phrases_are_cells():
 
 
 def test_each_cell_phrase_said_clean_is_heard_as_its_cell(ears_parts):
-    from speech.cell_answers import CONFIRM_NO, CONFIRM_YES, cell_phrase
-    from speech.tts import Voice
+    from ncbot.speech.cell_answers import CONFIRM_NO, CONFIRM_YES, cell_phrase
+    from ncbot.speech.tts import Voice
 
     ears = _ears(ears_parts, voice=Voice("flite", "rms"))
     assert [ears.hear_cell(cell_phrase(c, 3)).understood for c in range(9)] == list(range(9))
@@ -53,7 +53,7 @@ def test_each_cell_phrase_said_clean_is_heard_as_its_cell(ears_parts):
 
 
 def test_the_robot_asks_confirms_and_asks_again_at_most_three_times(ears_parts):
-    from robot_sim.where import ASK_AGAIN, ASK_WHERE, MAX_ASKS, ask_where
+    from ncbot.robot_sim.where import ASK_AGAIN, ASK_WHERE, MAX_ASKS, ask_where
 
     said, heard = [], []
     legal = np.ones(9, bool)
@@ -66,8 +66,8 @@ def test_the_robot_asks_confirms_and_asks_again_at_most_three_times(ears_parts):
 
 
 def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
-    from robot_sim.where import ask_where
-    from speech.noise import NOISE_KINDS
+    from ncbot.robot_sim.where import ask_where
+    from ncbot.speech.noise import NOISE_KINDS
 
     assert "white" in NOISE_KINDS
     outcomes = []
@@ -81,8 +81,8 @@ def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
 
 
 def test_each_game_hears_its_answers_apart_from_its_dialogue():
-    from robot_sim.conditions import load_conditions
-    from robot_sim.speech import GameSpeech
+    from ncbot.robot_sim.conditions import load_conditions
+    from ncbot.robot_sim.speech import GameSpeech
 
     speech = GameSpeech("standard", load_conditions("office"))
     said = torch.tensor([0, 3])

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from envs import make_env
-from pipelines.config import EnvConfig
-from pipelines.run_env import make_run_env, run_hearing
+from ncbot.envs import make_env
+from ncbot.pipelines.config import EnvConfig
+from ncbot.pipelines.run_env import make_run_env, run_hearing
 
 
 class Recorded:

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from speech import SAMPLE_RATE
-from speech.align import align, word_errors
-from speech.asr import Recogniser
-from speech.noise import add_noise, babble_noise_at, mix_at, white_noise_at
-from speech.tts import PERSON_VOICE, ROBOT_VOICE, Voice, parse_voice, speak
+from ncbot.speech import SAMPLE_RATE
+from ncbot.speech.align import align, word_errors
+from ncbot.speech.asr import Recogniser
+from ncbot.speech.noise import add_noise, babble_noise_at, mix_at, white_noise_at
+from ncbot.speech.tts import PERSON_VOICE, ROBOT_VOICE, Voice, parse_voice, speak
 
 SENTENCES = ("hello pepper nice to meet you", "can we play a game", "no thank you")
 
@@ -117,7 +117,7 @@ def test_audio_round_trips_through_an_mcap_file_and_a_wav(tmp_path):
     from mcap_protobuf.decoder import DecoderFactory
     from mcap_protobuf.writer import Writer
 
-    from speech.audio import AUDIO_TOPICS, raw_audio, read_wav, samples_from_raw_audio, write_wav
+    from ncbot.speech.audio import AUDIO_TOPICS, raw_audio, read_wav, samples_from_raw_audio, write_wav
 
     said = {"robot": speak("your turn", ROBOT_VOICE), "user": speak("this one", PERSON_VOICE)}
     with open(tmp_path / "game.mcap", "wb") as stream:

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import torch
 
-from speech.align import word_errors
-from speech.asr import Heard, Recogniser, dialogue_sentences
-from speech.channel import DEFAULT_CHANNEL, ChannelModel
-from speech.roundtrip import RoundTripper, Trial
-from speech.tts import PERSON_VOICE, speak
-from speech.understand import closest_text, closest_utterance, utterance_table
+from ncbot.speech.align import word_errors
+from ncbot.speech.asr import Heard, Recogniser, dialogue_sentences
+from ncbot.speech.channel import DEFAULT_CHANNEL, ChannelModel
+from ncbot.speech.roundtrip import RoundTripper, Trial
+from ncbot.speech.tts import PERSON_VOICE, speak
+from ncbot.speech.understand import closest_text, closest_utterance, utterance_table
 
 SENTENCES = ("hello pepper nice to meet you", "can we play a game", "no thank you")
 
@@ -60,7 +60,7 @@ def test_channel_model_fit_save_load_sample(recogniser, tmp_path):
 
 
 def test_channel_model_load_errors(tmp_path):
-    with pytest.raises(FileNotFoundError, match="speech.fit"):
+    with pytest.raises(FileNotFoundError, match="ncbot.speech.fit"):
         ChannelModel.load(tmp_path / "missing.json")
     (tmp_path / "bad.json").write_text("{not json")
     with pytest.raises(ValueError, match="not a JSON"):
@@ -105,9 +105,9 @@ def test_closest_utterance_understands_misheard_words_and_silence(recogniser):
 
 
 def test_channel_hearing_maps_env_utterances_to_env_word_columns(tmp_path):
-    from envs import make_env
+    from ncbot.envs import make_env
 
-    from speech.hearing import ChannelHearing, heard_tensors
+    from ncbot.speech.hearing import ChannelHearing, heard_tensors
 
     env = make_env("standard", batch_size=(1,))
     texts = [env.user_utterance(u) for u in range(len(env.model.utterance_texts))]
@@ -132,9 +132,9 @@ def test_channel_hearing_maps_env_utterances_to_env_word_columns(tmp_path):
 
 
 def test_recogniser_hearing_hears_env_utterances_for_real(recogniser):
-    from envs.dialogue import build_dialogue_model
+    from ncbot.envs.dialogue import build_dialogue_model
 
-    from speech.hearing import RecogniserHearing
+    from ncbot.speech.hearing import RecogniserHearing
 
     dialogue = build_dialogue_model("standard")
     hearing = RecogniserHearing(dialogue.utterance_texts, dialogue.words, recogniser)

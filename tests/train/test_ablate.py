@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pipelines.train.ablate import plan_runs, run_ablation
-from pipelines.reproduce.table import write_table
+from ncbot.pipelines.train.ablate import plan_runs, run_ablation
+from ncbot.pipelines.reproduce.table import write_table
 from tests.learning_helpers import write_tiny_config
 
 
@@ -72,7 +72,7 @@ def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None
     grid = {"runs_dir": str(tmp_path / "runs"), "suites": {"fast": {"standard": {"config": base.name}}},
             "grid": {"suite": ["fast"], "game": ["standard"], "agent": ["proposed"], "temporal": [False]}}
     (tmp_path / "grid.yaml").write_text(yaml.safe_dump(grid))
-    grid_run = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "ablate", str(tmp_path / "grid.yaml"),
+    grid_run = subprocess.Popen([sys.executable, "-m", "ncbot", "ablate", str(tmp_path / "grid.yaml"),
                                  "--seeds", "2", "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True)
     first = tmp_path / "runs" / "fast" / "standard" / "proposed-notemporal" / "seed0"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.config import apply_overrides, config_from_dict, dump_config, load_config
+from ncbot.pipelines.config import apply_overrides, config_from_dict, dump_config, load_config
 
 CONFIGS = Path(__file__).resolve().parents[2] / "pipelines" / "configs"
 
@@ -79,7 +79,7 @@ def test_override_without_equals_is_rejected() -> None:
 
 
 def _ncbot(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "ncbot", *args], capture_output=True, text=True, cwd=cwd)
 
 
 def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path) -> None:
@@ -100,7 +100,7 @@ def test_cli_exits_2_with_one_line_for_unknown_key_and_wrong_type(tmp_path: Path
 
 def test_importing_the_config_does_not_import_torch() -> None:
     """The CLI and tools read configs without paying the ~3 s of importing torch."""
-    code = "import pipelines.config, sys; assert 'torch' not in sys.modules, 'torch was imported'"
+    code = "import ncbot.pipelines.config, sys; assert 'torch' not in sys.modules, 'torch was imported'"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from pipelines.config import load_config
+from ncbot.pipelines.config import load_config
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)
@@ -50,7 +50,7 @@ def test_config_rejects_a_device_that_is_not_a_string(tmp_path: Path) -> None:
 
 
 def test_auto_and_cpu_resolve_to_what_torch_sees() -> None:
-    from modules.device import resolve_device
+    from ncbot.modules.device import resolve_device
 
     assert resolve_device("cpu") == torch.device("cpu")
     assert resolve_device("auto").type == ("cuda" if HAS_CUDA else "cpu")
@@ -59,7 +59,7 @@ def test_auto_and_cpu_resolve_to_what_torch_sees() -> None:
 @no_gpu_here
 @pytest.mark.parametrize("spelling", ["cuda", "cuda:1"])
 def test_a_gpu_this_machine_lacks_is_one_line_naming_the_key_and_what_is_available(spelling: str) -> None:
-    from modules.device import resolve_device
+    from ncbot.modules.device import resolve_device
 
     with pytest.raises(ValueError) as caught:
         resolve_device(spelling)
@@ -68,7 +68,7 @@ def test_a_gpu_this_machine_lacks_is_one_line_naming_the_key_and_what_is_availab
 
 
 def test_a_gpu_index_past_the_machines_gpus_is_one_line() -> None:
-    from modules.device import resolve_device
+    from ncbot.modules.device import resolve_device
 
     with pytest.raises(ValueError, match=r"'train.device' is 'cuda:999'.*available: cpu"):
         resolve_device("cuda:999")
@@ -96,7 +96,7 @@ def test_cli_train_with_a_misspelt_device_is_one_line_and_exit_code_2(tmp_path: 
 
 @no_gpu_here
 def test_tiny_run_on_cpu_equals_the_run_on_auto_here(tmp_path: Path) -> None:
-    from pipelines.train.run import train
+    from ncbot.pipelines.train.run import train
 
     path = write_tiny_config(tmp_path)
     on_cpu = train(load_config(path, ["train.device=cpu"]), tmp_path / "cpu")
@@ -109,8 +109,8 @@ def test_tiny_run_on_cpu_equals_the_run_on_auto_here(tmp_path: Path) -> None:
 
 def test_cpu_adapters_change_nothing() -> None:
     """On the CPU the evaluation calls the policy itself and a checkpoint's state is saved as it is."""
-    from modules.device import on_device, to_cpu
-    from modules.qnet import MLPReader, make_qnet
+    from ncbot.modules.device import on_device, to_cpu
+    from ncbot.modules.qnet import MLPReader, make_qnet
 
     qnet = make_qnet(5, 3, [4])
     assert on_device(qnet) is qnet
@@ -124,7 +124,7 @@ def test_cpu_adapters_change_nothing() -> None:
 # --- Ray asks for what a run uses ------------------------------------------------------------------------------------
 
 def test_ray_tasks_ask_for_the_runs_threads_and_a_gpu_when_it_runs_on_cuda() -> None:
-    from pipelines.train.ray_backend import RAY_MAX_RETRIES, task_resources
+    from ncbot.pipelines.train.ray_backend import RAY_MAX_RETRIES, task_resources
 
     assert RAY_MAX_RETRIES == 0
     assert task_resources(4, "cpu", cluster_gpus=2) == {"num_cpus": 4.0, "num_gpus": 0.0}
@@ -135,7 +135,7 @@ def test_ray_tasks_ask_for_the_runs_threads_and_a_gpu_when_it_runs_on_cuda() -> 
 
 
 def test_a_run_no_node_can_hold_is_refused_before_it_waits_forever() -> None:
-    from pipelines.train.ray_backend import check_fits
+    from ncbot.pipelines.train.ray_backend import check_fits
 
     nodes = [{"CPU": 16.0, "GPU": 1.0}, {"CPU": 64.0}]
     check_fits([("a", {"num_cpus": 64.0, "num_gpus": 0.0}), ("b", {"num_cpus": 8.0, "num_gpus": 1.0})], nodes)
@@ -144,7 +144,7 @@ def test_a_run_no_node_can_hold_is_refused_before_it_waits_forever() -> None:
 
 
 def test_planned_runs_report_their_threads_and_device(tmp_path: Path) -> None:
-    from pipelines.train.ablate import PlannedRun
+    from ncbot.pipelines.train.ablate import PlannedRun
 
     config = write_tiny_config(tmp_path)
     run = PlannedRun("x/seed0", tmp_path / "x", config, ["train.num_threads=3", "train.device=cpu"])
@@ -163,7 +163,7 @@ ULTIMATE = {"env": {"game": "ultimate", "batch_size": 32}, "agent": {"hidden": [
 
 @pytest.mark.cuda
 def test_learner_networks_and_replay_storage_live_on_cuda(tmp_path: Path) -> None:
-    from pipelines.train.build import build_parts
+    from ncbot.pipelines.train.build import build_parts
 
     config = load_config(write_tiny_config(tmp_path), ["train.device=cuda", "buffer.prioritized=true",
                                                        "buffer.augment=d4", "optim.precision=bf16"])
@@ -179,8 +179,8 @@ def test_learner_networks_and_replay_storage_live_on_cuda(tmp_path: Path) -> Non
         assert parts.learner.symmetries.generator.device.type == "cuda"
         assert parts.learner.loss_module.autocast_type == "cuda"
         # a few real updates on batches the env made: the state lives on the GPU, the Adam moments too
-        from modules.transitions import prepare_transitions
-        from pipelines.train.build import make_collector
+        from ncbot.modules.transitions import prepare_transitions
+        from ncbot.pipelines.train.build import make_collector
 
         collector = make_collector(parts.env, parts.agent.explore, 128, 256, device=parts.device)
         for batch in collector:
@@ -200,10 +200,10 @@ def test_learner_networks_and_replay_storage_live_on_cuda(tmp_path: Path) -> Non
 
 @pytest.mark.cuda
 def test_tiny_3x3_run_on_cuda_completes_and_its_checkpoint_plays_on_the_cpu(tmp_path: Path) -> None:
-    from pipelines.agents import load_agent
-    from pipelines.checkpoint import load_checkpoint
-    from pipelines.evaluate.games import evaluate_agent
-    from pipelines.train.run import train
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.checkpoint import load_checkpoint
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.train.run import train
 
     config = load_config(write_tiny_config(tmp_path), ["train.device=cuda", "checkpoint.save_buffer=true"])
     report = train(config, tmp_path / "run")
@@ -239,7 +239,7 @@ def _leaves(value):
 
 @pytest.mark.cuda
 def test_tiny_run_on_cuda_resumes_from_its_checkpoint(tmp_path: Path) -> None:
-    from pipelines.train.run import train
+    from ncbot.pipelines.train.run import train
 
     path = write_tiny_config(tmp_path, checkpoint={"save_buffer": True})
     config = load_config(path, ["train.device=cuda", "collector.total_frames=256"])
@@ -253,7 +253,7 @@ def test_tiny_run_on_cuda_resumes_from_its_checkpoint(tmp_path: Path) -> None:
 @pytest.mark.cuda
 def test_tiny_run_on_cuda_with_the_learning_options(tmp_path: Path) -> None:
     """Prioritised replay, board symmetries, bf16 autocast, n-step returns and the self-play user on the GPU."""
-    from pipelines.train.run import train
+    from ncbot.pipelines.train.run import train
 
     config = load_config(write_tiny_config(tmp_path), [
         "train.device=cuda", "buffer.prioritized=true", "buffer.augment=d4", "optim.precision=bf16", "loss.n_step=3",
@@ -264,7 +264,7 @@ def test_tiny_run_on_cuda_with_the_learning_options(tmp_path: Path) -> None:
 
 @pytest.mark.cuda
 def test_tiny_ultimate_run_on_cuda_completes(tmp_path: Path) -> None:
-    from pipelines.train.run import train
+    from ncbot.pipelines.train.run import train
 
     config = load_config(write_tiny_config(tmp_path, **ULTIMATE), ["train.device=cuda"])
     report = train(config, tmp_path / "run")
@@ -273,10 +273,10 @@ def test_tiny_ultimate_run_on_cuda_completes(tmp_path: Path) -> None:
 
 @pytest.mark.cuda
 def test_guided_search_reads_a_network_on_cuda(tmp_path: Path) -> None:
-    from pipelines.agents import guided_search, load_agent
-    from modules.guided_mcts import GuidedMCTSPolicy
-    from pipelines.evaluate.games import evaluate_agent
-    from pipelines.train.run import train
+    from ncbot.pipelines.agents import guided_search, load_agent
+    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+    from ncbot.pipelines.train.run import train
 
     config = load_config(write_tiny_config(tmp_path), ["train.device=cuda", "collector.total_frames=256"])
     train(config, tmp_path / "run")

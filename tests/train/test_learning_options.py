@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from pipelines.checkpoint import latest_training_state
-from pipelines.config import load_config
-from modules.learner import scheduled_lr
-from pipelines.train.run import train
+from ncbot.pipelines.checkpoint import latest_training_state
+from ncbot.pipelines.config import load_config
+from ncbot.modules.learner import scheduled_lr
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)
@@ -62,7 +62,7 @@ def _transitions(before: list[int], after: list[int], mask_ok: list[bool]) -> "T
 
 
 def test_loss_reward_prices_only_lost_games() -> None:
-    from modules.rewards import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, learning_rewards
+    from ncbot.modules.rewards import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, learning_rewards
 
     none, won, lost, draw = OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW
     batch = _transitions([none, none, none, none, lost, none], [won, lost, draw, none, lost, none],

@@ -11,18 +11,18 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from envs import make_env
-from modules.loss import make_target_updater
-from modules.policy import make_policies
-from modules.recurrent import (
+from ncbot.envs import make_env
+from ncbot.modules.loss import make_target_updater
+from ncbot.modules.policy import make_policies
+from ncbot.modules.recurrent import (
     EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
     make_sequence_buffer, memory_env,
 )
-from modules.transitions import LOSS_KEYS, prepare_transitions
-from pipelines.checkpoint import load_checkpoint
-from pipelines.config import load_config
-from pipelines.train.build import make_collector
-from pipelines.train.run import train
+from ncbot.modules.transitions import LOSS_KEYS, prepare_transitions
+from ncbot.pipelines.checkpoint import load_checkpoint
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.train.build import make_collector
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config
 
 torch.set_num_threads(1)
@@ -223,7 +223,7 @@ def test_tiny_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     numbers = json.loads(result.stdout)
     assert numbers["games"] == 40 and 0.0 <= numbers["task_success"] <= 1.0
-    from pipelines.agents import load_agent, load_robot
+    from ncbot.pipelines.agents import load_agent, load_robot
 
     with pytest.raises(ValueError, match="agent.memory=gru"):  # e.g. ncbot play: it steps its own env
         load_agent(run / "checkpoint.pt")

@@ -12,7 +12,7 @@ import textwrap
 
 LOOP = textwrap.dedent("""
     import time
-    from pipelines.progress import progress_bar
+    from ncbot.pipelines.progress import progress_bar
     bar = progress_bar(total=200, desc="work", unit="step")
     for _ in range(200):
         time.sleep(0.002)
@@ -61,7 +61,7 @@ def test_a_terminal_gets_a_redrawn_tqdm_bar() -> None:
 
 
 def test_disabled_progress_prints_nothing(capsys) -> None:
-    from pipelines.progress import progress_bar
+    from ncbot.pipelines.progress import progress_bar
 
     with progress_bar(total=5, disable=True) as bar:
         for _ in range(5):

@@ -12,14 +12,14 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.checkpoint import FORMAT, atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
-from pipelines.run_folder import remove_stray_temp_files
-from pipelines.train.run import resolve_run
+from ncbot.pipelines.checkpoint import FORMAT, atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
+from ncbot.pipelines.run_folder import remove_stray_temp_files
+from ncbot.pipelines.train.run import resolve_run
 from tests.learning_helpers import ncbot, write_tiny_config
 
 
 def _first_checkpoint_then_kill(config: Path, run: Path, timeout: float = 240) -> None:
-    process = subprocess.Popen([sys.executable, "-m", "pipelines.cli", "train", str(config), "--out", str(run)],
+    process = subprocess.Popen([sys.executable, "-m", "ncbot", "train", str(config), "--out", str(run)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + timeout
     try:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.plots import frames_label
-from pipelines.scalars import check_backend, eval_scalars, read_csv_scalars
+from ncbot.pipelines.plots import frames_label
+from ncbot.pipelines.scalars import check_backend, eval_scalars, read_csv_scalars
 from tests.learning_helpers import ncbot, write_tiny_config
 
 

@@ -7,11 +7,11 @@ from pathlib import Path
 import pytest
 import torch
 
-from envs import make_env
-from modules.qnet import make_qnet, seeded_init
-from pipelines.config import load_config
-from pipelines.train.selfplay import SelfPlayConfig, SnapshotPool
-from pipelines.train.run import train
+from ncbot.envs import make_env
+from ncbot.modules.qnet import make_qnet, seeded_init
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.train.selfplay import SelfPlayConfig, SnapshotPool
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 
 torch.set_num_threads(1)

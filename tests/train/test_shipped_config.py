@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from pipelines.config import load_config, shipped_config
+from ncbot.pipelines.config import load_config, shipped_config
 
 SHIPPED = Path(__file__).resolve().parents[2] / "pipelines" / "configs"
 

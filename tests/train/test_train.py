@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from pipelines.checkpoint import load_checkpoint
-from pipelines.config import load_config
-from pipelines.train.run import train
+from ncbot.pipelines.checkpoint import load_checkpoint
+from ncbot.pipelines.config import load_config
+from ncbot.pipelines.train.run import train
 from tests.learning_helpers import TINY, write_tiny_config
 
 torch.set_num_threads(1)
@@ -47,7 +47,7 @@ def test_tiny_run_writes_every_artefact(tmp_path: Path) -> None:
     assert load_config(run / "config.yaml") == config
 
     # the MCAP log holds the training and evaluation episodes of the run
-    from logs import read_episodes
+    from ncbot.logs import read_episodes
 
     phases = {episode["phase"] for episode in read_episodes(run)}
     assert {"train", "eval"} <= phases
@@ -96,7 +96,7 @@ def test_anneal_epsilon_is_torchrl_step_bit_for_bit(eps_init: float, eps_end: fl
     from torchrl.data import Categorical
     from torchrl.modules import EGreedyModule
 
-    from pipelines.train.loop import anneal_epsilon
+    from ncbot.pipelines.train.loop import anneal_epsilon
 
     torchrl_steps, ours = (EGreedyModule(Categorical(4), eps_init=eps_init, eps_end=eps_end, annealing_num_steps=steps)
                            for _ in range(2))
@@ -108,7 +108,7 @@ def test_anneal_epsilon_is_torchrl_step_bit_for_bit(eps_init: float, eps_end: fl
 
 
 def test_learning_curve_shows_both_seats_and_a_readable_loss_axis(tmp_path: Path) -> None:
-    from pipelines.plots import learning_curve_figure, pyplot
+    from ncbot.pipelines.plots import learning_curve_figure, pyplot
 
     history = [{"frames": 1000 * i, "wall_time": float(i), "task_success": 0.9, "avg_reward": 0.1,
                 "avg_length": 10.0, "train_loss": 1.6 + 0.1 * (i % 3),

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import torch
 
-from vision.classifier import CellClassifier, CellCNN, TrainConfig, fit, load_classifier, save_weights, svm_loss, to_input
-from vision.data import TEST_SEED
-from vision.data.cells import make_cells
-from vision.experiments import confusion, paper_experiments, write_report
+from ncbot.vision.classifier import CellClassifier, CellCNN, TrainConfig, fit, load_classifier, save_weights, svm_loss, to_input
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.experiments import confusion, paper_experiments, write_report
 
 torch.set_num_threads(1)
 

@@ -6,13 +6,13 @@ import sys
 import cv2
 import numpy as np
 
-from vision.data import TEST_SEED
-from vision.data.cells import make_cells
-from vision.data.frames import make_frame
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.data.frames import make_frame
 
 
 def _ncbot(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipelines.cli", "vision", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "ncbot", "vision", *args], capture_output=True, text=True)
 
 
 def test_read_json_contract_and_exit_codes(tmp_path) -> None:

@@ -3,12 +3,12 @@ import cv2
 import numpy as np
 import pytest
 
-from vision.data import CLEAN_SEED, NOISY_SEED, TEST_SEED, TRAIN_SEED
-from vision.data.cells import make_cells
-from vision.data.frames import make_frame
-from vision.data.sequences import make_move_sequence
-from vision.sheet import cell_center, draw_sheet
-from vision.strokes import draw_mark
+from ncbot.vision.data import CLEAN_SEED, NOISY_SEED, TEST_SEED, TRAIN_SEED
+from ncbot.vision.data.cells import make_cells
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.data.sequences import make_move_sequence
+from ncbot.vision.sheet import cell_center, draw_sheet
+from ncbot.vision.strokes import draw_mark
 
 
 def test_seeds_for_training_and_testing_differ() -> None:
@@ -83,8 +83,8 @@ def test_move_sequence_draws_the_move_under_a_hand() -> None:
 
 
 def test_training_tuning_and_heldout_handwriting_stay_apart() -> None:
-    from vision.strokes import HELDOUT_STYLES, STYLES, TRAINING_STYLES, TUNING_STYLES
-    from vision.training import DefaultTraining
+    from ncbot.vision.strokes import HELDOUT_STYLES, STYLES, TRAINING_STYLES, TUNING_STYLES
+    from ncbot.vision.training import DefaultTraining
 
     groups = [set(TRAINING_STYLES), set(TUNING_STYLES), set(HELDOUT_STYLES)]
     assert set.union(*groups) == set(STYLES) and sum(map(len, groups)) == len(STYLES)

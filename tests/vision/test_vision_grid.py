@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import torch
 
-from vision.data import TEST_SEED
-from vision.data.frames import make_frame, random_scene, render
-from vision.grid import read_board, read_page
-from vision.page import find_page
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.frames import make_frame, random_scene, render
+from ncbot.vision.grid import read_board, read_page
+from ncbot.vision.page import find_page
 
 torch.set_num_threads(1)
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from vision.data import HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET
-from vision.data.frames import make_frame
-from vision.grid import read_board, read_page
-from vision.strokes import TUNING_STYLES
+from ncbot.vision.data import HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.grid import read_board, read_page
+from ncbot.vision.strokes import TUNING_STYLES
 
 torch.set_num_threads(1)
 

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import torch
 
-from vision.data import HARSH_HELDOUT_SEED, HARSH_TUNING_SEED
-from vision.data.conditions import distort_points, lens_maps
-from vision.data.frames import make_frame, random_scene
-from vision.grid import read_board
-from vision.illumination import balance_frame, flatten
-from vision.page import find_page
+from ncbot.vision.data import HARSH_HELDOUT_SEED, HARSH_TUNING_SEED
+from ncbot.vision.data.conditions import distort_points, lens_maps
+from ncbot.vision.data.frames import make_frame, random_scene
+from ncbot.vision.grid import read_board
+from ncbot.vision.illumination import balance_frame, flatten
+from ncbot.vision.page import find_page
 
 torch.set_num_threads(1)
 
@@ -99,7 +99,7 @@ def test_reads_harsh_9x9_photos() -> None:
 
 
 def test_cli_eval_harsh_writes_its_report(tmp_path) -> None:
-    done = subprocess.run([sys.executable, "-m", "pipelines.cli", "vision", "eval", "--what", "harsh",
+    done = subprocess.run([sys.executable, "-m", "ncbot", "vision", "eval", "--what", "harsh",
                            "--frames", "1", "--seed-set", "tuning", "--out", str(tmp_path)],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -110,7 +110,7 @@ def test_cli_eval_harsh_writes_its_report(tmp_path) -> None:
 
 def test_cli_eval_harsh_tuning_style_reads_marker_photos_beside_the_tuning_ones(tmp_path) -> None:
     # the tuning-style split: tuning seeds (+50,000 beside the pen tuning photos), the "marker" handwriting
-    base = [sys.executable, "-m", "pipelines.cli", "vision", "eval", "--frames", "1", "--out", str(tmp_path)]
+    base = [sys.executable, "-m", "ncbot", "vision", "eval", "--frames", "1", "--out", str(tmp_path)]
     done = subprocess.run(base + ["--what", "harsh", "--seed-set", "tuning-style"], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr
@@ -126,7 +126,7 @@ def test_cli_eval_harsh_tuning_style_reads_marker_photos_beside_the_tuning_ones(
 
 def test_cli_generates_harsh_frames_and_rejects_unknown_quality(tmp_path) -> None:
     """`vision generate --quality clean|harsh` (the photo's quality; `--conditions` is the robot's room)."""
-    base = [sys.executable, "-m", "pipelines.cli", "vision", "generate", "frames", "--n", "1", "--out", str(tmp_path)]
+    base = [sys.executable, "-m", "ncbot", "vision", "generate", "frames", "--n", "1", "--out", str(tmp_path)]
     done = subprocess.run(base + ["--quality", "harsh"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert cv2.imread(str(tmp_path / "frame_3x3_0.png")).shape == (480, 640, 3)

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from vision.classifier import load_classifier
-from vision.data import TEST_SEED
-from vision.data.conditions import HarshRanges
-from vision.data.harsh_cells import harsh_cell, make_harsh_cells
-from vision.labels import LABELS
-from vision.training import DefaultTraining
+from ncbot.vision.classifier import load_classifier
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.conditions import HarshRanges
+from ncbot.vision.data.harsh_cells import harsh_cell, make_harsh_cells
+from ncbot.vision.labels import LABELS
+from ncbot.vision.training import DefaultTraining
 
 
 def test_same_seed_same_cells_and_balanced_labels() -> None:

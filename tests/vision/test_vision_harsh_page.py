@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from vision.classifier import load_classifier
-from vision.data import HARSH_TUNING_SEED
-from vision.data.frames import make_frame
-from vision.grid import cell_probabilities
-from vision.page import find_page
+from ncbot.vision.classifier import load_classifier
+from ncbot.vision.data import HARSH_TUNING_SEED
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.grid import cell_probabilities
+from ncbot.vision.page import find_page
 
 torch.set_num_threads(1)
 

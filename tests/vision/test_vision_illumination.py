@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vision.illumination import non_paper, paper_field
+from ncbot.vision.illumination import non_paper, paper_field
 
 SIDE = 160
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vision.page import find_page, order_corners
+from ncbot.vision.page import find_page, order_corners
 
 # the quad the page finder fitted on that game's frames (640x480): (573, 285) and (401, 113) tie on y - x
 TIED = np.array([[573, 285], [250, 434], [148, 183], [401, 113]], np.float32)

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from vision.data import TEST_SEED
-from vision.data.frames import make_frame
-from vision.data.sequences import make_move_sequence
-from vision.page import find_page
-from vision.recogniser import MoveRecogniser
+from ncbot.vision.data import TEST_SEED
+from ncbot.vision.data.frames import make_frame
+from ncbot.vision.data.sequences import make_move_sequence
+from ncbot.vision.page import find_page
+from ncbot.vision.recogniser import MoveRecogniser
 
 torch.set_num_threads(1)
 
@@ -63,7 +63,7 @@ def test_scenes_that_fooled_the_hand_test(grid, seed, still, styles) -> None:
 
 
 def test_sequence_evaluation_reports(tmp_path) -> None:
-    from vision.recogniser_eval import TUNING_SEED, evaluate_sequences, write_report
+    from ncbot.vision.recogniser_eval import TUNING_SEED, evaluate_sequences, write_report
 
     result = evaluate_sequences(3, 2, TUNING_SEED)
     summary = result.summary()

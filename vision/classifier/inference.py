@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from fileio import atomic_path
-from vision.classifier.model import CellCNN
-from vision.classifier.preprocess import to_gray_cell, to_input
-from vision.labels import LABELS
+from ncbot.fileio import atomic_path
+from ncbot.vision.classifier.model import CellCNN
+from ncbot.vision.classifier.preprocess import to_gray_cell, to_input
+from ncbot.vision.labels import LABELS
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parent.parent / "weights" / "cell_cnn.pt"
 

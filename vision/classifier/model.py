@@ -9,7 +9,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from vision.labels import CELL_SIZE, LABELS
+from ncbot.vision.labels import CELL_SIZE, LABELS
 
 
 class BlockMaxPool(nn.MaxPool2d):

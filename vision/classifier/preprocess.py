@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import torch
 
-from vision.labels import CELL_SIZE
+from ncbot.vision.labels import CELL_SIZE
 
 _MIN_CONTRAST = 60.0  # gray levels: an empty cell's noise is not stretched to full ink
 

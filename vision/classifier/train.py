@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from vision.classifier.model import CellCNN, svm_loss
-from vision.classifier.preprocess import to_input
+from ncbot.vision.classifier.model import CellCNN, svm_loss
+from ncbot.vision.classifier.preprocess import to_input
 
 
 @dataclass

@@ -12,8 +12,8 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from vision.labels import CELL_SIZE, LABELS, NOTHING
-from vision.strokes import draw_mark
+from ncbot.vision.labels import CELL_SIZE, LABELS, NOTHING
+from ncbot.vision.strokes import draw_mark
 
 SCALE = 2  # draw at 80x80, shrink to 40x40
 INK_COLOURS = ((25, 25, 25), (60, 50, 45), (140, 45, 20), (110, 30, 10), (40, 40, 160), (30, 110, 30),

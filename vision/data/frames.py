@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from vision.data.cells import random_ink
-from vision.data.conditions import Harsh, check_conditions, distort_points, draw_harsh, lens_maps
-from vision.sheet import check_grid, draw_sheet, grid_box
-from vision.strokes import draw_mark
+from ncbot.vision.data.cells import random_ink
+from ncbot.vision.data.conditions import Harsh, check_conditions, distort_points, draw_harsh, lens_maps
+from ncbot.vision.sheet import check_grid, draw_sheet, grid_box
+from ncbot.vision.strokes import draw_mark
 
 SYMBOL_KIND = {"x": "cross", "o": "nought"}
 TABLE_BGR = ((60, 90, 130), (40, 60, 90), (90, 110, 120), (70, 70, 70), (110, 80, 50), (50, 90, 50),

@@ -7,8 +7,8 @@ cell of a harsh photo goes: shrunk to its size in the frame (a 9x9 cell is 22-30
 a 3x3 cell 40-75 px), dimmed and colour-cast, streaked by motion, given sensor noise, JPEG-compressed in
 colour, white-balanced back (which amplifies the noise of a dim, cast channel), resampled at the reader's
 rho pixels per cell, smoothed by the reader's own grain filter and area-shrunk to 40x40. The ranges are the
-harsh conditions' own (`vision.data.conditions.HARSH`); only the training handwriting ("pen") and training
-seeds are used for these cells (`vision.training`).
+harsh conditions' own (`ncbot.vision.data.conditions.HARSH`); only the training handwriting ("pen") and training
+seeds are used for these cells (`ncbot.vision.training`).
 """
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vision.data.cells import draw_cell, generated_cells
-from vision.data.conditions import CAST_GAINS, HARSH, HarshRanges, motion_kernel
-from vision.grid import CELL_INSET, DEFAULT_RHO, denoise
-from vision.labels import CELL_SIZE
+from ncbot.vision.data.cells import draw_cell, generated_cells
+from ncbot.vision.data.conditions import CAST_GAINS, HARSH, HarshRanges, motion_kernel
+from ncbot.vision.grid import CELL_INSET, DEFAULT_RHO, denoise
+from ncbot.vision.labels import CELL_SIZE
 
 BALANCED_PAPER = 225.0  # the reader's white balance brings paper to about this level (vision.illumination)
 MAX_GAIN = 4.0          # ... gaining a channel up by at most this much, never down

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision.data.frames import random_board, random_hand, random_scene, render
+from ncbot.vision.data.frames import random_board, random_hand, random_scene, render
 
 
 @dataclass
