@@ -27,11 +27,18 @@ def test_every_shipped_yaml_has_a_name_and_names_resolve_outside_a_checkout(tmp_
     assert load_config("ultimate", ["train.seed=3"]) == load_config(CONFIGS / "ultimate.yaml", ["train.seed=3"])
 
 
-def test_a_local_file_wins_over_a_shipped_name(tmp_path: Path, monkeypatch) -> None:
+def test_a_local_file_wins_over_a_shipped_name_or_path(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "default").write_text("env:\n  game: ultimate\n")
     assert shipped_config("default") == Path("default")
     assert load_config("default").env.game == "ultimate"
+    local = tmp_path / "pipelines" / "configs" / "default.yaml"
+    local.parent.mkdir(parents=True)
+    local.write_text("agent: {name: dqn_variant}\n")
+    assert shipped_config("pipelines/configs/default.yaml") == Path("pipelines/configs/default.yaml")
+    assert load_config("pipelines/configs/default.yaml").agent.name == "dqn_variant"
+    with pytest.raises(FileNotFoundError, match="nosuch.yaml"):
+        load_config("pipelines/configs/nosuch.yaml")
 
 
 def test_an_unknown_name_lists_the_shipped_ones(tmp_path: Path, monkeypatch) -> None:
