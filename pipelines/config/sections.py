@@ -349,6 +349,9 @@ class RunConfig(Section):
             if self.agent.lookahead not in LOOKAHEAD_RULES:
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
                                  f"got {self.agent.lookahead!r}")
+            if self.agent.lookahead.startswith("k") and self.env.game not in GAMES:
+                raise ValueError(f"config key 'agent.lookahead' {self.agent.lookahead!r} searches 3x3 and Ultimate only; "
+                                 f"the declared game {self.env.game!r} takes none, variant or one_step")
         return self
 
     def _check_memory(self) -> None:
