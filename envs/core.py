@@ -68,10 +68,22 @@ TARGET_OF_CELL: tuple[int, ...] = tuple(((cell // 9) % 3) * 3 + (cell % 9) % 3 f
 
 
 def check_game(game: str) -> str:
-    """``game`` if it is one of GAME_CHOICES; ValueError naming the choices otherwise."""
-    if game not in GAME_CHOICES:
-        raise ValueError(f"game must be one of {', '.join(GAME_CHOICES)}; got {game!r}")
-    return game
+    """``game`` if it is one of GAME_CHOICES; else the id of a declared game (a shipped name, or a YAML file's
+    absolute path: ``ncbot.envs.declaration``); one-line ValueError naming the choices otherwise."""
+    if game in GAME_CHOICES:
+        return game
+    from ncbot.envs.declaration import declared_game
+
+    return declared_game(game).game
+
+
+def cells_of_game(game: str) -> int:
+    """The number of squares of ``game`` (built-in or declared)."""
+    if game in CELLS_OF_GAME:
+        return CELLS_OF_GAME[game]
+    from ncbot.envs.declaration import declared_game
+
+    return declared_game(game).cells
 
 
 def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:

@@ -165,7 +165,10 @@ class DialogueModel:
 
 
 def load_dialogues(game: str, path: Path = DATA_FILE) -> list[dict]:
-    """The example dialogues of ``game`` from the data file (FileNotFoundError / ValueError if unusable)."""
+    """The example dialogues of ``game`` from the data file (FileNotFoundError / ValueError if unusable); a declared
+    game's are generated from its declaration with the same skeletons and utterances (``declared_dialogues``)."""
+    if game not in ("standard", "ultimate"):
+        return declared_dialogues(game, path.name)
     if not path.is_file():
         raise FileNotFoundError(f"example dialogue file {path} not found: expected the YAML shipped in envs/data")
     data = yaml.safe_load(path.read_text())
@@ -175,6 +178,20 @@ def load_dialogues(game: str, path: Path = DATA_FILE) -> list[dict]:
     if not chosen:
         raise ValueError(f"{path}: no dialogues for game {game!r}")
     return chosen
+
+
+@lru_cache(maxsize=16)
+def _declared_dialogue_text(game: str, file_name: str) -> str:
+    from ncbot.envs.data.make_example_dialogues import declared_dialogue_text
+    from ncbot.envs.rules import make_game
+
+    return declared_dialogue_text(make_game(game), file_name)
+
+
+def declared_dialogues(game: str, file_name: str) -> list[dict]:
+    """The example dialogues of the declared ``game`` for the set whose built-in file is ``file_name``: data made
+    from the declaration (``ncbot.envs.data.make_example_dialogues.declared_dialogue_text``), never per-game code."""
+    return yaml.safe_load(_declared_dialogue_text(game, file_name))["dialogues"]
 
 
 def _parse_system(act: str, cells: int, where: str) -> tuple[int, int]:

@@ -51,7 +51,7 @@ USER = HUMAN  # the simulated user sits in the human seat
 
 
 class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
-    """Batched Noughts & Crosses dialogue env (3x3 or Ultimate); build it with ``ncbot.envs.make_env``.
+    """Batched Noughts & Crosses dialogue env (3x3, Ultimate or a declared game); build it with ``ncbot.envs.make_env``.
 
     Metadata: ``action_names``, ``templates``, ``robot_commands`` (per action), ``feature_names``,
     ``user_act_names``, ``words``, ``n_actions``, ``n_features``, ``game``, ``cells``; ``user_utterance(id)``
@@ -81,7 +81,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         threat_features: bool = False,
     ) -> None:
         batch = check_batch(batch_size)
-        check_game(game)
+        game = check_game(game)
         check_free_move(free_move)
         first = first_of(first)
         low, high = check_confidence(asr_confidence)
@@ -90,6 +90,8 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         taken_squares, misread_rate = check_taken_squares(taken_squares, misread_rate)
         if not isinstance(threat_features, bool):
             raise ValueError(f"threat_features must be true or false, got {threat_features!r}")
+        if threat_features and game not in GAME_CHOICES:
+            raise ValueError(f"threat_features exist for the games {', '.join(GAME_CHOICES)} only; got game {game!r}")
         self.threat_features = threat_features  # beyond the paper: envs/threat_features.py
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
@@ -218,7 +220,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, EnvBase):
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         if self.threat_features:
-            parts.append(threat_planes(boards.board, boards.owners if self.cells == 81 else None))
+            parts.append(threat_planes(boards.board, boards.owners if self.game == "ultimate" else None))
         return torch.cat(parts, dim=1)
 
     def _output(self, reward: torch.Tensor | None = None, reset_rows: torch.Tensor | None = None) -> TensorDict:

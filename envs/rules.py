@@ -21,6 +21,7 @@ Ultimate subtleties (documented in docs/rules.md):
 from __future__ import annotations
 
 import operator
+import re
 from dataclasses import dataclass
 from typing import Literal
 
@@ -28,6 +29,7 @@ from ncbot.envs.core import (  # noqa: F401  (re-exported: the rules' public voc
     COLUMN_LETTERS, DRAWN, EMPTY, FREE_MOVE_CHOICES, LINES_3X3, O, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, X,
     check_free_move, check_game, subgrid_cells,
 )
+from ncbot.envs.declaration import Declaration, declared_game
 
 MARK_NAMES = {X: "x", O: "o"}
 RESULT_NAMES = {0: None, X: "x", O: "o", DRAWN: "draw"}
@@ -318,9 +320,100 @@ class Ultimate(_Game):
         return f"Ultimate(free_move={self.free_move!r})"
 
 
-Game = Standard | Ultimate
+NUMBER_WORDS = ("one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
+_SPOKEN = re.compile(r"(row|column)\s*(\w+)\s*,?\s*(?:and\s+)?(row|column)\s*(\w+)")
 
 
-def make_game(game: str = "standard", free_move: str = "anywhere") -> Standard | Ultimate:
-    """Build a game by name ("standard" or "ultimate"); ValueError naming the choices otherwise."""
-    return Standard() if check_game(game) == "standard" else Ultimate(free_move=free_move)
+class Declared(_Game):
+    """A declared game (``ncbot.envs.declaration``): ``k`` in a line on a rows x cols board; with ``gravity`` a mark
+    drops to the lowest empty square of its column. A full board without a line draws."""
+
+    def __init__(self, declaration: Declaration) -> None:
+        self.declaration = declaration
+        self.name, self.rows, self.cols = declaration.name, declaration.rows, declaration.cols
+        self.size = self.cols  # cells are row * cols + col, as on the built-in boards
+        self.n_cells = declaration.cells
+        self.gravity = declaration.gravity
+        self.lines_through = tuple(tuple(line for line in declaration.lines if cell in line) for cell in range(self.n_cells))
+
+    def new(self) -> State:
+        return State(board=(EMPTY,) * self.n_cells)
+
+    def legal(self, s: State) -> list[int]:
+        if s.result != 0:
+            return []
+        if not self.gravity:
+            return [cell for cell in range(self.n_cells) if s.board[cell] == EMPTY]
+        return sorted(cell for cell in map(lambda col: self._drop(s.board, col), range(self.cols)) if cell >= 0)
+
+    def _drop(self, board: tuple[int, ...], col: int) -> int:
+        """The lowest empty square of column ``col`` (-1 when the column is full)."""
+        return next((r * self.cols + col for r in reversed(range(self.rows)) if board[r * self.cols + col] == EMPTY), -1)
+
+    def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
+        if any(all(board[c] == mark for c in line) for line in self.lines_through[cell]):
+            result = mark
+        elif EMPTY not in board:
+            result = DRAWN
+        else:
+            result = 0
+        return State(board=board, last_move=cell, result=result)
+
+    def _why_illegal(self, s: State, cell: int, legal: list[int]) -> str:
+        lowest = self._drop(s.board, cell % self.cols)
+        return (f"cell {self.cell_name(cell)} ({cell}) is not the lowest empty square of column "
+                f"{COLUMN_LETTERS[cell % self.cols]}: a mark drops to {self.cell_name(lowest)}")
+
+    def cell_name(self, cell: int) -> str:
+        return f"{COLUMN_LETTERS[cell % self.cols]}{cell // self.cols + 1}"
+
+    def parse_cell(self, text: str) -> int:
+        """Inverse of ``cell_name`` ("b3", case and spaces ignored), or spoken: "row two column three" (either order,
+        digits or number words)."""
+        spoken = _SPOKEN.fullmatch(" ".join(str(text).lower().split()))
+        if spoken and spoken.group(1) != spoken.group(3):
+            where = {spoken.group(1): spoken.group(2), spoken.group(3): spoken.group(4)}
+            row, col = _number(where["row"]), _number(where["column"], COLUMN_LETTERS)
+            if 1 <= row <= self.rows and 1 <= col <= self.cols:
+                return (row - 1) * self.cols + col - 1
+        cleaned = "".join(str(text).split()).lower()
+        letters = COLUMN_LETTERS[: self.cols]
+        if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1] in "123456789"[: self.rows]:
+            return (int(cleaned[1]) - 1) * self.cols + letters.index(cleaned[0])
+        raise ValueError(
+            f"{text!r} is not a cell of the {self.name} board: expected a column {letters[0]}-{letters[-1]} and a row "
+            f"1-{self.rows}, e.g. {self.cell_name(self.cols + 1)}, or \"row two column three\""
+        )
+
+    def _draw(self, symbol) -> str:
+        rows = ["    " + "   ".join(COLUMN_LETTERS[: self.cols])]
+        for r in range(self.rows):
+            rows.append(f"{r + 1}   " + " | ".join(symbol(r * self.cols + c) for c in range(self.cols)))
+            if r < self.rows - 1:
+                rows.append("   " + "+".join(["---"] * self.cols))
+        return "\n".join(rows)
+
+    def __repr__(self) -> str:
+        return f"Declared({self.declaration.describe()})"
+
+
+def _number(word: str, letters: str = "") -> int:
+    """1..9 from a digit, a number word or (a column) one of ``letters``; 0 (no cell) otherwise."""
+    if word in NUMBER_WORDS:
+        return NUMBER_WORDS.index(word) + 1
+    if len(word) == 1 and word in letters:
+        return letters.index(word) + 1
+    return int(word) if len(word) == 1 and word in "123456789" else 0
+
+
+Game = Standard | Ultimate | Declared
+
+
+def make_game(game: str = "standard", free_move: str = "anywhere") -> Standard | Ultimate | Declared:
+    """Build a game by name ("standard", "ultimate", a shipped declaration or a YAML file); ValueError otherwise."""
+    game = check_game(game)
+    if game == "standard":
+        return Standard()
+    if game == "ultimate":
+        return Ultimate(free_move=free_move)
+    return Declared(declared_game(game))

@@ -11,19 +11,22 @@ HUMAN_COLOUR = (30, 30, 200)  # red noughts for the human
 CELL_PIXELS = {3: 40, 9: 20}
 
 
-def render_board(cells: np.ndarray | str, last_move: int = -1) -> np.ndarray:
-    """An RGB uint8 image of the board: robot = X, human = O, the last move outlined in green."""
+def render_board(cells: np.ndarray | str, last_move: int = -1, cols: int = 0) -> np.ndarray:
+    """An RGB uint8 image of the board: robot = X, human = O, the last move outlined in green. ``cols``: the columns
+    of a declared game's board (0: a square 3x3 or 9x9 board)."""
     import cv2
 
-    values = _cell_values(cells)
-    side = int(round(len(values) ** 0.5))
-    pixels = CELL_PIXELS.get(side, 20)
-    size = side * pixels
-    image = np.full((size + 1, size + 1, 3), 255, np.uint8)
+    values = _cell_values(cells, cols)
+    side = cols or int(round(len(values) ** 0.5))
+    rows = len(values) // side
+    ultimate = side == 9 and not cols
+    pixels = CELL_PIXELS.get(side, 20) if not cols else 30
+    width, height = side * pixels, rows * pixels
+    image = np.full((height + 1, width + 1, 3), 255, np.uint8)
     for line in range(side + 1):
-        thickness = 2 if side == 9 and line % 3 == 0 else 1
-        cv2.line(image, (line * pixels, 0), (line * pixels, size), (0, 0, 0), thickness)
-        cv2.line(image, (0, line * pixels), (size, line * pixels), (0, 0, 0), thickness)
+        cv2.line(image, (line * pixels, 0), (line * pixels, height), (0, 0, 0), 2 if ultimate and line % 3 == 0 else 1)
+    for line in range(rows + 1):
+        cv2.line(image, (0, line * pixels), (width, line * pixels), (0, 0, 0), 2 if ultimate and line % 3 == 0 else 1)
     margin = max(3, pixels // 5)
     for index, value in enumerate(values):
         row, col = divmod(index, side)
@@ -38,38 +41,43 @@ def render_board(cells: np.ndarray | str, last_move: int = -1) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
-def board_png(cells: np.ndarray | str, last_move: int = -1) -> bytes:
+def board_png(cells: np.ndarray | str, last_move: int = -1, cols: int = 0) -> bytes:
     """The board drawn by `render_board`, encoded as PNG bytes."""
     import cv2
 
-    ok, encoded = cv2.imencode(".png", cv2.cvtColor(render_board(cells, last_move), cv2.COLOR_RGB2BGR))
+    ok, encoded = cv2.imencode(".png", cv2.cvtColor(render_board(cells, last_move, cols), cv2.COLOR_RGB2BGR))
     if not ok:
         raise ValueError("could not encode the board image as PNG")
     return encoded.tobytes()
 
 
-def _cell_values(cells: np.ndarray | str) -> list[int]:
+def _cell_values(cells: np.ndarray | str, cols: int = 0) -> list[int]:
     values = [int(c) for c in cells] if isinstance(cells, str) else [int(v) for v in np.asarray(cells).ravel()]
+    if cols:
+        if len(values) % cols or not 3 <= len(values) // cols <= 9:
+            raise ValueError(f"a board of {cols} columns must have 3-9 rows of cells, got {len(values)} cells")
+        return values
     side = int(round(len(values) ** 0.5))
     if side * side != len(values) or side not in (3, 9):
         raise ValueError(f"a board must have 9 or 81 cells, got {len(values)}")
     return values
 
 
-def board_text(cells: np.ndarray | str) -> str:
-    """The board as text lines (X robot, O human, . empty), with subgrid gaps on the 9x9 board."""
-    values = _cell_values(cells)
-    side = int(round(len(values) ** 0.5))
+def board_text(cells: np.ndarray | str, cols: int = 0) -> str:
+    """The board as text lines (X robot, O human, . empty), with subgrid gaps on the 9x9 board; ``cols`` as in
+    `render_board`."""
+    values = _cell_values(cells, cols)
+    side = cols or int(round(len(values) ** 0.5))
     marks = {0: ".", 1: "X", 2: "O"}
     lines = []
-    for row in range(side):
+    for row in range(len(values) // side):
         line = ""
         for col in range(side):
-            if side == 9 and col in (3, 6):
+            if side == 9 and not cols and col in (3, 6):
                 line += " |"
             line += " " + marks.get(values[row * side + col], "?")
         lines.append(line)
-        if side == 9 and row in (2, 5):
+        if side == 9 and not cols and row in (2, 5):
             lines.append(" " + "-" * (len(line) - 1))
     return "\n".join(lines)
 

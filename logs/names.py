@@ -29,6 +29,8 @@ class NameTables:
     user_act_names: list[str] = field(default_factory=list)
     feature_names: list[str] = field(default_factory=list)
     user_utterances: list[str] = field(default_factory=list)
+    game: str = ""  # the game's name (standard, ultimate or a declared game's); "" = unknown
+    cols: int = 0  # columns of a declared game's board (cell names, board text); 0 = 3x3 or Ultimate
 
     @classmethod
     def from_env(cls, env: Any) -> "NameTables":
@@ -51,8 +53,14 @@ class NameTables:
         model = getattr(env, "model", None) or getattr(base, "model", None)
         if model is not None and getattr(model, "utterance_texts", None) is not None:
             utterances = [str(text) for text in model.utterance_texts]
+        game, cols = "", 0
+        if isinstance(getattr(base, "game", None), str):
+            from ncbot.envs.rules import make_game
+
+            rules = make_game(base.game)
+            game, cols = rules.name, 0 if rules.name in ("standard", "ultimate") else rules.size
         return cls(table("action_names"), table("templates"), commands, table("user_act_names"),
-                   table("feature_names"), utterances)
+                   table("feature_names"), utterances, game, cols)
 
     def action_name(self, act: int) -> str:
         """The act's name as a person reads it: GameMove(b2), not the dialogue data's GameMove(gridloc=4)."""
@@ -66,10 +74,10 @@ class NameTables:
 
     def cell_name(self, cell: int) -> str:
         """Cell index -> its name on the board (b2 style, as ``ncbot.envs.rules`` ``cell_name``); the board size follows
-        from the number of move acts (9 or 81)."""
+        from ``cols`` or, on a square board, the number of move acts (9 or 81)."""
         moves = sum(1 for name in self.action_names if _GRIDLOC.search(name)) or 9
-        size = math.isqrt(moves)
-        return f"{COLUMN_LETTERS[cell % size]}{cell // size + 1}" if 0 <= cell < size * size else str(cell)
+        size = self.cols or math.isqrt(moves)
+        return f"{COLUMN_LETTERS[cell % size]}{cell // size + 1}" if 0 <= cell < moves else str(cell)
 
     def template(self, act: int) -> str:
         return self.templates[act] if 0 <= act < len(self.templates) else ""

@@ -59,7 +59,7 @@ def format_episode(record: EpisodeRecord, names: NameTables, max_q: int = 8) -> 
             lines.append(f"  {who}: {text}  ({detail.strip()})" if text else f"  {who}: ({detail.strip()})")
         board = boards.get(index)
         if board is not None:
-            lines.extend("    " + line for line in board_text(board["cells"]).splitlines())
+            lines.extend("    " + line for line in board_text(board["cells"], names.cols).splitlines())
     return "\n".join(lines)
 
 

@@ -108,7 +108,7 @@ def _log_episode(recording: Any, rr: Any, record: EpisodeRecord, names: NameTabl
         board = boards.get(index)
         if board is not None:
             last = changed_cell(previous_cells, board["cells"])
-            recording.log("board", rr.EncodedImage(contents=board_png(board["cells"], last), media_type="image/png"))
+            recording.log("board", rr.EncodedImage(contents=board_png(board["cells"], last, names.cols), media_type="image/png"))
             previous_cells = board["cells"]
         tick += 1
     if summary:

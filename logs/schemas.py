@@ -44,7 +44,7 @@ EPISODE_SCHEMA: dict = {
     "properties": {
         "episode": {"type": "integer", "description": "run-wide episode id"},
         "phase": {"enum": list(PHASES)},
-        "game": {"enum": ["standard", "ultimate"]},
+        "game": {"type": "string", "description": "standard, ultimate or a declared game's name (docs/games.md)"},
         "agent": {"type": "string"},
         "seed": {"type": "integer"},
         "seat": {"enum": ["first", "second"], "description": "robot moved first or second"},

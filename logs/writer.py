@@ -149,8 +149,8 @@ class EpisodeLogger:
         ids_at_end = self._stream_steps(key, arrays, rows, phase in self.board_image_phases) \
             if detail == "per_action" else {}
         finished = assembler.add(arrays, self._names, detail=detail == "packed", active=rows)
-        if game is None:
-            game = "standard" if arrays["next.board"].shape[-1] == 9 else "ultimate"
+        if game is None:  # the env's game when its names were given, else the board size tells 3x3 from Ultimate
+            game = self._names.game or ("standard" if arrays["next.board"].shape[-1] == 9 else "ultimate")
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
                                    env_steps=env_steps, game=game, extra=extra,
                                    episode_id=ids_at_end.get((episode.batch_index, episode.end_t)))
@@ -266,7 +266,7 @@ class EpisodeLogger:
     # ----------------------------------------------------------------- Foxglove types (protobuf)
     def log_board_image(self, cells: Any, last_move: int = -1, frame_id: str = "board", t: float | None = None) -> None:
         """Draw the board and write it as a PNG `foxglove.CompressedImage` on `/board/image`."""
-        self.log_camera(board_png(cells, last_move), image_format="png", frame_id=frame_id, t=t,
+        self.log_camera(board_png(cells, last_move, self._names.cols), image_format="png", frame_id=frame_id, t=t,
                         topic=schemas.BOARD_IMAGE_TOPIC)
 
     def log_camera(self, image: bytes, *, image_format: str = "jpeg", frame_id: str = "CameraBottom",

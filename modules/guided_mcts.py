@@ -156,6 +156,9 @@ class GuidedMCTS:
             raise ValueError(f"value_weight must be in [0, 1], got {value_weight}")
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
+        if game not in ("standard", "ultimate"):
+            raise ValueError(f"Q-guided search plays 3x3 and Ultimate only; the declared game {game!r} has no search "
+                             "robot (play it without --search)")
         features.check_reads(qnet)
         self.qnet, self.features = qnet, features
         self._reader = MLPReader.of(qnet)

@@ -37,6 +37,28 @@ def square_symmetries(side: int) -> torch.Tensor:
     return torch.stack([image.reshape(-1) for image in images])
 
 
+def declared_symmetries(rows: int, cols: int, gravity: bool) -> torch.Tensor:
+    """(G, rows*cols) int64 the symmetries of a declared board, as ``square_symmetries``: all 8 of a square board
+    without gravity, the 4 mirrors and half turn of a rectangular one, and with gravity (a mark falls down) only the
+    left-right mirror."""
+    if rows == cols and not gravity:
+        return square_symmetries(rows)
+    r, c = torch.meshgrid(torch.arange(rows), torch.arange(cols), indexing="ij")
+    flips = ((False, False), (False, True)) if gravity else ((False, False), (False, True), (True, False), (True, True))
+    return torch.stack([((rows - 1 - r if up else r) * cols + (cols - 1 - c if side else c)).reshape(-1)
+                        for up, side in flips])
+
+
+def game_symmetries(game: str) -> torch.Tensor:
+    """(G, cells) the board symmetries of ``game`` (8 on 3x3 and Ultimate; a declared game's from its declaration)."""
+    if game in ("standard", "ultimate"):
+        return square_symmetries(3 if game == "standard" else 9)
+    from ncbot.envs.declaration import declared_game
+
+    declaration = declared_game(game)
+    return declared_symmetries(declaration.rows, declaration.cols, declaration.gravity)
+
+
 class BoardSymmetries:
     """Per-row random board symmetries applied to batches of transitions (see module doc).
 
@@ -45,14 +67,18 @@ class BoardSymmetries:
     """
 
     def __init__(self, feature_names: Sequence[str], cells: int, n_actions: int, seed: int = 0,
-                 device: torch.device | str = "cpu") -> None:
-        side = round(cells ** 0.5)
-        if side * side != cells or side not in (3, 9):
-            raise ValueError(f"board symmetries need a 3x3 or 9x9 board, got {cells} cells")
-        image = square_symmetries(side)  # (8, cells)
+                 device: torch.device | str = "cpu", image: torch.Tensor | None = None) -> None:
+        if image is None:  # a square board's 8 (``image``: a declared game's, ``game_symmetries``)
+            side = round(cells ** 0.5)
+            if side * side != cells or side not in (3, 9):
+                raise ValueError(f"board symmetries need a 3x3 or 9x9 board, got {cells} cells")
+            image = square_symmetries(side)  # (8, cells)
+        if image.shape[1] != cells:
+            raise ValueError(f"board symmetries map {image.shape[1]} cells, the board has {cells}")
+        self.count = image.shape[0]
         preimage = torch.argsort(image, dim=1)  # the cell that lands on each cell
         features = len(feature_names)
-        self.feature_index = torch.arange(features).repeat(8, 1)
+        self.feature_index = torch.arange(features).repeat(self.count, 1)
         for position, name in enumerate(feature_names):
             match = CELL_FEATURE.match(name)
             if match is None:
@@ -60,9 +86,9 @@ class BoardSymmetries:
             cell = int(match.group(2))
             slice_start = position - cell  # the slice's cell 0
             self.feature_index[:, position] = slice_start + preimage[:, cell]
-        self.action_map = torch.arange(n_actions).repeat(8, 1)
+        self.action_map = torch.arange(n_actions).repeat(self.count, 1)
         self.action_map[:, :cells] = image
-        self.action_index = torch.arange(n_actions).repeat(8, 1)
+        self.action_index = torch.arange(n_actions).repeat(self.count, 1)
         self.action_index[:, :cells] = preimage
         # on the device of the sampled batches they turn: the draws and the gathers stay there
         self.feature_index, self.action_map, self.action_index = (
@@ -72,11 +98,11 @@ class BoardSymmetries:
     @classmethod
     def from_env(cls, env, seed: int = 0, device: torch.device | str = "cpu") -> "BoardSymmetries":
         """The symmetries of a dialogue env's observation and action layout."""
-        return cls(env.feature_names, env.cells, env.n_actions, seed, device)
+        return cls(env.feature_names, env.cells, env.n_actions, seed, device, game_symmetries(env.game))
 
     def draw(self, rows: int) -> torch.Tensor:
-        """(rows,) int64 symmetry indices, uniform over the 8, from this object's own generator (reproducible)."""
-        return torch.randint(0, 8, (rows,), generator=self.generator, device=self.generator.device)
+        """(rows,) int64 symmetry indices, uniform over the board's (8 on a square), from this object's own generator."""
+        return torch.randint(0, self.count, (rows,), generator=self.generator, device=self.generator.device)
 
     def observations(self, observation: torch.Tensor, which: torch.Tensor) -> torch.Tensor:
         return observation.gather(1, self.feature_index.index_select(0, which))

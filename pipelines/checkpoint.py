@@ -113,7 +113,11 @@ def save_periodic(state: dict[str, Any], run_dir: str | os.PathLike, frames: int
 AGENT_KEYS = {"config": dict, "n_features": int, "n_actions": int, "qnet": dict}
 TRAINING_KEYS = {"learner": dict, "egreedy": dict, "history": list, "frames": int, "updates": int, "episodes": int,
                  "wall_time": (int, float)}
-ACTIONS = {"standard": 18, "ultimate": 90}  # 9 / 81 game moves + 9 other dialogue acts (docs/env.md)
+def game_actions(game: str) -> int:
+    """The game moves (one per square) + 9 other dialogue acts (docs/env.md): 18 on 3x3, 90 on Ultimate."""
+    from ncbot.envs.core import cells_of_game
+
+    return cells_of_game(game) + 9
 
 
 def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:
@@ -169,9 +173,9 @@ def load_agent_checkpoint(path: str | os.PathLike) -> tuple[Any, dict[str, Any]]
         config = config_from_dict(data["config"])
     except ValueError as error:
         raise ValueError(f"checkpoint {str(path)!r} holds an invalid config ({error})") from None
-    if data["n_actions"] != ACTIONS[config.env.game]:
+    if data["n_actions"] != game_actions(config.env.game):
         raise ValueError(f"checkpoint {str(path)!r} has {data['n_actions']} actions but plays {config.env.game} "
-                         f"({ACTIONS[config.env.game]} actions)")
+                         f"({game_actions(config.env.game)} actions)")
     check_qnet(data, config, path)
     return config, data
 

@@ -78,22 +78,28 @@ EXTRA_CLOSINGS = ["goodbye", "thank you goodbye", "goodbye pepper nice to meet y
 
 def play_game(game, robot_first: bool, want: str, rng: random.Random) -> list[tuple[str, int]]:
     """A legal game (list of (who, cell)) whose result for the robot is ``want``."""
-    robot_mark = 1 if robot_first else 2
     while True:
-        s, moves = game.new(), []
-        while game.outcome(s) is None:
-            legal = game.legal(s)
-            robot_turn = game.mark_to_move(s) == robot_mark
-            if robot_turn:
-                winning = [c for c in legal if game.outcome(game.play(s, c)) not in (None, "draw")]
-                cell = rng.choice(winning or legal)
-            else:
-                cell = rng.choice(legal)
-            moves.append(("robot" if robot_turn else "user", cell))
-            s = game.play(s, cell)
-        result = {None: None, "draw": "draw"}.get(game.outcome(s), "win" if game.outcome(s) == "xo"[robot_mark - 1] else "lose")
+        moves, result = play_once(game, robot_first, rng)
         if result == want:
             return moves
+
+
+def play_once(game, robot_first: bool, rng: random.Random) -> tuple[list[tuple[str, int]], str]:
+    """One legal game (robot: a winning square if it has one, else random; user: random) and its result for the
+    robot ("win", "lose" or "draw")."""
+    robot_mark = 1 if robot_first else 2
+    s, moves = game.new(), []
+    while game.outcome(s) is None:
+        legal = game.legal(s)
+        robot_turn = game.mark_to_move(s) == robot_mark
+        if robot_turn:
+            winning = [c for c in legal if game.outcome(game.play(s, c)) not in (None, "draw")]
+            cell = rng.choice(winning or legal)
+        else:
+            cell = rng.choice(legal)
+        moves.append(("robot" if robot_turn else "user", cell))
+        s = game.play(s, cell)
+    return moves, {"draw": "draw"}.get(game.outcome(s), "win" if game.outcome(s) == "xo"[robot_mark - 1] else "lose")
 
 
 def turn(robot: str, user: str | None, says: str | None) -> str:
@@ -263,6 +269,38 @@ def write_set(out: Path, header: str, skeletons: list, make_lines, seed: int) ->
             lines += make_lines(game, name, index, *skeleton, rng)
     out.write_text("\n".join(lines) + "\n")
     print(f"wrote {out}")
+
+
+# The sets by the file the built-in games read them from: header, skeletons, dialogue writer, seed.
+SETS = {
+    OUT.name: (HEADER, SKELETONS, dialogue_lines, 2019),
+    OUT_PAPER.name: (PAPER_HEADER, PAPER_SKELETONS, paper_dialogue_lines, 2020),
+    OUT_PAPER_EXTRA.name: (EXTRA_HEADER, EXTRA_SKELETONS, extra_dialogue_lines, 2021),
+}
+RESULT_SAMPLE, RESULT_SHARE = 100, 0.05  # games per seat, and the share of them a result needs to be written
+
+
+def reachable_results(game, rng: random.Random) -> set[str]:
+    """The results ("win", "lose", "draw") that at least RESULT_SHARE of ``play_once``'s games reach on ``game``
+    (RESULT_SAMPLE per seat). Why: a rarer result would make ``play_game`` search for long (random Connect Four
+    games almost never draw, a 9x9 board with k 3 never does); such a result is left out of the examples."""
+    results = [play_once(game, robot_first, rng)[1] for _ in range(RESULT_SAMPLE) for robot_first in (True, False)]
+    return {r for r in set(results) if results.count(r) >= RESULT_SHARE * len(results)}
+
+
+def declared_dialogue_text(game, file_name: str) -> str:
+    """The example dialogues of a declared game (``ncbot.envs.rules.Declared``) for the set read from ``file_name``:
+    the same skeletons, utterances and writers as the built-in games', moves sampled with the declared rules, as
+    the YAML text a dialogue file holds. A skeleton whose result the game does not reach gets the first reachable of
+    win, lose, draw. Same declaration and set -> same text."""
+    header, skeletons, make_lines, seed = SETS[file_name]
+    rng = random.Random(seed)
+    reachable = reachable_results(game, rng)
+    lines = [header.rstrip("\n")]
+    for index, (robot_first, opening, result, *rest) in enumerate(skeletons):
+        result = result if result in reachable else next(r for r in ("win", "lose", "draw") if r in reachable)
+        lines += make_lines(game, game.name, index, robot_first, opening, result, *rest, rng)
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:

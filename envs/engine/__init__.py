@@ -13,27 +13,32 @@ row-major on the full grid (as in ``ncbot.envs.rules``). Boards are ``(B, cells)
 Outcome codes (``ncbot.envs.core``): 0 game on, 1 / 2 that player won, 3 draw.
 
 Layout: ``tables`` (grid tables and gathers), ``base`` (the state and shared helpers), ``standard`` and
-``ultimate`` (one engine each); this module picks one by name.
+``ultimate`` (one engine each), ``declared`` (any declared game, ``ncbot.envs.declaration``); this module picks one by name.
 """
 from __future__ import annotations
 
 from ncbot.envs.core import DRAWN, FREE_MOVE_CHOICES, check_game  # noqa: F401  (re-exported)
+from ncbot.envs.declaration import declared_game
 from ncbot.envs.engine.base import Boards
+from ncbot.envs.engine.declared import DeclaredEngine
 from ncbot.envs.engine.standard import StandardEngine
 from ncbot.envs.engine.tables import (  # noqa: F401  (re-exported)
     REWARD_ABOUT_TO_DRAW, REWARD_ABOUT_TO_WIN, GridTables, grid_tables, lookup, lookup_rows, uniform_choice,
 )
 from ncbot.envs.engine.ultimate import UltimateEngine
 
-__all__ = ["Boards", "StandardEngine", "UltimateEngine", "make_engine", "grid_tables", "uniform_choice"]
+__all__ = ["Boards", "StandardEngine", "UltimateEngine", "DeclaredEngine", "make_engine", "grid_tables", "uniform_choice"]
 
 
 def make_engine(game: str, free_move: str = "anywhere", win_set: str = "wins_and_threats",
-                about_to: str = "standing") -> StandardEngine | UltimateEngine:
-    """The engine of ``game`` ("standard" or "ultimate"); ValueError naming the choices otherwise.
+                about_to: str = "standing") -> StandardEngine | UltimateEngine | DeclaredEngine:
+    """The engine of ``game`` ("standard", "ultimate" or a declared game); ValueError naming the choices otherwise.
 
     ``win_set`` (which moves the env's ``winning_actions`` holds) and ``about_to`` (when "about to win" pays +5)
     are the paper's readings of ``ncbot.envs.core``; the defaults are this project's original rewards."""
-    if check_game(game) == "standard":
+    game = check_game(game)
+    if game == "standard":
         return StandardEngine(win_set=win_set, about_to=about_to)
-    return UltimateEngine(free_move, win_set=win_set, about_to=about_to)
+    if game == "ultimate":
+        return UltimateEngine(free_move, win_set=win_set, about_to=about_to)
+    return DeclaredEngine(declared_game(game), win_set=win_set, about_to=about_to)

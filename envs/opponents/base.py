@@ -11,7 +11,7 @@ from typing import Callable, Protocol
 
 import torch
 
-from ncbot.envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, check_free_move, check_game  # noqa: F401
+from ncbot.envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, cells_of_game, check_free_move, check_game  # noqa: F401
 
 class Opponent:
     """A move chooser for batches of games; subclasses implement ``_select``.
@@ -25,7 +25,7 @@ class Opponent:
     def __init__(self, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
         self.game = check_game(game)
         self.free_move = check_free_move(free_move)
-        self.n_cells = CELLS_OF_GAME[self.game]
+        self.n_cells = cells_of_game(self.game)
         self.seed = int(seed)
         self._own_generator = torch.Generator().manual_seed(self.seed)
 
@@ -115,7 +115,7 @@ def make_opponent(name: str, game: str = "standard", free_move: str = "anywhere"
     """Build an opponent from its name (``kind`` or ``kind:ARG``); ValueError listing the choices if unknown."""
     if not isinstance(name, str) or not name:
         raise ValueError(f"opponent must be a name, one of {', '.join(opponent_choices())}; got {name!r}")
-    check_game(game)
+    game = check_game(game)
     check_free_move(free_move)
     kind, _, arg = name.partition(":")
     if kind not in _REGISTRY:

@@ -14,8 +14,8 @@ drawn subgrids, ``macro*`` the subgrids each side owns, ``target`` the subgrid t
 from __future__ import annotations
 
 from ncbot.envs.core import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
-
-ONGOING, DRAW = -1, 2
+from ncbot.envs.declaration import declared_game
+from ncbot.envs.opponents.declared_bits import DRAW, ONGOING, DeclaredBits
 FULL = 0b111111111
 
 LINE_MASKS = tuple(sum(1 << i for i in line) for line in LINES_3X3)
@@ -248,6 +248,8 @@ class UltimateBits:
             turn ^= 1
 
 
-def make_bits(game: str, free_move: str = "anywhere") -> StandardBits | UltimateBits:
+def make_bits(game: str, free_move: str = "anywhere") -> StandardBits | UltimateBits | DeclaredBits:
     """The bitboard engine of ``game`` (sides relative to the mover: 0 to move, 1 the other; ``DRAW`` = 2)."""
-    return StandardBits() if game == "standard" else UltimateBits(free_move)
+    if game == "standard":
+        return StandardBits()
+    return UltimateBits(free_move) if game == "ultimate" else DeclaredBits(declared_game(game))

@@ -96,7 +96,8 @@ class MinimaxOpponent(Opponent):
 def _minimax_factory(arg, *, game, free_move, seed):
     no_argument("minimax", arg)
     if game != "standard":
-        raise ValueError("opponent 'minimax' is exact only for game 'standard' (3x3); for 'ultimate' use 'mcts:N'")
+        raise ValueError(f"opponent 'minimax' is exact only for game 'standard' (3x3), too large to solve for {game!r}: "
+                         "use 'mcts:N'")
     return MinimaxOpponent(game, free_move, seed)
 
 

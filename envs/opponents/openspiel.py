@@ -46,7 +46,10 @@ def import_pyspiel() -> Any:
 
 
 def load_openspiel_game(game: str, free_move: str) -> Any:
-    """OpenSpiel's version of our game, or ValueError when its rule is not ours (Ultimate under ``anywhere``)."""
+    """OpenSpiel's version of our game, or ValueError when its rule is not ours (Ultimate under ``anywhere``) or it
+    has none (a declared game)."""
+    if game not in OPENSPIEL_GAMES:
+        raise ValueError(f"OpenSpiel has no version of the declared game {game!r}: use 'mcts:N'")
     if game == "ultimate" and free_move != OPENSPIEL_FREE_MOVE:
         raise ValueError(f"OpenSpiel's ultimate_tic_tac_toe uses the '{OPENSPIEL_FREE_MOVE}' rule, not '{free_move}': "
                          f"play it with --free-move {OPENSPIEL_FREE_MOVE} (an agent trained on that rule)")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import torch
 
+from ncbot.envs.core import GAME_CHOICES
+from ncbot.envs.engine import make_engine
 from ncbot.envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
 from ncbot.envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
 
@@ -27,9 +29,15 @@ class RuleOpponent(Opponent):
 
     name = "rule"
 
+    def __init__(self, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
+        super().__init__(game, free_move, seed)
+        self.engine = None if self.game in GAME_CHOICES else make_engine(self.game)
+
     def _select(self, boards, last_move, legal, player, generator, owners):
         other = 3 - player
-        if self.game == "standard":
+        if self.engine is not None:  # a declared game: the engine's line counts answer both questions
+            scores = 2 * self.engine.winning_squares(boards, player).long() + self.engine.winning_squares(boards, other).long()
+        elif self.game == "standard":
             scores = 2 * winning_cells(boards, player).long() + winning_cells(boards, other).long()
         else:
             owners = subgrid_owners(boards) if owners is None else owners
@@ -55,9 +63,13 @@ class WinnerOpponent(Opponent):
     def __init__(self, share: float, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
         super().__init__(game, free_move, seed)
         self.share = float(share)
+        self.engine = None if self.game in GAME_CHOICES else make_engine(self.game)
 
     def _select(self, boards, last_move, legal, player, generator, owners):
-        wins = winning_cells(boards, player, owners if self.game == "ultimate" else None) & legal
+        if self.engine is not None:
+            wins = self.engine.winning_squares(boards, player) & legal
+        else:
+            wins = winning_cells(boards, player, owners if self.game == "ultimate" else None) & legal
         take = (torch.rand(legal.shape[0], generator=generator) < self.share) & wins.any(1)
         return torch.where(take, masked_uniform_choice(wins, generator), masked_uniform_choice(legal, generator))
 

@@ -25,7 +25,8 @@ def feature_meaning(key: str, game: str) -> str:
 
 @env_app.command("describe")
 def describe(
-    game: str = typer.Option("standard", help="standard (3x3) or ultimate (9x9)"),
+    game: str = typer.Option("standard", help="standard (3x3), ultimate (9x9), a shipped declared game (four, "
+                             "connect_four) or a game YAML file (docs/games.md)"),
     temporal: bool = typer.Option(True, "--temporal/--no-temporal", help="include the temporal features"),
 ) -> None:
     """Print the feature table (index, key, meaning) and the action table (index, act, template, command)."""
@@ -40,7 +41,9 @@ def describe(
     def readable(name: str) -> str:  # GameMove(gridloc=4) -> GameMove(b2): cells as the board names them
         return re.sub(r"gridloc=(\d+)", lambda match: rules.cell_name(int(match.group(1))), name)
 
-    typer.echo(f"{game} game: {env.n_features} features, {env.n_actions} actions, vocabulary of {len(env.words)} words\n")
+    if rules.name not in ("standard", "ultimate"):
+        typer.echo(rules.declaration.describe())
+    typer.echo(f"{rules.name} game: {env.n_features} features, {env.n_actions} actions, vocabulary of {len(env.words)} words\n")
     typer.echo("FEATURES (the sorted key-value memory as a vector)")
     typer.echo(f"{'index':>5}  {'key':<18} meaning")
     for index, key in enumerate(env.feature_names):

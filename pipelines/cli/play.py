@@ -15,7 +15,8 @@ def play_command(
     checkpoint: Optional[str] = typer.Argument(None, help="A checkpoint .pt written by ncbot train, or its run folder "
                                                "(its game is played); without it the robot uses the look-ahead masks "
                                                "alone, choosing at random inside them."),
-    game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate, without a checkpoint (default standard)."),
+    game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate | a declared game (four, connect_four, "
+                                       "a game YAML file), without a checkpoint (default standard)."),
     first: str = typer.Option("robot", "--first", help="Who opens: robot | human (you draw the first mark)."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the robot's random choices (look-ahead policy) and the env."),
@@ -23,8 +24,10 @@ def play_command(
     no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
 ) -> None:
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
-    if game is not None and game not in ("standard", "ultimate"):
-        raise ValueError(f"--game must be standard or ultimate, got {game!r}")
+    if game is not None:
+        from ncbot.envs.core import check_game
+
+        game = check_game(game)
     from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"), "--first")
@@ -96,7 +99,7 @@ def ladder_command(
 def match_command(
     first: str = typer.Argument(..., help="Opponent name moving first, e.g. random, rule, minimax, mcts:100, agent:CKPT."),
     second: str = typer.Argument(..., help="Opponent name moving second."),
-    game: str = typer.Option("standard", "--game", help="standard | ultimate."),
+    game: str = typer.Option("standard", "--game", help="standard | ultimate | a declared game (four, connect_four, a game YAML file)."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     games: int = typer.Option(100, "--games", max=MAX_GAMES, help="Number of games."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the match."),

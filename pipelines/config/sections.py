@@ -64,7 +64,7 @@ class DialogueSubset(Section):
 class EnvConfig(Section):
     """The dialogue game the robot learns (envs.make_env)."""
 
-    game: Literal["standard", "ultimate"] = "standard"
+    game: str = "standard"  # standard | ultimate | a shipped declared game (four, connect_four) | a game YAML file
     temporal: bool = True  # the paper's 9/81 temporal features
     free_move: Literal["anywhere", "open_subgrids"] = "anywhere"  # ultimate rule variant
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # games played in parallel by one batched env
@@ -87,6 +87,15 @@ class EnvConfig(Section):
     # a robot move with its own) | paper ("your turn" before every user move, "Nice. Let me start."; ~14 acts on 3x3)
     dialogues: Literal["compact", "paper"] = "compact"
     dialogue_subset: DialogueSubset | None = None  # the data budget: learn from k of those dialogues; null = all
+
+    @field_validator("game")
+    @classmethod
+    def _known_game(cls, game: str) -> str:
+        """A built-in name, a shipped declaration or a game YAML file (docs/games.md); a file becomes its absolute
+        path, so a run folder's config names the same game from anywhere."""
+        from ncbot.envs.core import check_game
+
+        return check_game(game)
 
     @property
     def subset(self) -> tuple[int, int] | None:
@@ -340,6 +349,9 @@ class RunConfig(Section):
             if self.agent.lookahead not in LOOKAHEAD_RULES:
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
                                  f"got {self.agent.lookahead!r}")
+            if self.agent.lookahead.startswith("k") and self.env.game not in GAMES:
+                raise ValueError(f"config key 'agent.lookahead' {self.agent.lookahead!r} searches 3x3 and Ultimate only; "
+                                 f"the declared game {self.env.game!r} takes none, variant or one_step")
         return self
 
     def _check_memory(self) -> None:

@@ -33,4 +33,5 @@ def test_describe_ultimate_without_temporal() -> None:
 def test_bad_game_is_one_line_exit_2() -> None:
     result = subprocess.run([sys.executable, "-m", "ncbot", "env", "describe", "--game", "chess"], capture_output=True, text=True)
     assert result.returncode == 2
-    assert result.stderr.strip().splitlines() == ["ncbot: error: game must be one of standard, ultimate; got 'chess'"]
+    assert result.stderr.strip().splitlines() == [
+        "ncbot: error: game must be one of standard, ultimate, connect_four, four or a game YAML file; got 'chess'"]

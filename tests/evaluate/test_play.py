@@ -158,7 +158,7 @@ def test_ultimate_game_from_the_first_seat(tmp_path) -> None:
 
 def test_bad_options_are_one_line_errors(tmp_path) -> None:
     (tmp_path / "config.yaml").write_text("env: {game: standard}\n")
-    for args, message in ((["--game", "chess"], "--game must be standard or ultimate"),
+    for args, message in ((["--game", "chess"], "game must be one of standard, ultimate"),
                           (["--first", "third"], "--first must be one of robot, human"),
                           (["--seat", "first"], "No such option: --seat"),
                           ([str(tmp_path / "missing.pt")], "not found"),
