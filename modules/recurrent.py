@@ -136,12 +136,12 @@ def memory_env(env: EnvBase, policy) -> EnvBase:
 
 
 def require_feedforward(config, what: str) -> None:
-    """One-line error for the tools that run the Q-network one position at a time, without the dialogue's history
-    (searches, the agent opponent, play/serve/robot): not built for agent.memory yet."""
+    """One-line error for the tools that read the Q-network on positions no dialogue led to (the Q-guided search's
+    imagined moves, the `agent:` and `qmcts:` opponents' boards): a recurrent network has no hidden state there."""
     memory = getattr(config.agent, "memory", "none")
     if memory != "none":
-        raise ValueError(f"{what} does not support agent.memory={memory} yet (it reads the Q-network one position "
-                         "at a time, without the dialogue's history); ncbot eval and a plain ncbot ladder do")
+        raise ValueError(f"{what} does not support agent.memory={memory} (it reads the Q-network on positions "
+                         "without a dialogue history); ncbot eval, ladder without --search, play and robot do")
 
 
 # --- sequence replay --------------------------------------------------------------------------------------------
