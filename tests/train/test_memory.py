@@ -230,6 +230,11 @@ def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
     weight = sample.get("priority_weight")
     assert torch.equal(weight, weight[:, :1].expand_as(weight)) and float(weight.max()) <= 1.0
     assert float(weight[drawn].max()) < 1e-2  # the over-drawn slice counts for little
+    # a resumed run keeps the priorities (they are in the buffer's state, which the checkpoint stores)
+    restored = make_sequence_buffer(5000, 64, 8, prioritized=True)
+    restored.load_state_dict(buffer.state_dict())
+    assert torch.equal(restored.sampler._priority, sampler._priority)
+    assert restored.sampler._max_priority == sampler._max_priority
 
 
 @pytest.mark.parametrize("game,lookahead,memory,temporal", [
