@@ -18,6 +18,7 @@ from ncbot.modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_upd
 from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from ncbot.modules.symmetry import BoardSymmetries
 from ncbot.modules.prioritized_sampler import ProportionalSampler
+from ncbot.modules.prioritized_slices import PrioritizedSequenceSampler
 from ncbot.modules.transitions import LOSS_KEYS
 
 
@@ -65,12 +66,13 @@ def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False,
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
     RandomSampler or, `prioritized`, a proportional one (`ncbot.modules.prioritized_sampler`: rows drawn by the loss's
     |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
-    of dialogues (`ncbot.modules.recurrent.make_sequence_buffer`). The storage lives on `device` (the learner's: sampled
+    of dialogues (`ncbot.modules.recurrent.make_sequence_buffer`; `prioritized`: by R2D2's sequence priority). The storage lives on `device` (the learner's: sampled
     batches need no copy; the uniform sampler draws its indices there)."""
     if sequence_length is not None:
         from ncbot.modules.recurrent import make_sequence_buffer
 
-        return make_sequence_buffer(size, batch_size, sequence_length, device)
+        return make_sequence_buffer(size, batch_size, sequence_length, device, prioritized=prioritized, alpha=alpha,
+                                    beta=beta)
     sampler = ProportionalSampler(size, alpha, beta) if prioritized else None
     return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, priority_key=PRIORITY_KEY,
                                   batch_size=batch_size)
@@ -174,10 +176,10 @@ class Learner:
         parts = _draw(buffer, count)
         labels = _draw(self.teacher.labels, count) if self.teacher is not None and self.teacher.ready() \
             else [None] * count
-        if not isinstance(buffer.sampler, ProportionalSampler):
+        if not isinstance(buffer.sampler, (ProportionalSampler, PrioritizedSequenceSampler)):
             return [self.update(part, label) for part, label in zip(parts, labels)]
         # prioritised: the draw is one sample of the priorities (as Ape-X's learner takes a few batches per fetch);
-        # each part's new |TD error| goes back to the sampler after its update
+        # each part's new |TD error| (a recurrent loss: its slices' priorities) goes back to the sampler after its update
         losses = []
         for part, label in zip(parts, labels):
             losses.append(self.update(part, label))

@@ -34,8 +34,10 @@ Sequence replay (`make_sequence_buffer`, `SequenceRows`, `SequenceDQNLoss`), cho
   the target of `ncbot.modules.loss.CompetitiveDQNLoss`; double DQN picks a' with the online unroll.
 - Defaults L = 16, burn-in 4, 128 memory units: a 3x3 dialogue is ~10-15 acts, so most slices are whole
   dialogues; on Ultimate (~50-70 acts) the slices start inside dialogues and the burn-in matters.
-Not combined with memory (one-line config errors): prioritised replay, n-step returns, bf16, self-play and the
-search teacher (they read the network as an MLP or the buffer as transitions).
+- Prioritised replay (`buffer.prioritized`): slices drawn by R2D2's sequence priority
+  (`ncbot.modules.prioritized_slices`); the loss weights each slice by its importance weight and writes its priority.
+Not combined with memory (one-line config errors): n-step returns, bf16, self-play and the search teacher (they
+read the network as an MLP or the buffer as transitions).
 """
 from __future__ import annotations
 
@@ -51,8 +53,9 @@ from torchrl.modules.utils import get_primers_from_module
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import distance_loss
 
-from ncbot.modules.loss import LOSS_FUNCTIONS, CompetitiveDQNLoss
+from ncbot.modules.loss import LOSS_FUNCTIONS, PRIORITY_KEY, CompetitiveDQNLoss
 from ncbot.modules.masks import AVAILABLE_KEY
+from ncbot.modules.prioritized_slices import PrioritizedSequenceSampler, sequence_priority
 from ncbot.modules.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
 
 MEMORY_CHOICES = ("none", "gru", "lstm")
@@ -133,26 +136,31 @@ def memory_env(env: EnvBase, policy) -> EnvBase:
 
 
 def require_feedforward(config, what: str) -> None:
-    """One-line error for the tools that run the Q-network one position at a time, without the dialogue's history
-    (searches, the agent opponent, play/serve/robot): not built for agent.memory yet."""
+    """One-line error for the tools that read the Q-network on positions no dialogue led to (the Q-guided search's
+    imagined moves, the `agent:` and `qmcts:` opponents' boards): a recurrent network has no hidden state there."""
     memory = getattr(config.agent, "memory", "none")
     if memory != "none":
-        raise ValueError(f"{what} does not support agent.memory={memory} yet (it reads the Q-network one position "
-                         "at a time, without the dialogue's history); ncbot eval and a plain ncbot ladder do")
+        raise ValueError(f"{what} does not support agent.memory={memory} (it reads the Q-network on positions "
+                         "without a dialogue history); ncbot eval, ladder without --search, play and robot do")
 
 
 # --- sequence replay --------------------------------------------------------------------------------------------
 
-def make_sequence_buffer(size: int, batch_size: int, sequence_length: int,
-                         device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
+def make_sequence_buffer(size: int, batch_size: int, sequence_length: int, device: torch.device | str = "cpu", *,
+                         prioritized: bool = False, alpha: float = 0.6, beta: float = 0.4) -> TensorDictReplayBuffer:
     """TorchRL replay buffer whose `SliceSampler` draws `batch_size // sequence_length` slices of one dialogue
-    each, padded to `sequence_length` (see module doc)."""
+    each, padded to `sequence_length` (see module doc); `prioritized`: slices drawn by their R2D2 priority
+    (`ncbot.modules.prioritized_slices`)."""
     if batch_size % sequence_length:
         raise ValueError(f"buffer.batch_size ({batch_size}) must be a multiple of buffer.sequence_length "
                          f"({sequence_length}) with agent.memory")
-    sampler = SliceSampler(slice_len=sequence_length, traj_key=EPISODE_KEY, step_key=STEP_KEY, fragmented=True,
-                           strict_length=False, pad_output=True, truncated_key=None)
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler, batch_size=batch_size)
+    if prioritized:
+        sampler = PrioritizedSequenceSampler(size, sequence_length, alpha, beta, traj_key=EPISODE_KEY, step_key=STEP_KEY)
+    else:
+        sampler = SliceSampler(slice_len=sequence_length, traj_key=EPISODE_KEY, step_key=STEP_KEY, fragmented=True,
+                               strict_length=False, pad_output=True, truncated_key=None)
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(size, device=device), sampler=sampler,
+                                  priority_key=PRIORITY_KEY, batch_size=batch_size)
 
 
 class SequenceRows:
@@ -293,8 +301,14 @@ class SequenceDQNLoss(LossModule):
         predicted = q_values.gather(-1, action.unsqueeze(-1)).squeeze(-1)
         error = distance_loss(predicted, target, self.loss_function)
         weight = trained.float()
-        loss = (error * weight).sum() / weight.sum().clamp(min=1.0)
         count = weight.sum().clamp(min=1.0)
+        importance = batch.get(keys.priority_weight, None)  # prioritised replay: one weight per slice, on its steps
+        scaled = weight * importance.reshape(rows, length) if importance is not None else weight
+        loss = (error * scaled).sum() / count
+        with torch.no_grad():  # R2D2's sequence priority, written on every step of its slice
+            priority = sequence_priority((predicted - target).detach(), trained)
+            tensordict.set(keys.priority, priority.repeat_interleave(length).reshape(tensordict.shape).unsqueeze(-1),
+                           inplace=True)
         return TensorDict({"loss": loss, "q_mean": (predicted.detach() * weight).sum() / count,
                            "target_mean": (target * weight).sum() / count}, batch_size=[])
 

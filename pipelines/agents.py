@@ -22,13 +22,13 @@ def check_value_option(value: str | None, search: int | None) -> None:
         raise FileNotFoundError(f"--value {value!r} not found (expected a value.pt written by ncbot train-value)")
 
 
-def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu"):
+def load_agent(checkpoint_path, *, device: str = "cpu"):
     """(config, greedy policy) of a saved agent: the same masks as in training. `device` (auto | cpu | cuda |
     cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device).
 
-    An agent with `agent.memory` needs its env wrapped by `ncbot.modules.recurrent.memory_env` (`evaluate_agent` does
-    it): callers that do so pass `recurrent=True`; for the others (they step their own envs) such an agent is a
-    one-line error rather than a KeyError on `is_init` mid-game."""
+    An agent with `agent.memory` reads its hidden state from the env: every caller steps its env wrapped by
+    `ncbot.modules.recurrent.memory_env` (evaluation, exact evaluation, `ncbot play`, the robot games), which is
+    the env unchanged for the MLP."""
     from ncbot.modules.device import resolve_device
     from ncbot.modules.policy import make_policies
     from ncbot.modules.recurrent import make_agent_qnet
@@ -36,10 +36,6 @@ def load_agent(checkpoint_path, *, recurrent: bool = False, device: str = "cpu")
     from torchrl.data import Categorical
 
     config, data = load_agent_checkpoint(checkpoint_path)  # keys, config and weight shapes checked: one-line errors
-    if not recurrent:
-        from ncbot.modules.recurrent import require_feedforward
-
-        require_feedforward(config, "this command")
     qnet = make_agent_qnet(data["n_features"], data["n_actions"], config.agent)  # agent.memory's network or the MLP
     qnet.load_state_dict(data["qnet"])
     qnet.eval()
@@ -80,17 +76,18 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     check_value_option(value, search)
-    config, greedy = load_agent(checkpoint, recurrent=True)  # the ladder plays it through evaluate_agent
-    if lookahead is not None or search:
+    config, greedy = load_agent(checkpoint)  # the ladder plays it through evaluate_agent
+    if search:
         from ncbot.modules.recurrent import require_feedforward
 
-        require_feedforward(config, "--search" if search else "--lookahead")
-    if lookahead is not None:
+        require_feedforward(config, "--search")
+    if lookahead is not None:  # the masks read the env's board keys, not the network: any agent.memory
         config.agent.lookahead = resolve_lookahead(lookahead, config.env.free_move)
+        from torch import nn
         from torchrl.data import Categorical
 
         qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
-        n_actions = qnet.module[-1].out_features  # its last Linear has one output per action (modules.qnet.make_qnet)
+        n_actions = [layer for layer in qnet.modules() if isinstance(layer, nn.Linear)][-1].out_features  # the head
         greedy = make_policies(qnet, Categorical(n_actions), config.lookahead, all_negative=config.agent.all_negative).greedy
     description = f"greedy Q, masks {config.lookahead}"
     if not search:

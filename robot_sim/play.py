@@ -75,14 +75,16 @@ class RobotGameRunner:
                  logger: Any = None, human_cell: Callable[[Any, int], int] | None = None,
                  on_frame: Callable[[np.ndarray, float], None] | None = None,
                  episode_tags: dict[str, Any] | None = None,
-                 user_reply: Callable[[Any, int], None] | None = None) -> None:
+                 user_reply: Callable[[Any, int], None] | None = None, network: Any = None) -> None:
         """`human_cell(true_state, human_mark)` lets a real person choose the cell the simulated hand draws
         (`ncbot robot serve`: a click in the browser) instead of the simulated opponent model; the robot still
         learns the move only through its camera. `on_frame` sees every rendered mouth-camera frame;
         `episode_tags` go into every logged `/episode` summary (e.g. the browser session id).
         `user_reply(env, action)` runs after each robot act and before the env steps, so a real person's answer
         (serve: a button or typed words) replaces the env's simulated user's reply; its words are then heard
-        at confidence 1 (as `ncbot play` does for typed text)."""
+        at confidence 1 (as `ncbot play` does for typed text). `network`: the module behind `policy` when `policy`
+        wraps it (serve's locked call); a recurrent one (agent.memory) gets its hidden state carried through each
+        game's dialogue by the env (`modules.recurrent.memory_env`), from zero at every game."""
         config.validate()
         self.human_cell = human_cell
         self.user_reply = user_reply
@@ -90,6 +92,7 @@ class RobotGameRunner:
         self.episode_tags = dict(episode_tags or {})
         self.config = config
         self.policy = policy
+        self.network = policy if network is None else network
         self.out_dir = Path(out_dir) if out_dir is not None else None
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
@@ -282,6 +285,7 @@ class RobotGameRunner:
     # ------------------------------------------------------------------ one game
     def play_game(self, index: int) -> GameRecord:
         from ncbot.envs import make_env
+        from ncbot.modules.recurrent import memory_env
         from torchrl.envs.utils import step_mdp
 
         cfg = self.config
@@ -307,7 +311,8 @@ class RobotGameRunner:
         self._answer_ears = self.speech.answer_ears(seed, hearing) if hearing is not None else None
         env = make_env(cfg.game, batch_size=(1,), seed=seed, first=first, free_move=cfg.free_move, opponent=opponent,
                        **heard)
-        td = env.reset()
+        stepper = memory_env(env, self.network)  # the env itself for the MLP and the look-ahead policy
+        td = stepper.reset()
         robot_first = bool(td["robot_first"].item())
         self._robot_mark = 1 if robot_first else 2
         self.true_state = self.rules.new()
@@ -341,7 +346,7 @@ class RobotGameRunner:
             if self.user_reply is not None:
                 self.user_reply(env, action)
             heard_before = len(hearing.log) if hearing is not None else 0
-            td = env.step(td)
+            td = stepper.step(td)
             if hearing is not None:
                 self._speech_log.heard(hearing, hearing.log[heard_before:], self.scene.time)
             self._speech_log.flush()

@@ -176,6 +176,7 @@ class BufferConfig(Section):
     # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
     # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md); on 3x3 it cuts
     # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md).
+    # With agent.memory: slices drawn by R2D2's sequence priority (modules/prioritized_slices.py, docs/memory.md).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
@@ -365,7 +366,6 @@ class RunConfig(Section):
                              f"({buffer.sequence_length}) with agent.memory={memory}, got {buffer.batch_size}")
         unsupported = [
             ("agent.name", self.agent.name == "uniform", "a learning agent", "the uniform agent has no network"),
-            ("buffer.prioritized", buffer.prioritized, "false", "slices are replayed uniformly"),
             ("loss.n_step", self.loss.n_step != 1, "1", "the slice's unroll gives the one-step target"),
             ("optim.precision", self.optim.precision != "fp32", "fp32", "the recurrent unroll runs in float32"),
             ("selfplay.enabled", self.selfplay.enabled, "false", "snapshots play the user as an MLP"),

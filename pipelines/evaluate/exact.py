@@ -125,6 +125,7 @@ class ExactResult:
 def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactResult:
     """Enumerate every user-move branch with ``first`` (robot | human) opening, under each dialogue draw; see the
     module doc. The result's ``seat`` is the robot's (``run_env.robot_seat``)."""
+    from ncbot.modules.recurrent import memory_env
     from ncbot.pipelines.run_env import make_run_env, robot_seat
 
     if config.env.game != "standard":
@@ -137,7 +138,8 @@ def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactRe
         recorder = MoveRecorder(user.branches)
 
         def make_env(batch_size: int, seed: int = seed, user: BranchUser = user):
-            return make_run_env(config.env, batch_size=batch_size, seed=seed, first=first, opponent=user)
+            env = make_run_env(config.env, batch_size=batch_size, seed=seed, first=first, opponent=user)
+            return memory_env(env, policy)  # agent.memory: each branch's dialogue carries its own hidden state
 
         records = play_games(make_env, policy, user.branches, logger=recorder)
         outcomes, length = records.outcomes, records.lengths

@@ -190,7 +190,7 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
     if search:
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
-        config, policy = load_agent(checkpoint_path, recurrent=True)  # evaluate_agent carries its hidden state
+        config, policy = load_agent(checkpoint_path)  # evaluate_agent carries a recurrent agent's hidden state
     if mcap_dir is None:
         result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent)
     else:

@@ -175,6 +175,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
     """
     from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
+    from ncbot.modules.recurrent import memory_env
     from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"))
@@ -189,7 +190,8 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
 
     torch.set_num_threads(1)
     env, policy, agent = _build(game, checkpoint, free_move, first, seed, human_factory)
-    replies = HeardReplies(env)
+    replies = HeardReplies(env)  # edits the dialogue env itself, so it takes the env, not the wrapper below
+    stepper = memory_env(env, policy)  # agent.memory: the hidden state runs through the dialogue, zero at its start
     rules = human.rules
     logger = None
     if log_dir is not None:
@@ -202,7 +204,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
                 f"You are {symbols[2]}, Pepper is {symbols[1]}. Type 'quit' to stop.")
     summary = {"outcome": "unfinished", "actions": 0, "game": env.game, "agent": agent, "log_dir": log_dir}
     try:
-        td = env.reset()
+        td = stepper.reset()
         with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
             while True:
                 td = policy(td)
@@ -213,7 +215,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
                     replies.set_reply(act_type, replies.game_move_utterance())
                 else:
                     replies.set_reply(act_type, _ask_reply(console, replies, act_type, rules))
-                td = env.step(td)
+                td = stepper.step(td)
                 if logger is not None:
                     logger.record_steps(td, env=env, phase=phase, agent=agent, seed=seed, extra={"player": "human"})
                 after = td.get("next")
@@ -231,7 +233,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
     finally:
         if logger is not None:
             logger.close()
-        env.close()
+        stepper.close()
     return summary
 
 

@@ -293,7 +293,7 @@ class Session:
             with torch.no_grad(), self._sim:
                 runner = RobotGameRunner(config, self._policy, out_dir=self.dir, logger=logger,
                                          human_cell=self._wait_for_click, on_frame=self._frame,
-                                         episode_tags=tags, user_reply=self._wait_for_answer)
+                                         episode_tags=tags, user_reply=self._wait_for_answer, network=self.policy)
                 runner.speaker = BroadcastSpeaker(self.utterance, self.config.audio)
                 self._runner = runner
                 while self._command() is not None and not self.closed.is_set():

@@ -12,7 +12,9 @@ import torch
 from tensordict import TensorDict
 
 from ncbot.envs import make_env
+from ncbot.modules.learner import Learner, LearnerSettings
 from ncbot.modules.loss import make_target_updater
+from ncbot.modules.prioritized_slices import sequence_priority
 from ncbot.modules.policy import make_policies
 from ncbot.modules.recurrent import (
     EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
@@ -110,14 +112,14 @@ def test_batched_env_partial_resets_mark_is_init_and_restart_the_state() -> None
 
 
 def _filled_buffer(game: str = "standard", lookahead: str = "one_step", memory: str = "gru", batches: int = 6,
-                   length: int = 8, batch_size: int = 64, **env_options):
+                   length: int = 8, batch_size: int = 64, prioritized: bool = False, **env_options):
     env, qnet = _network(memory, game, **env_options)
     policies = make_policies(qnet, env.action_spec_unbatched, lookahead, eps_init=0.5)
     env = memory_env(env, policies.explore)
     config = load_config(_tiny_path(), [])  # its loss section: which bootstrap mask the transitions carry
     config.agent.lookahead = lookahead
     rows = SequenceRows(memory)
-    buffer = make_sequence_buffer(5000, batch_size, length)
+    buffer = make_sequence_buffer(5000, batch_size, length, prioritized=prioritized)
     collector = make_collector(env, policies.explore, 4 * 16, 4 * 16 * batches)
     frames = 0
     for batch in collector:
@@ -145,8 +147,9 @@ def _tiny_path() -> Path:
     return _TINY
 
 
-def test_sampled_slices_never_cross_a_dialogue_boundary() -> None:
-    _, buffer, _ = _filled_buffer(batches=8)
+@pytest.mark.parametrize("prioritized", [False, True])
+def test_sampled_slices_never_cross_a_dialogue_boundary(prioritized: bool) -> None:
+    _, buffer, _ = _filled_buffer(batches=8, prioritized=prioritized)
     length = 8
     for _ in range(20):
         sample = buffer.sample().reshape(-1, length)
@@ -188,6 +191,52 @@ def test_the_loss_unrolls_a_slice_as_the_actor_stepped_it() -> None:
     assert torch.allclose(unrolled, torch.stack(stepped), atol=1e-5)
 
 
+def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
+    """With buffer.prioritized each slice start carries eta * max + (1 - eta) * mean of its |TD errors|; the next
+    draw prefers slices by it and scales their loss by the importance weight."""
+    qnet, buffer, _ = _filled_buffer(batches=4, prioritized=True)
+    sampler = buffer.sampler
+    settings = LearnerSettings(loss_function="l2", double_dqn=False, precision="fp32", gamma=0.9, target_update="hard",
+                               target_period=10, tau=0.005, lr=1e-3, weight_decay=0.0, max_grad_norm=10.0,
+                               memory="gru", sequence_length=8, burn_in=2)
+    learner = Learner.build(qnet, settings)
+    fresh = sampler._priority[:len(buffer)].clone()
+    assert torch.equal(fresh, torch.ones_like(fresh))  # new rows: the largest priority so far (1 at the start)
+    torch.manual_seed(0)
+    learner.update_many(buffer, 2)
+    changed = (sampler._priority[:len(buffer)] != fresh).nonzero().squeeze(-1)
+    assert changed.numel() >= 8  # one start row per replayed slice, not every step's row
+    assert changed.numel() <= 2 * 64 // 8
+    assert float(sampler._priority[changed].std()) > 0.0  # slices differ
+    # what the loss writes: one priority per slice, on all its steps, and the start row keeps (p + eps) ** alpha
+    part = buffer.sample()
+    learner.update(part)
+    priority = part.get("td_error").reshape(-1, 8)
+    assert torch.equal(priority, priority[:, :1].expand_as(priority))
+    buffer.update_priority(part.get("index"), part.get("td_error"))
+    start_rows = part.get("index").reshape(-1, 8)[:, 0]
+    expected = (priority[:, 0].double() + sampler.eps).pow(sampler.alpha)
+    last = {int(row): float(value) for row, value in zip(start_rows, expected)}  # a row drawn twice: the last write
+    assert all(abs(float(sampler._priority[row]) - value) < 1e-9 for row, value in last.items())
+    # R2D2's mixture of a slice's |TD errors| over its loss steps
+    errors, trained = torch.tensor([[1.0, 3.0, 0.0, 5.0]]), torch.tensor([[True, True, False, False]])
+    assert torch.allclose(sequence_priority(errors, trained), torch.tensor([0.9 * 3.0 + 0.1 * 2.0]))
+    # the draw follows the priorities and carries one importance weight per slice (1 for the rarest start)
+    favourite = int(start_rows[0])
+    sampler._priority[favourite] = 1e6
+    sample = buffer.sample().reshape(-1, 8)
+    drawn = sample.get("index").reshape(-1, 8)[:, 0] == favourite
+    assert int(drawn.sum()) >= 6
+    weight = sample.get("priority_weight")
+    assert torch.equal(weight, weight[:, :1].expand_as(weight)) and float(weight.max()) <= 1.0
+    assert float(weight[drawn].max()) < 1e-2  # the over-drawn slice counts for little
+    # a resumed run keeps the priorities (they are in the buffer's state, which the checkpoint stores)
+    restored = make_sequence_buffer(5000, 64, 8, prioritized=True)
+    restored.load_state_dict(buffer.state_dict())
+    assert torch.equal(restored.sampler._priority, sampler._priority)
+    assert restored.sampler._max_priority == sampler._max_priority
+
+
 @pytest.mark.parametrize("game,lookahead,memory,temporal", [
     ("standard", "none", "gru", True), ("standard", "variant", "lstm", False), ("standard", "one_step", "gru", False),
     ("standard", "k2", "lstm", True), ("ultimate", "one_step", "gru", False), ("ultimate", "k2", "lstm", True),
@@ -211,8 +260,9 @@ def test_updates_run_with_every_mask_game_and_feature_set(game: str, lookahead: 
     assert any(not torch.equal(a, b) for a, b in zip(before, qnet.parameters()))  # the acting network learnt
 
 
-def test_tiny_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
-    config = load_config(write_tiny_config(tmp_path, **MEMORY), ["agent.memory=gru", "buffer.augment=d4"])
+def test_tiny_prioritised_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
+    config = load_config(write_tiny_config(tmp_path, **MEMORY),
+                         ["agent.memory=gru", "buffer.augment=d4", "buffer.prioritized=true"])
     run = tmp_path / "run"
     report = train(config, run)
     assert report["updates"] > 0 and report["first"]["games"] == 60
@@ -223,18 +273,16 @@ def test_tiny_gru_run_trains_checkpoints_and_evaluates(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     numbers = json.loads(result.stdout)
     assert numbers["games"] == 40 and 0.0 <= numbers["task_success"] <= 1.0
-    from ncbot.pipelines.agents import load_agent, load_robot
+    from ncbot.pipelines.agents import load_robot
 
-    with pytest.raises(ValueError, match="agent.memory=gru"):  # e.g. ncbot play: it steps its own env
-        load_agent(run / "checkpoint.pt")
-    with pytest.raises(ValueError, match="agent.memory=gru"):
+    with pytest.raises(ValueError, match="agent.memory=gru"):  # the search reads positions without a dialogue
         load_robot(str(run / "checkpoint.pt"), search=4)
 
 
 def test_memory_refuses_what_reads_the_network_as_an_mlp(tmp_path: Path) -> None:
     path = write_tiny_config(tmp_path, **MEMORY)
-    with pytest.raises(ValueError, match="buffer.prioritized"):
-        load_config(path, ["agent.memory=gru", "buffer.prioritized=true"])
+    with pytest.raises(ValueError, match="loss.n_step"):
+        load_config(path, ["agent.memory=gru", "loss.n_step=3"])
     with pytest.raises(ValueError, match="multiple of buffer.sequence_length"):
         load_config(path, ["agent.memory=lstm", "buffer.batch_size=30"])
     with pytest.raises(ValueError, match="burn_in"):
