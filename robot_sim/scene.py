@@ -20,6 +20,7 @@ from ncbot.robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACK
                                     write_pepper_urdf)
 from ncbot.robot_sim.render_system import new_render_system
 from ncbot.robot_sim.sheet import SheetCanvas
+from ncbot.vision.sheet import Grid
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.
@@ -30,9 +31,21 @@ TABLE_DEPTH, TABLE_WIDTH = 0.8, 1.2
 
 
 def check_game(game: str) -> int:
+    """The grid of a game the robot plays (standard or ultimate); one-line ValueError otherwise."""
     if game not in GAME_GRID:
         raise ValueError(f"game must be one of {sorted(GAME_GRID)}; got {game!r}")
     return GAME_GRID[game]
+
+
+def sheet_grid(game: str) -> Grid:
+    """The grid on the sheet of any game the scene can lay out: 3, 9, or a declared game's (rows, cols)
+    (a shipped name or a YAML file, `ncbot.envs.declaration`)."""
+    if game in GAME_GRID:
+        return GAME_GRID[game]
+    from ncbot.envs.declaration import declared_game
+
+    declaration = declared_game(game)  # a one-line ValueError naming the choices or the declaration's bad field
+    return declaration.rows, declaration.cols
 
 
 @dataclass
@@ -44,7 +57,8 @@ class SceneConfig:
     camera_height: int = 480
     #: Vertical field of view of Pepper's 2D cameras (OV5640: 44.3 degrees).
     camera_fovy_deg: float = 44.3
-    #: Side of the square sheet; None = 0.22 m for 3x3, 0.28 m for ultimate.
+    #: Side of the square sheet; None = 0.22 m for 3x3 (and declared grids up to 5 a side), 0.28 m for ultimate
+    #: (and larger declared grids: their cells stay at least 3 cm).
     sheet_side: float | None = None
     texture_px: int = 600
     table_height: float = 0.75
@@ -60,7 +74,9 @@ class SceneConfig:
     conditions_seed: int = 0
 
     def resolved_sheet_side(self) -> float:
-        return self.sheet_side or (0.22 if self.game == "standard" else 0.28)
+        grid = sheet_grid(self.game)
+        small = grid == 3 or (isinstance(grid, tuple) and max(grid) <= 5)
+        return self.sheet_side or (0.22 if small else 0.28)
 
     def lab_sheet_centre(self) -> tuple[float, float]:
         """Where the sheet lies in the lab (x, y): at the table's near edge, centred on the robot."""
@@ -85,7 +101,7 @@ class PepperScene:
         import sapien
 
         self.config = config or SceneConfig()
-        self.grid = check_game(self.config.game)
+        self.grid = sheet_grid(self.config.game)
         if self.config.camera_width < 32 or self.config.camera_height < 24:
             raise ValueError(f"camera must be at least 32x24 pixels; got {self.config.camera_width}x{self.config.camera_height}")
         render_system = new_render_system()

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncbot.vision.sheet import cell_center, cell_size, draw_sheet
+from ncbot.vision.sheet import Grid, cell_center, cell_size, draw_sheet, grid_shape
 from ncbot.vision.strokes import Stroke, draw_mark, mark_strokes
 
 MARK_OF_PLAYER = {"x": "cross", "o": "nought"}
@@ -34,13 +34,13 @@ class MarkSpec:
     #: Pen width as a fraction of the sheet's side (1.5 mm on a 0.22 m sheet is about 0.007).
     width_fraction: float = 0.007
 
-    def size_px(self, grid: int, px: int) -> float:
+    def size_px(self, grid: Grid, px: int) -> float:
         return self.size_fraction * cell_size(grid, px, px)
 
     def width_px(self, px: int) -> float:
         return max(1.5, self.width_fraction * px)
 
-    def strokes(self, grid: int, px: int) -> list[Stroke]:
+    def strokes(self, grid: Grid, px: int) -> list[Stroke]:
         """The pen path of this mark in canvas pixels (the same strokes `draw_mark` inks)."""
         centre = np.array(cell_center(grid, self.cell, px, px))
         strokes = mark_strokes(self.kind, self.size_px(grid, px), np.random.default_rng(self.seed), width=self.width_px(px))
@@ -50,7 +50,7 @@ class MarkSpec:
 class SheetCanvas:
     """A BGR canvas of the game sheet with committed marks and at most one mark being drawn."""
 
-    def __init__(self, grid: int, px: int = 600) -> None:
+    def __init__(self, grid: Grid, px: int = 600) -> None:
         if px < 64:
             raise ValueError(f"sheet texture must be at least 64 pixels wide; got {px}")
         self.grid = grid
@@ -94,6 +94,12 @@ class SheetCanvas:
                 self._image = self._committed.copy()
                 self._ink(self._image, *self._pending)
         return self._image
+
+    @property
+    def cells(self) -> int:
+        """How many cells the sheet's grid has."""
+        rows, cols = grid_shape(self.grid)
+        return rows * cols
 
     def cell_pixel(self, cell: int) -> tuple[float, float]:
         return cell_center(self.grid, cell, self.px, self.px)

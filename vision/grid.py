@@ -1,4 +1,4 @@
-"""Reading a whole board from a camera frame: page -> grid -> grid-line removal -> n x n cells -> CNN.
+"""Reading a whole board from a camera frame: page -> grid -> grid-line removal -> rows x cols cells -> CNN.
 
 The frame is first white-balanced and brightened against its brightest paper-like pixels (a tungsten or
 fluorescent cast, dim light: vision.illumination). The sheet layout is not assumed: after the page is
@@ -8,6 +8,9 @@ give the grid's extent and the inner lines give the cell boundaries (hand-drawn 
 On a 9x9 grid the lines' bow (a wide-angle lens) is then measured and each cell resampled between its
 own four grid-line crossings (vision.lattice), straight from the frame at rho pixels per cell, so small
 9x9 cells keep the camera's detail. All cells go through the CNN in one batch.
+
+A grid is 3, 9 or (rows, cols) of a declared game (`ncbot.vision.sheet.Grid`); a declared grid is read as
+the built-in size it is closest to in density (`_like`), each axis with its own number of cells.
 """
 from __future__ import annotations
 
@@ -22,10 +25,11 @@ from ncbot.vision.illumination import balance_frame, flatten, non_paper
 from ncbot.vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
 from ncbot.vision.lattice import lattice, remap_cells
 from ncbot.vision.page import check_frame, locate_balanced_page
-from ncbot.vision.sheet import check_grid
+from ncbot.vision.sheet import Grid, grid_label, grid_shape
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)
+SPARSE_SIDE = 5                # a declared grid with at most this many cells a side is read like 3x3, else like 9x9
 CELL_INSET = 0.07              # fraction of a cell trimmed on each side (grid-line remnants)
 FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
 OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
@@ -48,14 +52,14 @@ UNSURE_MARGIN = 0.5            # SVM score gap below which a cell is looked at a
 class PageCells:
     """What the geometry stage found in one frame, before any classification."""
 
-    cell_images: np.ndarray        # (n*n, 40, 40) uint8: exactly what the CNN sees
-    occluded: np.ndarray           # (n*n,) bool: a hand/arm covers part of the cell
+    cell_images: np.ndarray        # (rows*cols, 40, 40) uint8: exactly what the CNN sees
+    occluded: np.ndarray           # (rows*cols,) bool: a hand/arm covers part of the cell
     hand_fraction: float           # fraction of the page under large non-paper blobs (hand, arm, shadow)
     edge_fraction: float           # fraction of the page's rim that is not paper (a hand over the edge)
     rim_foreign: np.ndarray        # (FOREIGN_SIDE, FOREIGN_SIDE) bool: the rim's non-paper pixels (edge_fraction's)
     page_corners: np.ndarray       # (4, 2) frame pixels, TL TR BR BL
     grid_corners: np.ndarray       # (4, 2) frame pixels of the grid square
-    grid_image: np.ndarray         # (n*rho, n*rho) gray grid warp with the grid lines removed
+    grid_image: np.ndarray         # (rows*rho, cols*rho) gray grid warp with the grid lines removed
 
 
 @dataclass
@@ -63,7 +67,14 @@ class PageReading(PageCells):
     """PageCells plus the classifier's verdict; `cells` is the board as 'x' / 'o' / ''."""
 
     cells: list[str] = field(default_factory=list)
-    probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (n*n, 3), order LABELS
+    probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (rows*cols, 3), order LABELS
+
+
+def _like(grid: Grid) -> int:
+    """The built-in size (3 or 9) whose page warp, rho and hand size a grid is read with."""
+    if isinstance(grid, (int, np.integer)):
+        return int(grid)
+    return 3 if max(grid_shape(grid)) <= SPARSE_SIDE else 9
 
 
 def _line_mask(ink: np.ndarray, length: int, horizontal: bool, thicken: int = 3, bridge: int = 0) -> np.ndarray:
@@ -117,7 +128,7 @@ def _lines(mask: np.ndarray, min_length: float) -> list[Line]:
     return [line for line in found if line.ink >= WEAK_LINE * strongest]
 
 
-def _edges(along: list[Line], across: list[Line], grid: int) -> tuple[float, float]:
+def _edges(along: list[Line], across: list[Line], cells: int) -> tuple[float, float]:
     """A 3x3 grid's extent along one axis from the lines running along it (`along`: where they start and
     end) and its two inner lines crossing it (`across`: their centres).
 
@@ -125,10 +136,11 @@ def _edges(along: list[Line], across: list[Line], grid: int) -> tuple[float, flo
     median end of a 3x3 grid's two lines is pulled inwards when one of them breaks short. Even spacing of
     the inner lines says where each edge should lie: the line end nearest to that, of those not clearly
     short of it, is the edge (a hand-drawn # is uneven and overshoots); when every line stops short, the
-    prediction, unless they stop at a crossing line and none goes past it (then that line is a frame)."""
+    prediction, unless they stop at a crossing line and none goes past it (then that line is a frame).
+    `cells`: the grid's cells along the axis (3 on a 3x3 grid; other counts take the median ends)."""
     starts, ends = [line.start for line in along], [line.end for line in along]
     median = (float(np.median(starts)), float(np.median(ends)))
-    if grid != 3 or len(across) != 2:  # 9x9: n-1 lines found are often not the inner ones (a frame, a gap)
+    if cells != 3 or len(across) != 2:  # 9x9: n-1 lines found are often not the inner ones (a frame, a gap)
         return median
     low, high = sorted(line.centre for line in across)
     step = high - low
@@ -157,14 +169,15 @@ def _snap(start: float, stop: float, n: int, found: list[float]) -> np.ndarray:
     return bounds
 
 
-def locate_grid(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """Grid boundaries in a square page warp: (xs, ys), each n+1 increasing pixel positions, or None."""
+def locate_grid(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray] | None:
+    """Grid boundaries in a square page warp: (xs, ys), cols+1 and rows+1 increasing pixel positions, or None."""
     found = _grid_lines(page_gray, grid)
     return None if found is None else found[:2]
 
 
-def _grid_lines(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _grid_lines(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(xs, ys, ink mask of the page warp) or None: the straight grid first, the lattice bends it later."""
+    n_rows, n_cols = grid_shape(grid)
     side = page_gray.shape[0]
     ink = _ink(flatten(page_gray, side // 16), side // 12)
     min_length = side / 5
@@ -182,25 +195,25 @@ def _grid_lines(page_gray: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarra
     rows, cols = lines(True), lines(False)
     # a 3x3 grid has only two inner lines a way: one that a motion streak or a dim stretch left in dashes
     # is looked for again with its gaps bridged (only then: bridging everywhere joins grain into "lines")
-    if grid == 3 and len(rows) < 2:
+    if n_rows == 3 and len(rows) < 2:
         rows = lines(True, int(LINE_GAP * side))
-    if grid == 3 and len(cols) < 2:
+    if n_cols == 3 and len(cols) < 2:
         cols = lines(False, int(LINE_GAP * side))
     if not rows or not cols:
         return None
-    x0, x1 = _framed(cols, grid, _edges(rows, cols, grid))
-    y0, y1 = _framed(rows, grid, _edges(cols, rows, grid))
+    x0, x1 = _framed(cols, n_cols, _edges(rows, cols, n_cols))
+    y0, y1 = _framed(rows, n_rows, _edges(cols, rows, n_rows))
     if x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
         return None
-    return _snap(x0, x1, grid, [c.centre for c in cols]), _snap(y0, y1, grid, [r.centre for r in rows]), ink
+    return _snap(x0, x1, n_cols, [c.centre for c in cols]), _snap(y0, y1, n_rows, [r.centre for r in rows]), ink
 
 
-def _framed(lines: list[Line], grid: int, ends: tuple[float, float]) -> tuple[float, float]:
+def _framed(lines: list[Line], cells: int, ends: tuple[float, float]) -> tuple[float, float]:
     """The grid's extent along one axis: its outer frame lines when exactly n+1 evenly spaced lines were
     found (a mark sitting on a frame line or a shadow breaks the lines' ends, never their centres), else
     the ends found by `_edges`."""
     centres = [line.centre for line in lines]
-    if len(centres) != grid + 1:
+    if len(centres) != cells + 1:
         return ends
     gaps = np.diff(np.sort(centres))
     if gaps.min() < 0.6 * gaps.mean() or gaps.max() > 1.4 * gaps.mean():
@@ -247,7 +260,7 @@ def rim_fraction(rim_foreign: np.ndarray, ignore: np.ndarray | None = None) -> f
     return float(counted[rim].mean())
 
 
-def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_step: float) -> tuple[np.ndarray, np.ndarray]:
+def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: Grid, cell_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Large non-paper blobs on the warped page (hand, arm, sleeve, their shadow); ink strokes are thin.
 
     Non-paper is judged against the local paper colour (vision.illumination): a tinted light, a dark
@@ -262,7 +275,7 @@ def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_
     rim_foreign = (wide > 0) & _rim_band(side)
     # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
     # robot sees it from closer, so the hand looks bigger on it)
-    k = max(5, side // (16 if grid == 3 else 9)) | 1
+    k = max(5, side // (16 if _like(grid) == 3 else 9)) | 1
     foreign = cv2.morphologyEx(not_paper.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     foreign = cv2.morphologyEx(foreign, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))  # pale skin is speckled
     border = max(2, side // 50)  # the warped page's own edge is not a hand
@@ -275,55 +288,56 @@ def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: int, cell_
 
 
 def _cell_occlusion(foreign: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    n = len(xs) - 1
-    out = np.zeros(n * n, bool)
-    for r in range(n):
-        for c in range(n):
+    n_rows, n_cols = len(ys) - 1, len(xs) - 1
+    out = np.zeros(n_rows * n_cols, bool)
+    for r in range(n_rows):
+        for c in range(n_cols):
             # an edge predicted from even spacing may lie past the warp's border (a page found cropped)
             block = foreign[max(0, int(ys[r])):max(0, int(np.ceil(ys[r + 1]))),
                             max(0, int(xs[c])):max(0, int(np.ceil(xs[c + 1])))]
-            out[r * n + c] = block.size > 0 and block.mean() > OCCLUSION_FRACTION
+            out[r * n_cols + c] = block.size > 0 and block.mean() > OCCLUSION_FRACTION
     return out
 
 
-def cut_cells(frame: np.ndarray, crossings: np.ndarray, grid: int, rho: int) -> tuple[np.ndarray, np.ndarray]:
-    """(n*n, 40, 40) cells and the grid warp they were cut from (lines removed), for a white-balanced BGR frame
-    and the grid-line crossings (grid+1, grid+1, 2) in it: the reader's own cut, also used at known crossings
-    (the benches' "true crossings", which leave the reader's geometry out)."""
+def cut_cells(frame: np.ndarray, crossings: np.ndarray, grid: Grid, rho: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows*cols, 40, 40) cells and the grid warp they were cut from (lines removed), for a white-balanced BGR
+    frame and the grid-line crossings (rows+1, cols+1, 2) in it: the reader's own cut, also used at known
+    crossings (the benches' "true crossings", which leave the reader's geometry out)."""
+    n_rows, n_cols = grid_shape(grid)
     gray = cv2.cvtColor(remap_cells(frame, crossings, rho), cv2.COLOR_BGR2GRAY)
     gray = _remove_lines(denoise(flatten(gray, int(CELL_FLATTEN * rho))), rho)
     # each cell is rho x rho in this warp: the lattice already holds the uneven boundaries
-    gx = gy = np.arange(grid + 1, dtype=np.float64) * rho
-    cells = np.empty((grid * grid, CELL_SIZE, CELL_SIZE), np.uint8)
-    for r in range(grid):
-        for c in range(grid):
+    gx, gy = np.arange(n_cols + 1, dtype=np.float64) * rho, np.arange(n_rows + 1, dtype=np.float64) * rho
+    cells = np.empty((n_rows * n_cols, CELL_SIZE, CELL_SIZE), np.uint8)
+    for r in range(n_rows):
+        for c in range(n_cols):
             w, h = gx[c + 1] - gx[c], gy[r + 1] - gy[r]
             x0, x1 = int(round(gx[c] + CELL_INSET * w)), int(round(gx[c + 1] - CELL_INSET * w))
             y0, y1 = int(round(gy[r] + CELL_INSET * h)), int(round(gy[r + 1] - CELL_INSET * h))
             crop = gray[max(y0, 0):max(y1, y0 + 2), max(x0, 0):max(x1, x0 + 2)]
-            cells[r * grid + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
+            cells[r * n_cols + c] = cv2.resize(crop, (CELL_SIZE, CELL_SIZE), interpolation=cv2.INTER_AREA)
     return cells, gray
 
 
-def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> PageCells:
+def extract_cells(frame: np.ndarray, grid: Grid = 3, rho: int | None = None) -> PageCells:
     """Find the sheet and grid in a BGR frame and cut the cells; raises ValueError if either is missing."""
-    check_grid(grid)
+    n_rows, n_cols = grid_shape(grid)
     frame = check_frame(frame)
-    rho = rho or DEFAULT_RHO[grid]
+    rho = rho or DEFAULT_RHO[_like(grid)]
     if rho < 16:
         raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
     frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
     corners, paper_mask = locate_balanced_page(frame)
     if corners is None:
         raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
-    page_side = PAGE_SIDE[grid]
+    page_side = PAGE_SIDE[_like(grid)]
     square = np.array([[0, 0], [page_side, 0], [page_side, page_side], [0, page_side]], np.float32)
     to_page = cv2.getPerspectiveTransform(corners, square)
     page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
                              cv2.COLOR_BGR2GRAY)
     found = _grid_lines(page_gray, grid)
     if found is None:
-        raise ValueError(f"no {grid}x{grid} grid found on the sheet (expected dark grid lines across the page)")
+        raise ValueError(f"no {grid_label(grid)} grid found on the sheet (expected dark grid lines across the page)")
     xs, ys, ink = found
     # hands are big: look for them on a small warp of the page (cheap), boundaries scaled to it
     scale = FOREIGN_SIDE / page_side
@@ -331,10 +345,10 @@ def extract_cells(frame: np.ndarray, grid: int = 3, rho: int | None = None) -> P
     small = (FOREIGN_SIDE, FOREIGN_SIDE)
     foreign, rim_foreign = _foreign(cv2.warpPerspective(paper_mask, to_small, small, flags=cv2.INTER_NEAREST),
                                       cv2.warpPerspective(frame, to_small, small, flags=cv2.INTER_LINEAR), grid,
-                                      cell_step=scale * min(xs[-1] - xs[0], ys[-1] - ys[0]) / grid)
+                                      cell_step=scale * min((xs[-1] - xs[0]) / n_cols, (ys[-1] - ys[0]) / n_rows))
     # the grid-line crossings as they really lie (bowed by the lens, wandering if hand-drawn), in the frame
     from_page = np.linalg.inv(to_page)
-    crossings = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), from_page).reshape(grid + 1, grid + 1, 2)
+    crossings = cv2.perspectiveTransform(lattice(ink, xs, ys, 3).reshape(1, -1, 2), from_page).reshape(n_rows + 1, n_cols + 1, 2)
     grid_frame = crossings[[0, 0, -1, -1], [0, -1, -1, 0]].astype(np.float32)
     cells, gray = cut_cells(frame, crossings, grid, rho)
     return PageCells(cells, _cell_occlusion(foreign, xs * scale, ys * scale), float(foreign.mean()),
@@ -360,7 +374,7 @@ def cell_probabilities(classifier: CellClassifier, cells: np.ndarray, margin: fl
     return e / e.sum(axis=1, keepdims=True)
 
 
-def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
+def read_page(frame: np.ndarray, grid: Grid = 3, classifier: CellClassifier | None = None,
               rho: int | None = None) -> PageReading:
     """Read the sheet in a BGR frame (batched CNN calls); raises ValueError if no sheet or grid."""
     view = extract_cells(frame, grid, rho)
@@ -371,7 +385,7 @@ def read_page(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | Non
                        cells=labels, probabilities=probabilities)
 
 
-def read_board(frame: np.ndarray, grid: int = 3, classifier: CellClassifier | None = None,
+def read_board(frame: np.ndarray, grid: Grid = 3, classifier: CellClassifier | None = None,
                rho: int | None = None) -> list[str]:
     """Frame (H, W, 3 uint8 BGR) -> row-major list of 'x' / 'o' / '' per cell; raises ValueError if unreadable."""
     return read_page(frame, grid, classifier, rho).cells

@@ -60,13 +60,13 @@ def _pieces(lines: np.ndarray, bounds: np.ndarray, span: np.ndarray, step: float
 
 
 def lattice(ink: np.ndarray, xs: np.ndarray, ys: np.ndarray, thicken: int) -> np.ndarray:
-    """(n+1, n+1, 2) page-warp positions (x, y) of the grid-line crossings, bow and wander included."""
-    n = len(xs) - 1
+    """(rows+1, cols+1, 2) page-warp positions (x, y) of the grid-line crossings, bow and wander included."""
+    n_rows, n_cols = len(ys) - 1, len(xs) - 1
     gx, gy = np.meshgrid(xs, ys)  # gx[row, col]
     out = np.stack([gx, gy], axis=-1).astype(np.float64)
-    if n < MIN_CELLS:
+    if min(n_rows, n_cols) < MIN_CELLS:
         return out
-    step = min(xs[-1] - xs[0], ys[-1] - ys[0]) / n
+    step = min((xs[-1] - xs[0]) / n_cols, (ys[-1] - ys[0]) / n_rows)
     length = max(8, int(0.6 * step))  # short pieces: a bowed line is still straight over half a cell
     vertical = cv2.morphologyEx(cv2.dilate(ink, np.ones((1, thicken), np.uint8)), cv2.MORPH_OPEN,
                                 np.ones((length, 1), np.uint8))
@@ -84,17 +84,19 @@ def lattice(ink: np.ndarray, xs: np.ndarray, ys: np.ndarray, thicken: int) -> np
 
 
 def remap_cells(frame: np.ndarray, crossings: np.ndarray, rho: int) -> np.ndarray:
-    """The grid resampled to n*rho square pixels, each cell bilinear between its four crossings
-    (`crossings`: (n+1, n+1, 2) frame positions)."""
+    """The grid resampled to (rows*rho, cols*rho) pixels, each cell bilinear between its four crossings
+    (`crossings`: (rows+1, cols+1, 2) frame positions)."""
     crossings = crossings.astype(np.float32)
-    n = crossings.shape[0] - 1
-    s = np.arange(n * rho, dtype=np.float32) / rho
-    k = np.minimum(s.astype(int), n - 1)
+    n_rows, n_cols = crossings.shape[0] - 1, crossings.shape[1] - 1
+    s = np.arange(n_cols * rho, dtype=np.float32) / rho
+    k = np.minimum(s.astype(int), n_cols - 1)
     t = (s - k)[None, :, None]
     # separable: along x within each lattice row, then along y (gathers only: a matrix product here
     # would spin up BLAS threads, which cost tens of milliseconds on a busy machine)
-    rows = crossings[:, k] * (1 - t) + crossings[:, k + 1] * t                     # (n+1, n*rho, 2)
+    rows = crossings[:, k] * (1 - t) + crossings[:, k + 1] * t                     # (rows+1, cols*rho, 2)
+    s = np.arange(n_rows * rho, dtype=np.float32) / rho
+    k = np.minimum(s.astype(int), n_rows - 1)
     ty = (s - k)[:, None, None]
-    maps = (rows[k] * (1 - ty) + rows[k + 1] * ty).astype(np.float32)             # (n*rho, n*rho, 2)
+    maps = (rows[k] * (1 - ty) + rows[k + 1] * ty).astype(np.float32)             # (rows*rho, cols*rho, 2)
     map_x, map_y = maps[..., 0], maps[..., 1]
     return cv2.remap(frame, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

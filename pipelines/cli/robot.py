@@ -194,7 +194,8 @@ def serve(
 @robot_app.command("render")
 def render(
     output: Path = typer.Option(Path("mouth.png"), "--out", "-o", help="PNG to write."),
-    game: str = typer.Option("standard", help="standard or ultimate sheet."),
+    game: str = typer.Option("standard", help="standard, ultimate, or a declared game (a shipped name such as four or "
+                             "connect_four, or a YAML file): its grid on the sheet."),
     width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Camera width."),
     height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Camera height."),
     marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'xb2,oa1,xc3' (mark, then the cell as on the board)."),
@@ -216,7 +217,8 @@ def render(
     from ncbot.envs.rules import make_game
     from ncbot.robot_sim.conditions import load_conditions
     from ncbot.robot_sim.render_system import SimulatorUnavailable
-    from ncbot.robot_sim.scene import PepperScene, SceneConfig
+    from ncbot.robot_sim.reach import check_reach
+    from ncbot.robot_sim.scene import GAME_GRID, PepperScene, SceneConfig
     from ncbot.robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
     ranges = load_conditions(conditions)
@@ -225,9 +227,11 @@ def render(
                                         conditions_seed=seed))
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
+    rules = make_game(game)
+    if game not in GAME_GRID:  # a declared grid's drawing positions were derived, not placed: check each one
+        check_reach(scene, rules.cell_name)
     rng = np.random.default_rng(seed)
     taken: set[int] = set()
-    rules = make_game(game)
     for token in filter(None, (t.strip() for t in marks.split(","))):
         try:
             if token[0].lower() not in MARK_OF_PLAYER:

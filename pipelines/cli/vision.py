@@ -47,33 +47,35 @@ def _classifier(weights: Optional[Path]):
     return load_classifier(weights)
 
 
-def _board_text(cells: list[str], grid: int) -> str:
-    rows = [" ".join(_SYMBOL[c] for c in cells[r * grid:(r + 1) * grid]) for r in range(grid)]
+def _board_text(cells: list[str], cols: int) -> str:
+    rows = [" ".join(_SYMBOL[c] for c in cells[r:r + cols]) for r in range(0, len(cells), cols)]
     return " / ".join(rows)
 
 
 @vision_app.command()
 def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."),
-         grid: int = typer.Option(3, help="3 (noughts & crosses) or 9 (ultimate)."),
+         grid: str = typer.Option("3", help="3 (noughts & crosses), 9 (ultimate) or ROWSxCOLS, e.g. 6x7 (a "
+                                  "declared game's plain grid; 3..9 each)."),
          json_out: bool = typer.Option(False, "--json", help="One JSON object per line per image."),
          weights: Optional[Path] = typer.Option(None, help="Classifier weights (default: the shipped ones)."),
          rho: Optional[int] = typer.Option(None, min=8, max=256, help="Pixels per cell of the grid warp (default 64 / 40; 8..256).")) -> None:
     """Read the board on each photo: row-major cells "x" / "o" / "" over the full grid."""
     from ncbot.vision.grid import read_board
-    from ncbot.vision.sheet import check_grid
+    from ncbot.vision.sheet import grid_shape, parse_grid
 
-    check_grid(grid)
+    shape = parse_grid(grid)
+    cols = grid_shape(shape)[1]
     _setup_threads()
     classifier = _classifier(weights)
     any_read = False
     for path in images:
         try:
-            cells = read_board(_load_image(path), grid, classifier, rho)
+            cells = read_board(_load_image(path), shape, classifier, rho)
         except (ValueError, FileNotFoundError) as error:
             typer.echo(json.dumps({"image": str(path), "error": str(error)}) if json_out else f"{path}: error: {error}")
             continue
         any_read = True
-        typer.echo(json.dumps({"image": str(path), "cells": cells}) if json_out else f"{path}: {_board_text(cells, grid)}")
+        typer.echo(json.dumps({"image": str(path), "cells": cells}) if json_out else f"{path}: {_board_text(cells, cols)}")
     if not any_read:
         typer.echo(f"ncbot: error: none of the {len(images)} image(s) could be read (reasons above)", err=True)
         raise typer.Exit(2)
