@@ -235,10 +235,19 @@ def build_dialogue_model(game: str, dialogues: str = "compact", subset: tuple[in
     """
     chosen = dialogue_set(dialogues)
     if subset is None:
-        return fit_dialogue_model(game, load_dialogues(game, chosen.path), chosen)
-    k, seed = subset
+        return fit_dialogue_model(game, examples_of(game, dialogues), chosen)
     words = build_dialogue_model(game, chosen.name).words
-    return fit_dialogue_model(game, subset_examples(game, chosen, k, seed), chosen, vocabulary=words)
+    return fit_dialogue_model(game, examples_of(game, dialogues, subset), chosen, vocabulary=words)
+
+
+def examples_of(game: str, dialogues: str = "compact", subset: tuple[int, int] | None = None) -> list[dict]:
+    """The example dialogues ``build_dialogue_model`` learns from for ``game``, the set ``dialogues`` and the
+    optional ``subset`` (k, seed): what a data-budget report counts."""
+    chosen = dialogue_set(dialogues)
+    if subset is None:
+        return load_dialogues(game, chosen.path)
+    k, seed = subset
+    return subset_examples(game, chosen, k, seed)
 
 
 def example_pool(game: str, chosen: DialogueSet) -> list[dict]:

@@ -1,4 +1,5 @@
-"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce/grid.py)."""
+"""`ncbot reproduce`: the paper's table, claims and data budgets at a named budget (pipelines/reproduce/grid.py), and
+the data each game needed, from finished runs (pipelines/reproduce/games_data.py)."""
 from __future__ import annotations
 
 import json
@@ -8,10 +9,14 @@ import typer
 
 
 def reproduce_command(
-    part: str = typer.Argument("all", help="table | vision | budget | all."),
-    budget: str = typer.Option(..., "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full (the paper's protocol, resumable)."),
+    part: str = typer.Argument("all", help="table | vision | budget | all | games-data (the data each game needed, "
+                                "read from finished run folders: no run starts)."),
+    run_dirs: Optional[list[str]] = typer.Argument(None, help="games-data only: finished `ncbot train` run folders "
+                                                    "(config.yaml, run.json, eval.json), one table row each."),
+    budget: Optional[str] = typer.Option(None, "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full "
+                                         "(the paper's protocol, resumable); every part but games-data."),
     workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
-    out: str = typer.Option("results", "--out", "-o", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md and PNGs."),
+    out: str = typer.Option("results", "--out", "-o", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md, games_data.md and PNGs."),
     runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget): "
                               "a working folder, apart from --out, because runs are large and resumed while reports are small and shared."),
     backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
@@ -28,6 +33,18 @@ def reproduce_command(
     from ncbot.pipelines.reproduce.grid import reproduce
 
     command = "ncbot " + shlex.join(sys.argv[1:])
+    if part == "games-data":
+        from ncbot.pipelines.reproduce.games_data import write_games_data
+
+        if budget is not None:
+            raise ValueError("games-data reads finished run folders; it takes no --budget")
+        written = write_games_data(run_dirs or [], out, command)
+        typer.echo(json.dumps(written) if as_json else f"{written['runs']} runs; wrote {', '.join(written['files'])}")
+        return
+    if run_dirs:
+        raise ValueError(f"only games-data takes run folders; part {part!r} got {' '.join(run_dirs)}")
+    if budget is None:
+        raise ValueError(f"part {part!r} needs --budget quick | full")
     result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,
                        address=address, report_only=report_only)
     if as_json:

@@ -84,6 +84,18 @@ def _load(path: Path) -> CellClassifier:
     return CellClassifier(model)
 
 
+def weights_meta(path: str | Path | None = None) -> dict[str, str | int | float]:
+    """The metadata `save_weights` stored with the weights (default: the shipped ones), e.g. "n_training_cells":
+    how many labelled cells they were trained on; one-line ValueError for a file without it."""
+    path = Path(path) if path is not None else DEFAULT_WEIGHTS
+    if not path.is_file():
+        raise FileNotFoundError(f"classifier weights {path} do not exist")
+    blob = torch.load(path, map_location="cpu", weights_only=True)
+    if not isinstance(blob, dict) or not isinstance(blob.get("meta"), dict):
+        raise ValueError(f"classifier weights {path} hold no 'meta' (expected the file `ncbot vision train` writes)")
+    return dict(blob["meta"])
+
+
 @functools.lru_cache(maxsize=1)
 def _default_classifier() -> CellClassifier:
     return _load(DEFAULT_WEIGHTS)
