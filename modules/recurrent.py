@@ -54,7 +54,6 @@ from torchrl.objectives import LossModule
 from torchrl.objectives.utils import distance_loss
 
 from ncbot.modules.loss import LOSS_FUNCTIONS, PRIORITY_KEY, CompetitiveDQNLoss
-from ncbot.modules.masks import AVAILABLE_KEY
 from ncbot.modules.prioritized_slices import PrioritizedSequenceSampler, sequence_priority
 from ncbot.modules.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
 

@@ -118,7 +118,7 @@ def match_command(
     register_agent_opponent()
     players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
     result = play_match(players[0], players[1], games, seed=seed, progress=progress_bar)
-    typer.echo(f"| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
+    typer.echo("| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
     typer.echo("|---|---|---|---|---|---|---|---|")
     typer.echo(f"| {first} | {second} | {games} | {result.first_wins} | {result.draws} | {result.second_wins} | "
                f"{result.first_score:.3f} | {result.first_seconds / games:.4f} / {result.second_seconds / games:.4f} |")

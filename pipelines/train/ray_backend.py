@@ -31,14 +31,6 @@ SHARED_FOLDER_DOC = ("mount it at the same absolute path on every node (e.g. NFS
                      "'Past one machine'")
 
 
-def ray_available() -> bool:
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def _probe(marker: str) -> tuple[str, str]:
     """On one node: (node address, '' if the head's marker is visible and ncbot importable, else what is wrong)."""
     import importlib.util
