@@ -41,8 +41,11 @@ def tmpfs(folder: Path, size: str, read_only: bool = False):
 
 
 def start_training(config: Path, run: Path, *extra: str) -> subprocess.Popen:
+    """`ncbot train` in a child whose Ctrl-C is live even when this suite runs as a background job (a shell starts
+    those with SIGINT ignored, which the child would inherit and Python would then never turn into KeyboardInterrupt)."""
     return subprocess.Popen([sys.executable, "-m", "ncbot", "train", str(config), "--out", str(run), *extra],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def wait_for(condition, process: subprocess.Popen, what: str, timeout: float = 240) -> None:

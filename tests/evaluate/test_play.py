@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+import signal
 import sys
 
 import pexpect
@@ -14,9 +15,12 @@ ROW = re.compile(r"^(\d)\s+(\S.*)?$")
 
 
 def _spawn(tmp_path, *args: str) -> pexpect.spawn:
+    # SIGINT back to its default in the child: a suite run as a background job inherits it ignored, and Ctrl-C
+    # would then never reach the game
     child = pexpect.spawn(sys.executable, ["-m", "ncbot", "play", *args], cwd=str(tmp_path.parent),
                           encoding="utf-8", timeout=60, env={"PYTHONUNBUFFERED": "1", "PATH": "/usr/bin:/bin",
-                                                             "COLUMNS": "120", **_pythonpath()})
+                                                             "COLUMNS": "120", **_pythonpath()},
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     return child
 
 
