@@ -40,6 +40,13 @@ def _has_line(marks: tuple[int, ...] | list[int], mark: int) -> bool:
     return any(marks[a] == mark and marks[b] == mark and marks[c] == mark for a, b, c in LINES_3X3)
 
 
+def _single_board_after(cell: int, board: tuple[int, ...], mark: int, won: bool) -> State:
+    """The state after ``mark`` took ``cell`` on a one-board game (3x3, declared): won, else drawn when the board is
+    full, else still on. Only how a line is found differs between those games."""
+    result = mark if won else DRAWN if EMPTY not in board else 0
+    return State(board=board, last_move=cell, result=result)
+
+
 @dataclass(frozen=True)
 class State:
     """One position: the board, the last move (-1 before the first), subgrid owners and the result.
@@ -207,13 +214,7 @@ class Standard(_Game):
         return [cell for cell in range(9) if s.board[cell] == EMPTY]
 
     def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
-        if _has_line(board, mark):
-            result = mark
-        elif EMPTY not in board:
-            result = DRAWN
-        else:
-            result = 0
-        return State(board=board, last_move=cell, result=result)
+        return _single_board_after(cell, board, mark, won=_has_line(board, mark))
 
     def _draw(self, symbol) -> str:
         rows = ["    a   b   c"]
@@ -351,13 +352,8 @@ class Declared(_Game):
         return next((r * self.cols + col for r in reversed(range(self.rows)) if board[r * self.cols + col] == EMPTY), -1)
 
     def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
-        if any(all(board[c] == mark for c in line) for line in self.lines_through[cell]):
-            result = mark
-        elif EMPTY not in board:
-            result = DRAWN
-        else:
-            result = 0
-        return State(board=board, last_move=cell, result=result)
+        won = any(all(board[c] == mark for c in line) for line in self.lines_through[cell])
+        return _single_board_after(cell, board, mark, won=won)
 
     def _why_illegal(self, s: State, cell: int, legal: list[int]) -> str:
         lowest = self._drop(s.board, cell % self.cols)
