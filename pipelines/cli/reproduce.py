@@ -10,9 +10,11 @@ import typer
 
 def reproduce_command(
     part: str = typer.Argument("all", help="table | vision | budget | all | games-data (the data each game needed, "
-                                "read from finished run folders: no run starts)."),
-    run_dirs: Optional[list[str]] = typer.Argument(None, help="games-data only: finished `ncbot train` run folders "
-                                                    "(config.yaml, run.json, eval.json), one table row each."),
+                                "read from finished run folders: no run starts) | memory (temporal information three "
+                                "ways, read from the runs folder of an `ncbot ablate` grid such as memory_question)."),
+    run_dirs: Optional[list[str]] = typer.Argument(None, help="games-data: finished `ncbot train` run folders "
+                                                    "(config.yaml, run.json, eval.json), one table row each; memory: "
+                                                    "the one runs folder `ncbot ablate` wrote."),
     budget: Optional[str] = typer.Option(None, "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full "
                                          "(the paper's protocol, resumable); every part but games-data."),
     workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
@@ -41,8 +43,18 @@ def reproduce_command(
         written = write_games_data(run_dirs or [], out, command)
         typer.echo(json.dumps(written) if as_json else f"{written['runs']} runs; wrote {', '.join(written['files'])}")
         return
+    if part == "memory":
+        from ncbot.pipelines.reproduce.memory import write_memory_report
+
+        if budget is not None or len(run_dirs or []) != 1:
+            raise ValueError("memory reads one runs folder written by `ncbot ablate` (e.g. ncbot reproduce memory "
+                             "runs/memory_question --out results/memory); it takes no --budget")
+        written = write_memory_report(run_dirs[0], out, command)
+        typer.echo(json.dumps(written) if as_json else
+                   f"{written['runs']} runs in {written['arms']} arms; wrote {', '.join(written['files'])}")
+        return
     if run_dirs:
-        raise ValueError(f"only games-data takes run folders; part {part!r} got {' '.join(run_dirs)}")
+        raise ValueError(f"only games-data and memory take run folders; part {part!r} got {' '.join(run_dirs)}")
     if budget is None:
         raise ValueError(f"part {part!r} needs --budget quick | full")
     result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,

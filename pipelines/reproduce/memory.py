@@ -1,0 +1,277 @@
+"""`ncbot reproduce memory RUNS_DIR`: temporal information three ways (none, the paper's temporal features, a
+recurrent Q-network, both), compared over seeds from the runs of an `ncbot ablate` grid such as
+pipelines/configs/memory_question.yaml.
+
+Why its own report: the paper's table compares agents; this one compares how the Proposed agent learns the order of
+the moves, so each arm is told apart by what its runs were trained with (config.yaml: `agent.memory`,
+`env.temporal`, `buffer.batch_size`), and the report adds what the choice costs: parameters, training time per
+frame and training games to 0.95. Every comparison is a one-sided Welch's t-test over seeds (one sample = one
+seed's robot-first task success), with the 95 % interval of the difference, its power to detect the paper's own
+difference for claim (ii) and a Holm-adjusted p over the family of comparisons.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.reproduce.claims import welch_greater
+from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
+                                                  t_interval)
+from ncbot.pipelines.reproduce.table import DEFAULT_GAMES, collect_runs
+
+MARKDOWN = "table.md"
+SEEDS_CSV = "table_seeds.csv"
+FIGURE = "curves.png"
+THRESHOLDS = (0.95, 0.99)  # training games until the periodic task success first reached these
+GAME_LABELS = {"standard": "3x3", "ultimate": "Ultimate"}
+PAPER_DIFFERENCE = 0.9980 - 0.9868  # claim (ii) on 3x3: Proposed + temporal minus Proposed (the paper's table)
+ALPHA = 0.05
+POWER = 0.8
+
+
+@dataclass(frozen=True)
+class Arm:
+    """The runs of one way of giving the agent the move order, at one batch size, on one game."""
+
+    game: str
+    memory: str  # none | gru | lstm
+    temporal: bool
+    batch_size: int
+    runs: tuple[dict[str, Any], ...]  # eval.json contents with "seed", "params" and "config" added
+
+    @property
+    def label(self) -> str:
+        features = "temporal features" if self.temporal else "no temporal features"
+        network = "feed-forward" if self.memory == "none" else self.memory.upper()
+        return f"{network}, {features}, batch {self.batch_size}"
+
+    def values(self, metric: str) -> list[float]:
+        return [value for run in self.runs if (value := run_metric(run, metric)) is not None]
+
+
+def run_metric(run: dict[str, Any], metric: str) -> float | None:
+    """One seed's value of ``metric`` (None when the run does not have it, e.g. 0.95 never reached)."""
+    if metric == "ms_per_frame":
+        return 1000 * run["train_wall_time_s"] / run["frames"] if run["frames"] else None
+    if metric.startswith("games_to_"):
+        threshold = float(metric.removeprefix("games_to_"))
+        return next((float(point["episodes"]) for point in run.get("history", [])
+                     if point.get("task_success", 0.0) >= threshold), None)
+    if metric == "params":
+        return run.get("params")
+    seat, _, key = metric.partition(".")
+    return run[seat][key]
+
+
+def _params(checkpoint: Path) -> int | None:
+    """Parameters of the run's Q-network, counted from its checkpoint (None without one)."""
+    import torch
+
+    if not checkpoint.is_file():
+        return None
+    state = torch.load(checkpoint, map_location="cpu", weights_only=True)
+    return sum(tensor.numel() for tensor in state["qnet"].values())
+
+
+def read_arms(runs_dir: str | Path) -> list[Arm]:
+    """Every finished run under ``runs_dir`` (the layout `ncbot ablate` writes), grouped by what it was trained with."""
+    import yaml
+
+    runs_dir = Path(runs_dir)
+    groups: dict[tuple[str, str, bool, int], list[dict[str, Any]]] = {}
+    for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
+        for run in runs:
+            folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
+            config = yaml.safe_load((folder / "config.yaml").read_text(encoding="utf-8"))
+            key = (str(config["env"]["game"]), str(config["agent"].get("memory", "none")),
+                   bool(config["env"]["temporal"]), int(config["buffer"]["batch_size"]))
+            groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
+    order = {"none": 0, "gru": 1, "lstm": 2}
+    return [Arm(*key, runs=tuple(sorted(runs, key=lambda run: run["seed"])))
+            for key, runs in sorted(groups.items(), key=lambda item: (item[0][0], order.get(item[0][1], 9),
+                                                                          item[0][3], item[0][2]))]
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """H1: arm ``better`` has a higher mean robot-first task success than arm ``worse``."""
+
+    question: str
+    better: Arm
+    worse: Arm
+    holm_p: float | None = None
+
+    @property
+    def samples(self) -> tuple[list[float], list[float]]:
+        return self.better.values("first.task_success"), self.worse.values("first.task_success")
+
+    @property
+    def difference(self) -> Interval:
+        """Mean difference and its two-sided 95 % Welch interval."""
+        from scipy.stats import t as student_t
+
+        a, b = self.samples
+        (mean_a, var_a), (mean_b, var_b) = mean_and_variance(a), mean_and_variance(b)
+        se2 = var_a / len(a) + var_b / len(b)
+        if se2 == 0:
+            return Interval(mean_a - mean_b, mean_a - mean_b, mean_a - mean_b, len(a) + len(b))
+        df = se2 ** 2 / ((var_a / len(a)) ** 2 / (len(a) - 1) + (var_b / len(b)) ** 2 / (len(b) - 1))
+        half = float(student_t.ppf(0.975, df)) * math.sqrt(se2)
+        return Interval(mean_a - mean_b, mean_a - mean_b - half, mean_a - mean_b + half, len(a) + len(b))
+
+    @property
+    def p(self) -> float | None:
+        return welch_greater(*self.samples)[2]
+
+    @property
+    def power(self) -> float:
+        """Power to detect the paper's difference with the smaller side's seeds at the pooled spread."""
+        a, b = self.samples
+        std = math.sqrt((mean_and_variance(a)[1] + mean_and_variance(b)[1]) / 2)
+        return power_of(PAPER_DIFFERENCE, std, min(len(a), len(b)), ALPHA)
+
+    @property
+    def verdict(self) -> str:
+        if self.p is None:
+            return "too few seeds"
+        if self.p < ALPHA:
+            return "yes"
+        return "no" if self.power >= POWER else f"untested (power {self.power:.2f} < {POWER})"
+
+
+def comparisons(arms: list[Arm]) -> list[Comparison]:
+    """The questions the grid can answer, each between two arms of the same game that differ in one thing (or, for
+    "memory instead of the features", in the way the move order is given); Holm-adjusted over the family."""
+    found = []
+    by_key = {(arm.game, arm.memory, arm.temporal, arm.batch_size): arm for arm in arms}
+    for (game, memory, temporal, batch), arm in by_key.items():
+        twin = by_key.get((game, memory, False, batch))
+        if temporal and twin is not None and len(arm.runs) > 1 and len(twin.runs) > 1:
+            found.append(Comparison(f"temporal features help ({'feed-forward' if memory == 'none' else memory.upper()}, "
+                                    f"batch {batch})", arm, twin))
+        plain = by_key.get((game, "none", temporal, batch))
+        if memory != "none" and plain is not None and len(arm.runs) > 1 and len(plain.runs) > 1:
+            found.append(Comparison(f"{memory.upper()} helps ({'with' if temporal else 'no'} temporal features, "
+                                    f"batch {batch})", arm, plain))
+        if memory != "none" and not temporal:
+            for (other_game, other_memory, other_temporal, other_batch), features in by_key.items():
+                if (other_game, other_memory, other_temporal) == (game, "none", True) and len(features.runs) > 1 \
+                        and len(arm.runs) > 1:
+                    found.append(Comparison(f"{memory.upper()} instead of the features (batch {batch} vs "
+                                            f"{other_batch})", arm, features))
+    return _holm(found)
+
+
+def _holm(found: list[Comparison]) -> list[Comparison]:
+    ranked = sorted((c for c in found if c.p is not None), key=lambda c: c.p)
+    adjusted, running = {}, 0.0
+    for rank, comparison in enumerate(ranked):
+        running = max(running, min(1.0, (len(ranked) - rank) * comparison.p))
+        adjusted[id(comparison)] = running
+    return [Comparison(c.question, c.better, c.worse, adjusted.get(id(c))) for c in found]
+
+
+def _rate(arm: Arm, metric: str) -> str:
+    values = arm.values(metric)
+    seat = metric.partition(".")[0]
+    games = min(int(run[seat].get("games", DEFAULT_GAMES)) for run in arm.runs)
+    return proportion_interval(values, games).text(4) if values else "–"
+
+
+def _plain(arm: Arm, metric: str, digits: int) -> str:
+    values = arm.values(metric)
+    if not values:
+        return "–"
+    text = t_interval(values).text(digits)
+    return text if len(values) == len(arm.runs) else f"{text} ({len(values)} of {len(arm.runs)} seeds)"
+
+
+def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
+    lines = ["# Temporal information three ways", "",
+             f"Made by `{command}`; every seed's numbers are in `{SEEDS_CSV}`, the learning curves in `{FIGURE}`.", "",
+             "Each cell: mean over seeds [95 % interval of that mean]. Rates over test games (task success, wins) get a "
+             "Student t-interval of the per-seed logits, mapped back; the other columns a Student t-interval. "
+             "Robot first is the paper's set-up. **games to 0.95**: training games at the first periodic evaluation "
+             "(both seats) with task success >= 0.95 (seeds that never reached it are left out and counted). "
+             "**ms per frame**: training wall time over env frames, on a shared machine (compare within one table). "
+             "**parameters**: the Q-network's, from the checkpoint.", "",
+             "| game | arm | seeds | task success, robot first | task success, robot second | wins, robot first | "
+             "dialogue length | games to 0.95 | games to 0.99 | ms per frame | parameters |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for arm in arms:
+        params = arm.values("params")
+        params_text = f"{int(params[0]):,}" if params else "–"
+        lines.append(f"| {GAME_LABELS.get(arm.game, arm.game)} | {arm.label} | {', '.join(str(run['seed']) for run in arm.runs)} | "
+                     f"{_rate(arm, 'first.task_success')} | {_rate(arm, 'second.task_success')} | "
+                     f"{_rate(arm, 'first.win')} | {_plain(arm, 'first.avg_length', 2)} | "
+                     f"{_plain(arm, 'games_to_0.95', 0)} | {_plain(arm, 'games_to_0.99', 0)} | {_plain(arm, 'ms_per_frame', 2)} | {params_text} |")
+    lines += ["", "## The questions", "",
+              f"One-sided Welch's t-test over seeds of robot-first task success, H1: the first arm is higher; alpha "
+              f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
+              f"these seeds detect the paper's own claim-(ii) difference ({PAPER_DIFFERENCE:.4f}, 3x3) at the pooled "
+              f"spread between seeds; a \"no\" with power below {POWER} is untested, not refuted. Holm p: adjusted "
+              "over every question below, for a family-wise reading.", "",
+              "| question | game | first arm | second arm | difference | p | Holm p | power | higher? |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for c in found:
+        p = "–" if c.p is None else f"{c.p:.3f}"
+        holm = "–" if c.holm_p is None else f"{c.holm_p:.3f}"
+        lines.append(f"| {c.question} | {GAME_LABELS.get(c.better.game, c.better.game)} | {c.better.label} | {c.worse.label} | "
+                     f"{c.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} |")
+    return "\n".join(lines) + "\n"
+
+
+def seeds_csv(arms: list[Arm]) -> str:
+    columns = ("game", "memory", "temporal", "batch_size", "seed", "run_id", "frames", "train_wall_time_s", "params",
+               "games_to_0.95", "games_to_0.99", "first.task_success", "first.win", "first.draw", "first.loss", "first.truncated",
+               "first.avg_length", "second.task_success", "second.win", "second.loss")
+    rows = [",".join(columns)]
+    for arm in arms:
+        for run in arm.runs:
+            reached = [run_metric(run, f"games_to_{threshold}") for threshold in THRESHOLDS]
+            values = [arm.game, arm.memory, str(arm.temporal).lower(), arm.batch_size, run["seed"], run.get("run_id", ""),
+                      run["frames"], run["train_wall_time_s"], run.get("params") or "",
+                      *("" if games is None else int(games) for games in reached),
+                      *(run[seat].get(key, "") for seat, key in (s.split(".") for s in columns[11:]))]
+            rows.append(",".join(str(value) for value in values))
+    return "\n".join(rows) + "\n"
+
+
+def plot(arms: list[Arm], path: Path) -> Path:
+    """Mean periodic task success (both seats) against training games, one line per arm, seeds' range shaded."""
+    from ncbot.pipelines.plots import pyplot, save_figure
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for arm in arms:
+        length = min(len(run.get("history", [])) for run in arm.runs)
+        if not length:
+            continue
+        games = [sum(run["history"][i]["episodes"] for run in arm.runs) / len(arm.runs) for i in range(length)]
+        success = [[run["history"][i]["task_success"] for run in arm.runs] for i in range(length)]
+        ax.plot(games, [sum(s) / len(s) for s in success], marker=".",
+                label=f"{GAME_LABELS.get(arm.game, arm.game)}: {arm.label}")
+        ax.fill_between(games, [min(s) for s in success], [max(s) for s in success], alpha=0.12)
+    for threshold in THRESHOLDS:
+        ax.axhline(threshold, color="grey", linestyle="--", linewidth=0.8)
+    ax.set_xlabel("simulated training games (mean over seeds)")
+    ax.set_ylabel("task success, periodic evaluation (both seats)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return save_figure(fig, path)
+
+
+def write_memory_report(runs_dir: str | Path, out: str | Path, command: str) -> dict[str, Any]:
+    """Write OUT/table.md, OUT/table_seeds.csv and OUT/curves.png from the finished runs under ``runs_dir``."""
+    arms = read_arms(runs_dir)
+    found = comparisons(arms)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(render(arms, found, command), out / MARKDOWN)
+    atomic_write_text(seeds_csv(arms), out / SEEDS_CSV)
+    figure = plot(arms, out / FIGURE)
+    return {"files": [str(out / MARKDOWN), str(out / SEEDS_CSV), str(figure)], "arms": len(arms),
+            "runs": sum(len(arm.runs) for arm in arms)}

@@ -1,0 +1,102 @@
+"""`ncbot reproduce memory`: temporal information three ways, read from a grid's run folders
+(pipelines/reproduce/memory.py)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+from scipy.stats import ttest_ind
+
+from ncbot.pipelines.reproduce.memory import comparisons, read_arms, write_memory_report
+from tests.learning_helpers import ncbot
+
+# robot-first task success per seed of each arm: (suite, memory, temporal, batch) -> values
+ARMS = {
+    ("ff", "none", False, 2): [0.990, 0.992, 0.985, 0.995, 0.991],
+    ("ff", "none", True, 2): [0.993, 0.989, 0.996, 0.990, 0.994],
+    ("ff16", "none", False, 16): [0.980, 0.982, 0.979, 0.985, 0.983],
+    ("ff16", "none", True, 16): [0.981, 0.984, 0.978, 0.983, 0.982],
+    ("gru", "gru", False, 16): [0.999, 0.998, 0.997, 0.999, 0.996],
+    ("gru", "gru", True, 16): [0.998, 0.999, 0.995, 0.997, 0.999],
+}
+
+
+def _history(success: float) -> list[dict]:
+    return [{"episodes": games, "frames": 10 * games, "task_success": value, "games": 500}
+            for games, value in ((400, 0.94), (800, 0.96), (1200, success))]
+
+
+def grid_runs(root: Path, arms: dict = ARMS) -> Path:
+    """Run folders in the layout `ncbot ablate` writes, each with the config.yaml, eval.json and checkpoint a
+    finished run has (a Q-network of a size that tells the arms apart)."""
+    for (suite, memory, temporal, batch), values in arms.items():
+        cell = f"proposed-{'temporal' if temporal else 'notemporal'}"
+        for seed, success in enumerate(values):
+            folder = root / suite / "standard" / cell / f"seed{seed}"
+            folder.mkdir(parents=True)
+            config = {"env": {"game": "standard", "temporal": temporal}, "agent": {"memory": memory},
+                      "buffer": {"batch_size": batch}}
+            (folder / "config.yaml").write_text(yaml.safe_dump(config))
+            (folder / "eval.json").write_text(json.dumps({
+                "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{suite}{cell}{seed}",
+                "history": _history(success),
+                "first": {"games": 3000, "task_success": success, "win": success - 0.03, "avg_reward": 0.8,
+                          "avg_length": 11.9},
+                "second": {"games": 3000, "task_success": success - 0.04, "avg_reward": 0.7, "avg_length": 12.1}}))
+            width = 8 if memory == "none" else 12
+            torch.save({"qnet": {"weight": torch.zeros(width, 10), "bias": torch.zeros(width)}}, folder / "checkpoint.pt")
+    return root
+
+
+def test_arms_are_told_apart_by_what_their_runs_were_trained_with(tmp_path: Path) -> None:
+    arms = read_arms(grid_runs(tmp_path))
+    assert [(a.memory, a.temporal, a.batch_size) for a in arms] == [
+        ("none", False, 2), ("none", True, 2), ("none", False, 16), ("none", True, 16), ("gru", False, 16),
+        ("gru", True, 16)]
+    assert arms[0].values("first.task_success") == ARMS[("ff", "none", False, 2)]
+    assert arms[0].values("params") == [88] * 5 and arms[4].values("params") == [132] * 5
+    assert arms[0].values("games_to_0.95") == [800.0] * 5
+    assert arms[0].values("games_to_0.99")[:2] == [1200.0, 1200.0] and len(arms[0].values("games_to_0.99")) == 4
+    assert arms[0].values("ms_per_frame")[0] == pytest.approx(5.0)
+
+
+def test_each_question_compares_arms_that_differ_in_one_way_and_matches_scipy(tmp_path: Path) -> None:
+    found = {c.question: c for c in comparisons(read_arms(grid_runs(tmp_path)))}
+    assert set(found) == {"temporal features help (feed-forward, batch 2)", "temporal features help (GRU, batch 16)",
+                          "temporal features help (feed-forward, batch 16)",
+                          "GRU helps (no temporal features, batch 16)", "GRU helps (with temporal features, batch 16)",
+                          "GRU instead of the features (batch 16 vs 2)", "GRU instead of the features (batch 16 vs 16)"}
+    gru = found["GRU helps (no temporal features, batch 16)"]
+    assert (gru.better.memory, gru.worse.memory, gru.worse.batch_size) == ("gru", "none", 16)
+    expected = ttest_ind(ARMS[("gru", "gru", False, 16)], ARMS[("ff16", "none", False, 16)], equal_var=False,
+                         alternative="greater").pvalue
+    assert gru.p == pytest.approx(expected)
+    assert gru.verdict == "yes" and gru.difference.low > 0
+    holms = sorted(c.holm_p for c in found.values())
+    assert all(c.holm_p >= c.p for c in found.values()) and holms == sorted(holms) and holms[-1] <= 1.0
+
+
+def test_the_report_and_the_seeds_csv(tmp_path: Path) -> None:
+    written = write_memory_report(grid_runs(tmp_path / "runs"), tmp_path / "out", "ncbot reproduce memory runs")
+    assert written["runs"] == 30 and written["arms"] == 6
+    text = (tmp_path / "out" / "table.md").read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| 3x3 | GRU, no temporal features, batch 16"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2] == "0, 1, 2, 3, 4" and cells[3].startswith("0.9978 [") and cells[-1] == "132"
+    assert "(4 of 5 seeds)" in next(line for line in text.splitlines() if "feed-forward, no temporal features, batch 2" in line)
+    csv = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
+    assert len(csv) == 31 and csv[0].startswith("game,memory,temporal,batch_size,seed")
+    assert Path(written["files"][2]).stat().st_size > 0
+
+
+def test_a_wrong_call_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    result = ncbot("reproduce", "memory", "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and "memory reads one runs folder" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    result = ncbot("reproduce", "memory", str(empty), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and "no finished runs" in result.stderr, result.stderr
