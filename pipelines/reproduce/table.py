@@ -198,12 +198,24 @@ def _order(key: tuple[str, str, str]) -> tuple:
 
 
 def table_rows(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> list[Row]:
+    """One row per (suite, game row, agent cell), in table order. An agent without a network (0 frames, e.g. the
+    uniform choice inside the masks) plays the same games at every width, so its second game row of one game
+    (Ultimate 100 and 150) is the same row again and is shown once."""
     samples = seed_samples(groups)
-    return [Row(*key, frames=tuple(run["frames"] for run in groups[key]),
+    rows = [Row(*key, frames=tuple(run["frames"] for run in groups[key]),
                 stats={name: _interval(name, values, groups[key]) for name, values in samples[key].items()},
                 widths=tuple(dict.fromkeys(run["hidden"] for run in groups[key] if "hidden" in run)),
                 played=next((run["played"] for run in groups[key] if "played" in run), None))
             for key in sorted(groups, key=_order)]
+    shown, seen = [], set()
+    for row in rows:
+        untrained = (row.suite, row.cell, row.game_label) if set(row.frames) == {0} else None
+        if untrained is not None and untrained in seen:
+            continue
+        shown.append(row)
+        if untrained is not None:
+            seen.add(untrained)
+    return shown
 
 
 def seeds_csv(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> str:

@@ -18,11 +18,11 @@ NOTEMPORAL, TEMPORAL = "proposed-notemporal", "proposed-temporal"
 
 
 def write_run(root: Path, cell: str, seed: int, success: float, length: float = 10.0, *, suite: str = "paper",
-              game: str = "standard") -> None:
+              game: str = "standard", frames: int = 400000) -> None:
     folder = root / suite / game / cell / f"seed{seed}"
     folder.mkdir(parents=True)
     (folder / "eval.json").write_text(json.dumps({
-        "frames": 400000, "train_wall_time_s": 100.0 + seed, "run_id": f"{suite}-{game}-{cell}-{seed}",
+        "frames": frames, "train_wall_time_s": 100.0 + seed, "run_id": f"{suite}-{game}-{cell}-{seed}",
         "first": {"games": 3000, "avg_reward": 0.5, "task_success": success, "avg_length": length, "truncated": 0.0},
         "second": {"games": 3000, "task_success": success - 0.1},
         "history": [{"frames": 1000, "task_success": 0.5, "avg_reward": 0.1}],
@@ -100,6 +100,15 @@ def test_table_rows_intervals_and_paper_inside(tmp_path: Path) -> None:
     seeds = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
     assert seeds[0].startswith("suite,game,agent,seed,run_id,frames") and len(seeds) == 1 + 3 + 2 + 1 + 2
     assert "paper,standard,proposed-temporal,2,paper-standard-proposed-temporal-2,400000" in seeds[-3]
+
+
+def test_an_agent_without_a_network_is_one_row_per_game_not_per_width(tmp_path: Path) -> None:
+    for game in ("ultimate100", "ultimate150"):  # the uniform choice inside the masks plays the same at both widths
+        write_cell(tmp_path, "uniform-notemporal", [0.88, 0.89], game=game, frames=0)
+        write_cell(tmp_path, TEMPORAL, [0.92, 0.93], game=game)
+    report = write_report(tmp_path, tmp_path / "t.md")
+    assert [(row.game, row.cell) for row in report.rows] == [
+        ("ultimate100", "uniform-notemporal"), ("ultimate100", TEMPORAL), ("ultimate150", TEMPORAL)]
 
 
 def test_a_copied_seed_folder_is_refused(tmp_path: Path) -> None:
