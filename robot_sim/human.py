@@ -18,6 +18,13 @@ from ncbot.robot_sim.sheet import HUMAN_INK, MarkSpec
 FrameSink = Callable[[np.ndarray, float], None]
 
 
+def game_id(game) -> str:
+    """How the env names the game of `game` (an `ncbot.envs.rules` game): standard, ultimate, or a declared
+    game's id (a shipped name or a YAML file's path), so the opponent models play the same rules."""
+    declaration = getattr(game, "declaration", None)
+    return declaration.game if declaration is not None else game.name
+
+
 @dataclass
 class HumanConfig:
     """How the simulated person behaves."""
@@ -61,9 +68,8 @@ class SimulatedHuman:
             from ncbot.envs.opponents import make_opponent
         except ImportError as error:  # pragma: no cover - the opponents package is part of ncbot
             raise ValueError(f"opponent {self.config.opponent!r} needs envs.opponents ({error}); use 'random'") from None
-        game_name = "standard" if self.scene.grid == 3 else "ultimate"
         free_move = getattr(self.game, "free_move", "anywhere")
-        return make_opponent(self.config.opponent, game=game_name, free_move=free_move, seed=seed)
+        return make_opponent(self.config.opponent, game=game_id(self.game), free_move=free_move, seed=seed)
 
     def choose(self, state, human_mark: int) -> int:
         """The cell this person plays in the true game `state` (rules.State)."""

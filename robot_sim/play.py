@@ -33,7 +33,8 @@ from ncbot.robot_sim.human import SimulatedHuman
 from ncbot.robot_sim.localise import localise_sheet
 from ncbot.robot_sim.motion import RobotMotion
 from ncbot.robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
-from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game
+from ncbot.robot_sim.reach import check_reach
+from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, is_built_in
 from ncbot.robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog
 from ncbot.robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
@@ -257,7 +258,7 @@ class RobotGameRunner:
             believed = self._sheet_estimate.canvas_to_world(*self.scene.canvas.cell_pixel(action))
             record.cell_localisation_error = max(record.cell_localisation_error,
                                                  float(np.linalg.norm(believed - self.scene.cell_world(action))))
-            if self.grid == 3 or self.config.ultimate_robot_draws:
+            if self.config.game != "ultimate" or self.config.ultimate_robot_draws:
                 self.motion.draw_mark(mark, self._sheet_estimate.canvas_to_world)
             else:
                 self.motion.point_at(believed)
@@ -295,6 +296,8 @@ class RobotGameRunner:
                                              meshes_dir=cfg.meshes_dir, conditions=self._ranges,
                                              conditions_seed=seed))
         self._render_seconds = 0.0
+        if not is_built_in(cfg.game):  # a declared grid's drawing positions were derived: every cell reachable?
+            check_reach(self.scene, self.rules.cell_name)
         self.scene.render = self._timed_render(self.scene.render)  # every frame of the game goes through it
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
         self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)

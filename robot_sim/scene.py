@@ -30,13 +30,6 @@ SHEET_MARGIN = 0.03
 TABLE_DEPTH, TABLE_WIDTH = 0.8, 1.2
 
 
-def check_game(game: str) -> int:
-    """The grid of a game the robot plays (standard or ultimate); one-line ValueError otherwise."""
-    if game not in GAME_GRID:
-        raise ValueError(f"game must be one of {sorted(GAME_GRID)}; got {game!r}")
-    return GAME_GRID[game]
-
-
 def sheet_grid(game: str) -> Grid:
     """The grid on the sheet of any game the scene can lay out: 3, 9, or a declared game's (rows, cols)
     (a shipped name or a YAML file, `ncbot.envs.declaration`)."""
@@ -46,6 +39,18 @@ def sheet_grid(game: str) -> Grid:
 
     declaration = declared_game(game)  # a one-line ValueError naming the choices or the declaration's bad field
     return declaration.rows, declaration.cols
+
+
+def check_game(game: str) -> Grid:
+    """The grid of a game the robot plays (`sheet_grid`): 3, 9 or a declared game's (rows, cols); a one-line
+    ValueError naming the choices otherwise. Kept as its own name for the callers that only check."""
+    return sheet_grid(game)
+
+
+def is_built_in(game: str) -> bool:
+    """3x3 and Ultimate: their sheets' drawing positions were placed by hand; a declared grid's were derived
+    (`ncbot.robot_sim.reach` checks them)."""
+    return game in GAME_GRID
 
 
 @dataclass

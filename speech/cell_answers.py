@@ -14,7 +14,8 @@ and as nothing otherwise.
 
 Phrases: 3x3 cells are "top left", "top middle", ..., "centre", ..., "bottom right" (row then column; the middle
 cell is "centre", so a dropped "left" of "middle left" is no phrase rather than another cell). Ultimate cells
-name the small square, then the cell inside it: "top left square, centre cell". Only an exact phrase is a cell;
+name the small square, then the cell inside it: "top left square, centre cell". A declared game's cells are
+"row two, column three" (the spoken form its rules parse, `ncbot.envs.rules.Declared.parse_cell`). Only an exact phrase is a cell;
 anything else heard (nothing, half a phrase, extra words) is no cell, and the robot asks again.
 """
 from __future__ import annotations
@@ -23,9 +24,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ncbot.envs.rules import NUMBER_WORDS
 from ncbot.speech.asr import Recogniser
 from ncbot.speech.hearing import HeardUtterance, say_in_noise_and_hear
 from ncbot.speech.tts import PERSON_VOICE, SpeechCache, Voice
+
+#: 3 (noughts & crosses), 9 (ultimate) or a declared game's (rows, cols), as `ncbot.vision.sheet.Grid`.
+Grid = int | tuple[int, int]
 
 ROWS, COLUMNS = ("top", "middle", "bottom"), ("left", "middle", "right")
 CONFIRM_YES, CONFIRM_NO = "yes, that is right", "no, that is wrong"
@@ -39,8 +44,20 @@ def position_phrase(index: int) -> str:
     return "centre" if index == 4 else f"{ROWS[row]} {COLUMNS[column]}"
 
 
-def cell_phrase(cell: int, grid: int) -> str:
-    """What a person says for `cell` (row * grid + col) of a 3x3 or 9x9 board (commas are pauses, not words)."""
+def grid_shape(grid: Grid) -> tuple[int, int]:
+    """(rows, cols) of a grid."""
+    return grid if isinstance(grid, tuple) else (grid, grid)
+
+
+def cell_phrase(cell: int, grid: Grid) -> str:
+    """What a person says for `cell` (row-major) of a 3x3 or 9x9 board, or of a declared game's (rows, cols) grid
+    (commas are pauses, not words)."""
+    if isinstance(grid, tuple):
+        rows, cols = grid
+        if not 0 <= cell < rows * cols:
+            raise ValueError(f"cell must be 0-{rows * cols - 1} of a {rows}x{cols} grid; got cell {cell}")
+        row, column = divmod(cell, cols)
+        return f"row {NUMBER_WORDS[row]}, column {NUMBER_WORDS[column]}"
     if grid == 3:
         return position_phrase(cell)
     if grid != 9 or not 0 <= cell < 81:
@@ -55,12 +72,13 @@ def words_of(text: str) -> tuple[str, ...]:
     return tuple(text.replace(",", " ").lower().split())
 
 
-def cell_phrases(grid: int) -> dict[tuple[str, ...], int]:
+def cell_phrases(grid: Grid) -> dict[tuple[str, ...], int]:
     """Every cell's phrase, as words -> cell."""
-    return {words_of(cell_phrase(cell, grid)): cell for cell in range(grid * grid)}
+    rows, cols = grid_shape(grid)
+    return {words_of(cell_phrase(cell, grid)): cell for cell in range(rows * cols)}
 
 
-def answer_sentences(grid: int) -> list[str]:
+def answer_sentences(grid: Grid) -> list[str]:
     """The LM corpus for "where did you draw?": each cell phrase once."""
     return [" ".join(words) for words in cell_phrases(grid)]
 
@@ -70,7 +88,7 @@ def confirm_sentences() -> list[str]:
     return [" ".join(words_of(CONFIRM_YES)), " ".join(words_of(CONFIRM_NO))]
 
 
-def cell_of(words: Sequence[str], grid: int) -> int | None:
+def cell_of(words: Sequence[str], grid: Grid) -> int | None:
     """The cell an exact phrase names; None for anything else."""
     return cell_phrases(grid).get(tuple(words))
 
@@ -87,7 +105,7 @@ class AnswerEars:
     is kept in ``log`` as a ``HeardUtterance`` whose ``understood`` is the cell heard (-1: no cell phrase) or, for a
     confirmation, 1 yes, 0 no, -1 neither."""
 
-    def __init__(self, grid: int, cells: Recogniser | None = None, confirm: Recogniser | None = None,
+    def __init__(self, grid: Grid, cells: Recogniser | None = None, confirm: Recogniser | None = None,
                  voice: Voice = PERSON_VOICE,
                  snr_db: float | tuple[float, float] | None = None, kind: str = "babble",
                  babble_pool: Sequence[np.ndarray] = (), seed: int | Sequence[int] = 0,

@@ -32,7 +32,7 @@ from ncbot.vision.classifier.inference import CellClassifier, load_classifier
 from ncbot.vision.grid import extract_cells, read_page, rim_fraction
 from ncbot.vision.labels import BOARD_SYMBOL, LABELS, NOTHING
 from ncbot.vision.page import check_frame, find_page, warp
-from ncbot.vision.sheet import check_grid
+from ncbot.vision.sheet import Grid, grid_shape
 
 STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
 EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge
@@ -81,12 +81,15 @@ def _empty_cells(known_board: Sequence, n_cells: int) -> np.ndarray:
 class MoveRecogniser:
     """Stateful Algorithm 1: feed frames with `update`, or let `recognise` loop over a stream."""
 
-    def __init__(self, grid: int = 3, tau: float = 12.0, rho: int | None = None, window: int = 3,
+    def __init__(self, grid: Grid = 3, tau: float = 12.0, rho: int | None = None, window: int = 3,
                  gamma_ms: float = 100.0, classifier: CellClassifier | None = None) -> None:
-        """tau: motion threshold in gray levels (RMS over the blurred 48x48 page, summed over two steps);
-        rho: pixels per cell of the grid warp (default 64 for 3x3, 40 for 9x9); window: frames whose
-        probabilities are summed; gamma_ms: pause between frames in `recognise`."""
-        self.grid = check_grid(grid)
+        """grid: 3, 9 or a declared game's (rows, cols) (`ncbot.vision.sheet.Grid`); tau: motion threshold in
+        gray levels (RMS over the blurred 48x48 page, summed over two steps); rho: pixels per cell of the grid
+        warp (default 64 for 3x3, 40 for 9x9); window: frames whose probabilities are summed; gamma_ms: pause
+        between frames in `recognise`."""
+        rows, cols = grid_shape(grid)  # a one-line ValueError for anything else
+        self.grid = grid
+        self.cells = rows * cols
         if tau <= 0 or window < 1 or gamma_ms < 0:
             raise ValueError(f"need tau > 0, window >= 1, gamma_ms >= 0; got tau={tau}, window={window}, gamma_ms={gamma_ms}")
         self.tau, self.rho, self.window, self.gamma_ms = tau, rho, window, gamma_ms
@@ -138,7 +141,7 @@ class MoveRecogniser:
     def update(self, frame: np.ndarray, known_board: Sequence) -> Recognition:
         """Process one BGR frame given the board as known from the game history."""
         frame = check_frame(frame)
-        empty = _empty_cells(known_board, self.grid ** 2)
+        empty = _empty_cells(known_board, self.cells)
         corners = find_page(frame)
         if corners is None:
             self._grays.clear()

@@ -41,20 +41,24 @@ def _simulator_unavailable(error: Exception) -> None:
 
 CHECKPOINT_HELP = ("A checkpoint .pt written by ncbot train, or its run folder (its game is played); without it the "
                    "look-ahead filter alone plays.")
-GAME_HELP = "standard (3x3) or ultimate (9x9), without a checkpoint (a checkpoint plays its own game)."
+GAME_HELP = ("standard (3x3), ultimate (9x9) or a declared game (a shipped name such as four or connect_four, or a "
+             "YAML file); a checkpoint plays its own game, so with one this only checks it.")
 
 
 def game_and_agent(checkpoint: Optional[Path], game: Optional[str]):
     """(game, checkpoint file or None, (config, policy) or None): the game is the checkpoint's where one is given."""
+    from ncbot.envs.core import check_game as game_id
     from ncbot.robot_sim.scene import check_game
 
     if checkpoint is None:
-        game = game or "standard"
+        game = game_id(game or "standard")  # a declared file becomes its absolute path, as in a run's config
         check_game(game)
         return game, None, None
     from ncbot.pipelines.agents import load_agent
     from ncbot.pipelines.checkpoint import FINAL_NAME
 
+    if game is not None:
+        game = game_id(game)  # a bad name: one line before the checkpoint is loaded
     agent = load_agent(checkpoint)  # a missing file, a run folder without checkpoint.pt, a foreign file: one line
     trained = agent[0].env.game
     if game is not None and game != trained:
@@ -78,7 +82,7 @@ def play(
     wait_probability: float = typer.Option(0.0, help="Chance that the human waits before drawing."),
     nudge_probability: float = typer.Option(0.0, help="Chance that the sheet is nudged after a human move."),
     robot_frame_period: float = typer.Option(1.0, help="Simulated seconds between logged camera frames while the robot moves."),
-    robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws)."),
+    robot_draws: bool = typer.Option(False, help="Ultimate: the robot draws its own marks (default: it points and says, the human draws); in every other game it draws them."),
     audio: bool = typer.Option(False, help="Also write the robot's utterances as OUT/speech/*.wav."),
     speech: str = typer.Option("real", help="real: the robot speaks (espeak-ng), the person answers (flite) over the conditions' noise and the robot hears it through pocketsphinx, audio in the MCAP log; text: nothing spoken or heard (simulated ASR, quicker)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
@@ -218,7 +222,7 @@ def render(
     from ncbot.robot_sim.conditions import load_conditions
     from ncbot.robot_sim.render_system import SimulatorUnavailable
     from ncbot.robot_sim.reach import check_reach
-    from ncbot.robot_sim.scene import GAME_GRID, PepperScene, SceneConfig
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig, is_built_in
     from ncbot.robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
     ranges = load_conditions(conditions)
@@ -228,7 +232,7 @@ def render(
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     rules = make_game(game)
-    if game not in GAME_GRID:  # a declared grid's drawing positions were derived, not placed: check each one
+    if not is_built_in(game):  # a declared grid's drawing positions were derived, not placed: check each one
         check_reach(scene, rules.cell_name)
     rng = np.random.default_rng(seed)
     taken: set[int] = set()

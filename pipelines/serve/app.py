@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import html
 import json
 import re
 import threading
@@ -21,6 +22,7 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 
+from ncbot.pipelines.serve.board import board_layout, layout_script
 from ncbot.pipelines.serve.session import SIM_LOCK, ServeConfig, Session, SessionError
 
 PAGE = Path(__file__).with_name("page.html")
@@ -119,7 +121,9 @@ def create_app(config: ServeConfig):
 
     @app.get("/", response_class=HTMLResponse)
     async def page() -> str:
-        return PAGE.read_text().replace("__GAME__", config.game)
+        layout = board_layout(config.game)
+        return (PAGE.read_text().replace("__BOARD__", layout_script(config.game))
+                .replace("__GAME__", html.escape(layout["name"])).replace("__RULES__", html.escape(layout["rules"])))
 
     @app.get("/healthz")
     async def health() -> dict[str, Any]:

@@ -117,6 +117,9 @@ class Session:
         self._thread: threading.Thread | None = None
         self._runner = None
         self._voice = None
+        from ncbot.envs.rules import make_game
+
+        self.rules = make_game(config.game)  # the cells' names and, with gravity, which square a column click takes
 
     # ------------------------------------------------------------------ what clients call (event-loop thread)
     def subscribe(self, loop: asyncio.AbstractEventLoop) -> asyncio.Queue:
@@ -170,11 +173,16 @@ class Session:
         with self._lock:  # two tabs of one session may click at once: only one click is taken
             if not self._awaiting:
                 raise SessionError("it is not your turn; wait for the robot")
+            if getattr(self.rules, "gravity", False):  # a click anywhere in a column: its lowest empty square
+                from ncbot.pipelines.serve.board import column_drop
+
+                drop = column_drop(cell, self._legal, self.rules.cols)
+                if drop is None:
+                    raise SessionError(f"column {self.rules.cell_name(cell)[0]} is full; click another column")
+                cell = drop
             if cell not in self._legal:
                 taken = self.snapshot.board[cell] if self.snapshot.board else ""
-                from ncbot.envs.rules import make_game
-
-                name = make_game(self.config.game).cell_name(cell)  # what the person reads on the board
+                name = self.rules.cell_name(cell)  # what the person reads on the board
                 raise SessionError(f"cell {name} is taken" if taken else
                                    f"cell {name} is not playable now (Ultimate: play in the board the last move points to)")
             self._awaiting = False
@@ -240,7 +248,7 @@ class Session:
 
     @property
     def config_cells(self) -> int:
-        return 9 if self.config.game == "standard" else 81
+        return self.rules.n_cells
 
     def state_message(self) -> dict[str, Any]:
         return {"type": "state", "session": self.id, "game": self.config.game, "view": self.view,
@@ -375,7 +383,8 @@ class Session:
         self._push_frame(runner, force=True)
         self._awaiting = True
         self.touch()  # idle time counts from the robot's last action, not the person's last click
-        self.snapshot = replace(self.snapshot, your_turn=True, status="Your turn: click a cell.", legal=list(self._legal))
+        where = "a column" if getattr(self.rules, "gravity", False) else "a cell"
+        self.snapshot = replace(self.snapshot, your_turn=True, status=f"Your turn: click {where}.", legal=list(self._legal))
         self._publish_state()
         try:
             return self._wait(self._moves)

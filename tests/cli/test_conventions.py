@@ -112,6 +112,18 @@ def test_the_game_is_read_from_the_checkpoint(tmp_path: Path) -> None:
         one_line_error(ncbot(*command, str(standard), "--game", "ultimate"), "which plays standard; drop --game")
 
 
+def test_a_declared_checkpoint_plays_its_own_game_on_the_robot(tmp_path: Path) -> None:
+    from ncbot.pipelines.cli.robot import game_and_agent
+
+    four = agent_checkpoint(tmp_path / "four" / "checkpoint.pt", game="four")
+    assert game_and_agent(four.parent, None)[0] == "four" and game_and_agent(four, "four")[0] == "four"
+    assert game_and_agent(None, "connect_four")[0] == "connect_four"
+    for command in (["robot", "play"], ["robot", "serve"]):
+        one_line_error(ncbot(*command, str(four), "--game", "connect_four"),
+                       "--game connect_four does not match the checkpoint, which plays four; drop --game")
+        one_line_error(ncbot(*command, "--game", "nosuchgame"), "game must be one of standard, ultimate")
+
+
 # ------------------------------------------------------------------------------------------------ cells
 def test_cells_a_person_reads_are_written_b2() -> None:
     from ncbot.logs.names import NameTables

@@ -1,5 +1,5 @@
 """A declared game's sheet in the simulator: its grid rendered by the mouth camera and read back, every cell
-within the pen's reach."""
+within the pen's reach, and a whole game played with the camera in the loop."""
 from __future__ import annotations
 
 import json
@@ -59,3 +59,29 @@ def test_a_bad_game_is_one_line():
     out = _ncbot("robot", "render", "--game", "nosuchgame", "--frames", "1")
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert "game must be one of standard, ultimate" in out.stderr.strip().splitlines()[-1]
+
+
+def test_a_whole_connect_four_game_is_played_through_the_camera(sapien_render_system, tmp_path):
+    """Gravity with vision in the loop: each of the person's marks lands on the lowest empty square of its column
+    and the robot reads it there (through the 6x7 grid reader), the robot draws its own marks, and its belief
+    ends equal to the true board."""
+    from ncbot.envs.rules import make_game
+    from ncbot.logs import LogReader, read_episodes
+    from ncbot.robot_sim.game_config import RobotPlayConfig
+    from ncbot.robot_sim.play import play_robot_games
+
+    config = RobotPlayConfig(game="connect_four", games=1, seed=0, camera_width=320, camera_height=240)
+    report = play_robot_games(config, out_dir=tmp_path, progress=False)
+
+    assert report["game"] == "connect_four" and report["wins"] + report["draws"] + report["losses"] == 1, report
+    assert report["misrecognised_moves"] == 0 and report["unseen_moves"] == 0, report
+    assert report["own_mark_misread"] == 0 and report["ik_failures"] == 0, report
+    assert report["human_moves"] >= 3 and report["robot_moves"] >= 4
+    rules = make_game("connect_four")
+    true_boards = read_episodes(tmp_path)[0]["extra"]["true_boards"]
+    final = true_boards[-1]
+    assert len(final) == 42 and final.count("1") == report["robot_moves"] and final.count("2") == report["human_moves"]
+    for cell in range(42 - rules.cols):  # every mark rests on the bottom row or on another mark
+        assert final[cell] == "0" or final[cell + rules.cols] != "0", final
+    boards = [m.data for m in LogReader(tmp_path).messages(["/board"])]
+    assert boards[-1]["cells"] == final  # what the robot believed is what was drawn

@@ -114,3 +114,62 @@ def test_a_whole_ultimate_game_through_the_page(tmp_path):
             driver.quit()
         study = summarize_study(out)
     assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+
+
+def _labels(driver) -> list[str]:
+    return [label.text for label in driver.find_elements(By.CSS_SELECTOR, "#board .label")]
+
+
+def test_a_whole_four_game_through_the_page(tmp_path):
+    """A declared 4x4 board: sixteen squares named as the rules name them, the robot sees every move."""
+    out = tmp_path / "study"
+    with running_server(out, "--game", "four", "--idle-seconds", "60") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/", first="human")
+            assert len(board(driver)) == 16
+            assert _labels(driver) == ["", "a", "b", "c", "d", "1", "2", "3", "4"]
+            cell = driver.find_element(By.CSS_SELECTOR, '[data-cell="6"]')
+            assert cell.get_attribute("title") == "c2"
+            assert "4 in a line wins" in driver.find_element(By.ID, "rules").get_attribute("textContent")
+            outcome = play_to_end(driver, timeout=300)
+            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
+            final = board(driver)
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+    assert final.count("X") >= 4 and final.count("X") - final.count("O") in (0, 1)  # the person opened with x
+
+
+def test_a_whole_connect_four_game_through_the_page_by_columns(tmp_path):
+    """Gravity: the person clicks the TOP square of a column and the mark drops to its lowest empty square, on the
+    page and on the sheet the robot reads."""
+    from ncbot.envs.rules import make_game
+
+    rules = make_game("connect_four")
+    out = tmp_path / "study"
+    with running_server(out, "--game", "connect_four", "--idle-seconds", "60") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/", first="human")
+            assert len(board(driver)) == 42 and _labels(driver)[:8] == ["", "a", "b", "c", "d", "e", "f", "g"]
+            clicked: list[int] = []
+
+            def top_of_a_column(cells: list[str]) -> int:  # the first column with room, clicked at its top (row 1)
+                column = next(c for c in range(rules.cols) if cells[c] == "")
+                clicked.append(column)
+                return column
+
+            outcome = play_to_end(driver, choose=top_of_a_column, timeout=300)
+            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
+            final = board(driver)
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+    assert clicked and final[:rules.cols].count("") >= 1  # clicks on row 1 did not leave marks up there
+    for cell, mark in enumerate(final):  # every mark rests on the bottom or on another mark
+        below = cell + rules.cols
+        assert not mark or below >= len(final) or final[below], (cell, final)
+    assert final[(rules.rows - 1) * rules.cols + clicked[0]] == "X"  # the first click dropped to the bottom row

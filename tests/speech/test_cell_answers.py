@@ -52,6 +52,25 @@ def test_each_cell_phrase_said_clean_is_heard_as_its_cell(ears_parts):
     assert all(h.snr_db is None and h.samples.dtype == np.int16 for h in ears.log)
 
 
+def test_a_declared_grid_names_cells_by_row_and_column_and_hears_them():
+    """The spoken form the declared rules parse ("row two, column three"), one phrase per cell, heard back."""
+    from ncbot.envs.rules import make_game
+    from ncbot.speech.asr import Recogniser
+    from ncbot.speech.cell_answers import AnswerEars, answer_sentences, cell_of, cell_phrase, cell_phrases, words_of
+    from ncbot.speech.tts import Voice
+
+    grid, rules = (6, 7), make_game("connect_four")
+    phrases = cell_phrases(grid)
+    assert len(phrases) == 42 and sorted(phrases.values()) == list(range(42))
+    assert cell_phrase(0, grid) == "row one, column one" and cell_phrase(41, grid) == "row six, column seven"
+    assert all(rules.parse_cell(cell_phrase(c, grid).replace(",", "")) == c for c in range(42))
+    assert cell_of(words_of("column seven row six"), grid) is None  # only the exact phrase
+    with pytest.raises(ValueError, match="cell must be 0-41 of a 6x7 grid"):
+        cell_phrase(42, grid)
+    ears = AnswerEars(grid, Recogniser(answer_sentences(grid)), voice=Voice("flite", "rms"))
+    assert [ears.hear_cell(cell_phrase(c, grid)).understood for c in (3, 24, 38)] == [3, 24, 38]
+
+
 def test_the_robot_asks_confirms_and_asks_again_at_most_three_times(ears_parts):
     from ncbot.robot_sim.where import ASK_AGAIN, ASK_WHERE, MAX_ASKS, ask_where
 
