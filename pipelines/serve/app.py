@@ -123,7 +123,8 @@ def create_app(config: ServeConfig):
     async def page() -> str:
         layout = board_layout(config.game)
         return (PAGE.read_text().replace("__BOARD__", layout_script(config.game))
-                .replace("__GAME__", html.escape(layout["name"])).replace("__RULES__", html.escape(layout["rules"])))
+                .replace("__GAME__", html.escape(layout["name"])).replace("__TITLE__", html.escape(layout["title"]))
+                .replace("__RULES__", html.escape(layout["rules"])))
 
     @app.get("/healthz")
     async def health() -> dict[str, Any]:

@@ -10,8 +10,12 @@ import json
 from typing import Any
 
 
+BUILT_IN_TITLES = {"standard": "noughts and crosses", "ultimate": "ultimate noughts and crosses"}
+
+
 def board_layout(game: str) -> dict[str, Any]:
-    """{kind, name, rows, cols, gravity, names, rules} of `game` (standard, ultimate or a declared game's id)."""
+    """{kind, name, title, rows, cols, gravity, names, rules} of `game` (standard, ultimate or a declared game's
+    id); title: what the page's heading calls it."""
     from ncbot.envs.rules import make_game
 
     rules = make_game(game)
@@ -26,7 +30,8 @@ def board_layout(game: str) -> dict[str, Any]:
         text = declaration.describe()
         if gravity:
             text += ": click anywhere in a column"
-    return {"kind": kind, "name": rules.name, "rows": rows, "cols": cols, "gravity": gravity,
+    title = BUILT_IN_TITLES.get(kind, rules.name.replace("_", " "))
+    return {"kind": kind, "name": rules.name, "title": title, "rows": rows, "cols": cols, "gravity": gravity,
             "names": [rules.cell_name(cell) for cell in range(rows * cols)], "rules": text + "."}
 
 
