@@ -12,6 +12,7 @@ difference for claim (ii) and a Holm-adjusted p over the family of comparisons.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -182,10 +183,18 @@ def _rate(arm: Arm, metric: str) -> str:
 
 
 def _plain(arm: Arm, metric: str, digits: int) -> str:
+    """Mean [95 % t-interval] over seeds, for a metric that is near normal between seeds (dialogue length)."""
     values = arm.values(metric)
+    return t_interval(values).text(digits) if values else "–"
+
+
+def _spread(arm: Arm, metric: str, digits: int) -> str:
+    """Median [min, max] over seeds, for a skewed positive metric (games to a threshold, time per frame on a
+    shared machine); seeds without a value (never reached) are counted, not averaged in."""
+    values = sorted(arm.values(metric))
     if not values:
-        return "–"
-    text = t_interval(values).text(digits)
+        return f"not reached (0 of {len(arm.runs)} seeds)"
+    text = f"{statistics.median(values):.{digits}f} [{values[0]:.{digits}f}, {values[-1]:.{digits}f}]"
     return text if len(values) == len(arm.runs) else f"{text} ({len(values)} of {len(arm.runs)} seeds)"
 
 
@@ -193,7 +202,7 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
     lines = ["# Temporal information three ways", "",
              f"Made by `{command}`; every seed's numbers are in `{SEEDS_CSV}`, the learning curves in `{FIGURE}`.", "",
              "Each cell: mean over seeds [95 % interval of that mean]. Rates over test games (task success, wins) get a "
-             "Student t-interval of the per-seed logits, mapped back; the other columns a Student t-interval. "
+             "Student t-interval of the per-seed logits, mapped back; dialogue length a Student t-interval. "
              "Robot first is the paper's set-up. **games to 0.95**: training games at the first periodic evaluation "
              "(both seats) with task success >= 0.95 (seeds that never reached it are left out and counted). "
              "**ms per frame**: training wall time over env frames, on a shared machine (compare within one table). "
@@ -207,7 +216,7 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
         lines.append(f"| {GAME_LABELS.get(arm.game, arm.game)} | {arm.label} | {', '.join(str(run['seed']) for run in arm.runs)} | "
                      f"{_rate(arm, 'first.task_success')} | {_rate(arm, 'second.task_success')} | "
                      f"{_rate(arm, 'first.win')} | {_plain(arm, 'first.avg_length', 2)} | "
-                     f"{_plain(arm, 'games_to_0.95', 0)} | {_plain(arm, 'games_to_0.99', 0)} | {_plain(arm, 'ms_per_frame', 2)} | {params_text} |")
+                     f"{_spread(arm, 'games_to_0.95', 0)} | {_spread(arm, 'games_to_0.99', 0)} | {_spread(arm, 'ms_per_frame', 2)} | {params_text} |")
     lines += ["", "## The questions", "",
               f"One-sided Welch's t-test over seeds of robot-first task success, H1: the first arm is higher; alpha "
               f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
