@@ -24,6 +24,7 @@ from ncbot.vision.data.cells import make_cells
 from ncbot.vision.data.frames import make_frame
 from ncbot.vision.grid import read_page
 from ncbot.vision.labels import LABELS
+from ncbot.vision.sheet import Grid, grid_label
 from ncbot.vision.strokes import TUNING_STYLES
 
 PAPER_TRAIN = TrainConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)
@@ -102,7 +103,7 @@ def heldout_cells(classifier: CellClassifier | None = None, n: int = 600, seed: 
     return results
 
 
-def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellClassifier | None = None,
+def reading(grid: Grid, n_frames: int, styles: tuple[str, ...], classifier: CellClassifier | None = None,
             seed: int = TEST_SEED + 50_000, progress: Callable[..., Any] | None = None,
             conditions: str = "clean") -> Result:
     """Read n generated photos: per-cell confusion, plus boards read entirely right and read failures
@@ -112,7 +113,7 @@ def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellC
     missing = {"no_page": 0, "no_grid": 0}
     name = "+".join(styles)
     frames = range(n_frames)
-    for i in progress(frames, desc=f"read {grid}x{grid} {name}", unit="photo", leave=False) if progress else frames:
+    for i in progress(frames, desc=f"read {grid_label(grid)} {name}", unit="photo", leave=False) if progress else frames:
         frame = make_frame(grid, seed + i, styles=styles, conditions=conditions)
         labels = [LABELS.index({"x": "cross", "o": "nought", "": "nothing"}[s]) for s in frame.board]
         try:
@@ -128,7 +129,7 @@ def reading(grid: int, n_frames: int, styles: tuple[str, ...], classifier: CellC
     truth_a, pred_a = np.array(truth), np.array(predicted)
     read = pred_a >= 0
     where = "" if conditions == "clean" else f" {conditions}"
-    result = _result(f"read {grid}x{grid}{where} photos, {name} marks", truth_a[read], pred_a[read],
+    result = _result(f"read {grid_label(grid)}{where} photos, {name} marks", truth_a[read], pred_a[read],
                      photos=n_frames, boards_right=whole / n_frames, read_failures=failures, **missing, seed=seed)
     result.accuracy = float((truth_a == pred_a).mean())  # failures count as wrong cells
     return result

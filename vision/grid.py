@@ -10,7 +10,8 @@ own four grid-line crossings (vision.lattice), straight from the frame at rho pi
 9x9 cells keep the camera's detail. All cells go through the CNN in one batch.
 
 A grid is 3, 9 or (rows, cols) of a declared game (`ncbot.vision.sheet.Grid`); a declared grid is read as
-the built-in size it is closest to in density (`_like`), each axis with its own number of cells.
+the built-in size it is closest to in density (`ncbot.vision.sheet.built_in_like`), each axis with its own
+number of cells.
 """
 from __future__ import annotations
 
@@ -25,11 +26,10 @@ from ncbot.vision.illumination import balance_frame, flatten, non_paper
 from ncbot.vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
 from ncbot.vision.lattice import lattice, remap_cells
 from ncbot.vision.page import check_frame, locate_balanced_page
-from ncbot.vision.sheet import Grid, grid_label, grid_shape
+from ncbot.vision.sheet import Grid, built_in_like, grid_label, grid_shape
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)
-SPARSE_SIDE = 5                # a declared grid with at most this many cells a side is read like 3x3, else like 9x9
 CELL_INSET = 0.07              # fraction of a cell trimmed on each side (grid-line remnants)
 FOREIGN_SIDE = 160             # pixels of the page warp searched for hands
 OCCLUSION_FRACTION = 0.04      # a cell with more than this much hand/arm is "occluded"
@@ -68,13 +68,6 @@ class PageReading(PageCells):
 
     cells: list[str] = field(default_factory=list)
     probabilities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (rows*cols, 3), order LABELS
-
-
-def _like(grid: Grid) -> int:
-    """The built-in size (3 or 9) whose page warp, rho and hand size a grid is read with."""
-    if isinstance(grid, (int, np.integer)):
-        return int(grid)
-    return 3 if max(grid_shape(grid)) <= SPARSE_SIDE else 9
 
 
 def _line_mask(ink: np.ndarray, length: int, horizontal: bool, thicken: int = 3, bridge: int = 0) -> np.ndarray:
@@ -275,7 +268,7 @@ def _foreign(paper_mask_page: np.ndarray, page_bgr: np.ndarray, grid: Grid, cell
     rim_foreign = (wide > 0) & _rim_band(side)
     # a palm is wider than this; grid crossings and marks are not (a 9x9 page is dense with ink, and the
     # robot sees it from closer, so the hand looks bigger on it)
-    k = max(5, side // (16 if _like(grid) == 3 else 9)) | 1
+    k = max(5, side // (16 if built_in_like(grid) == 3 else 9)) | 1
     foreign = cv2.morphologyEx(not_paper.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     foreign = cv2.morphologyEx(foreign, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))  # pale skin is speckled
     border = max(2, side // 50)  # the warped page's own edge is not a hand
@@ -323,14 +316,14 @@ def extract_cells(frame: np.ndarray, grid: Grid = 3, rho: int | None = None) -> 
     """Find the sheet and grid in a BGR frame and cut the cells; raises ValueError if either is missing."""
     n_rows, n_cols = grid_shape(grid)
     frame = check_frame(frame)
-    rho = rho or DEFAULT_RHO[_like(grid)]
+    rho = rho or DEFAULT_RHO[built_in_like(grid)]
     if rho < 16:
         raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
     frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
     corners, paper_mask = locate_balanced_page(frame)
     if corners is None:
         raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
-    page_side = PAGE_SIDE[_like(grid)]
+    page_side = PAGE_SIDE[built_in_like(grid)]
     square = np.array([[0, 0], [page_side, 0], [page_side, page_side], [0, page_side]], np.float32)
     to_page = cv2.getPerspectiveTransform(corners, square)
     page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),

@@ -21,6 +21,7 @@ import numpy as np
 from ncbot.fileio import atomic_path, atomic_write_text
 from ncbot.vision.classifier.inference import CellClassifier, load_classifier
 from ncbot.vision.data import TEST_SEED
+from ncbot.vision.sheet import Grid, grid_label
 
 TUNING_SEED = TEST_SEED + 80_000     # sequences looked at while the hand test was tuned
 # +400_000 was the first held-out set; its failures were then looked at (hands mostly outside the page),
@@ -33,7 +34,7 @@ MAX_CLEAN_FRAMES = 3                 # the target: a move reported by the 3rd cl
 class SequenceSet:
     """What one set of sequences said; `failures` lists each sequence that missed the target."""
 
-    grid: int
+    grid: Grid
     styles: tuple[str, ...]
     seed: int
     sequences: int
@@ -64,7 +65,7 @@ class SequenceSet:
                 "hand_frames_read_as_clean": len(self.unnoticed_hands)}
 
 
-def evaluate_sequences(grid: int, n: int, seed: int = HELDOUT_SEED, styles: tuple[str, ...] = ("pen",),
+def evaluate_sequences(grid: Grid, n: int, seed: int = HELDOUT_SEED, styles: tuple[str, ...] = ("pen",),
                        classifier: CellClassifier | None = None, progress: Callable[..., Any] | None = None) -> SequenceSet:
     """Run the recogniser over n seeded drawing sequences (seeds seed .. seed + n - 1)."""
     from ncbot.vision.data.sequences import make_move_sequence
@@ -77,7 +78,7 @@ def evaluate_sequences(grid: int, n: int, seed: int = HELDOUT_SEED, styles: tupl
     hand_status, clean_status = Counter(), Counter()
     name = "+".join(styles)
     indices = range(n)
-    for i in progress(indices, desc=f"recognise {grid}x{grid} {name}", unit="sequence", leave=False) if progress else indices:
+    for i in progress(indices, desc=f"recognise {grid_label(grid)} {name}", unit="sequence", leave=False) if progress else indices:
         seq = make_move_sequence(grid, seed + i, before=3, drawing=4, after=5, still_hand=i % 3, styles=styles)
         rec.reset()
         last_hand = max(j for j, h in enumerate(seq.hand) if h)
@@ -126,19 +127,19 @@ def markdown(sets: list[SequenceSet]) -> str:
         hand = s.hand_frame_status
         other = sum(v for k, v in hand.items() if k not in ("moving", "occluded"))
         needed = f"{r['mean_clean_frames_needed']:.2f}, {r['max_clean_frames_needed']}" if s.clean_frames_needed else "-"
-        lines.append(f"| {s.grid}x{s.grid} | {r['styles']} | {s.seed}.. | {s.sequences} | "
+        lines.append(f"| {grid_label(s.grid)} | {r['styles']} | {s.seed}.. | {s.sequences} | "
                      f"**{s.on_target}/{s.sequences}** ({100 * s.on_target / s.sequences:.1f}%) | {s.late} | {s.wrong} | "
                      f"{s.missed} | {s.reported_from_hand_frame} | {needed} | "
                      f"{hand.get('moving', 0)} / {hand.get('occluded', 0)} / {other} |")
     failures = [(s, f) for s in sets for f in s.failures]
     if failures:
         lines += ["", "Failures:", ""]
-        lines += [f"- {s.grid}x{s.grid} seed {f['seed']}: {f['problem']} (statuses {' '.join(f['statuses'])})"
+        lines += [f"- {grid_label(s.grid)} seed {f['seed']}: {f['problem']} (statuses {' '.join(f['statuses'])})"
                   for s, f in failures]
     unnoticed = [(s, u) for s in sets for u in s.unnoticed_hands]
     if unnoticed:
         lines += ["", "Frames showing the hand that were read as clean (no move came from them, but a risk):", ""]
-        lines += [f"- {s.grid}x{s.grid} seed {u['seed']} frame {u['frame']}: {u['status']}" for s, u in unnoticed]
+        lines += [f"- {grid_label(s.grid)} seed {u['seed']} frame {u['frame']}: {u['status']}" for s, u in unnoticed]
     return "\n".join(lines) + "\n"
 
 
@@ -161,7 +162,7 @@ def plot(sets: list[SequenceSet], path: Path) -> None:
             heights = [sum(d == b for d in s.clean_frames_needed) for s in sets]
         label = b if isinstance(b, str) else (f">= {b} clean frames" if b == bins[-1] else f"{b} clean frame{'s' * (b > 1)}")
         ax.bar(np.arange(len(sets)) + (k - len(bins) / 2) * width, heights, width, label=label)
-    ax.set_xticks(range(len(sets)), [f"{s.grid}x{s.grid}\n{'+'.join(s.styles)}\nn={s.sequences}" for s in sets], fontsize=8)
+    ax.set_xticks(range(len(sets)), [f"{grid_label(s.grid)}\n{'+'.join(s.styles)}\nn={s.sequences}" for s in sets], fontsize=8)
     ax.set_ylabel("sequences")
     ax.set_title("Move reported after the hand left (target: <= 3 clean frames)", fontsize=9)
     ax.legend(fontsize=7)

@@ -21,6 +21,7 @@ GRID_INK_BGR = (35, 35, 35)
 #: 3 (noughts & crosses), 9 (ultimate) or (rows, cols) of a plain declared grid.
 Grid = Union[int, tuple[int, int]]
 SIDE_RANGE = (3, 9)  # rows and cols of a declared grid, as `ncbot.envs.declaration` allows
+SPARSE_SIDE = 5      # a declared grid with at most this many cells a side is photographed and read like 3x3, else like 9x9
 
 
 def check_grid(grid: int) -> int:
@@ -39,6 +40,14 @@ def grid_shape(grid: Grid) -> tuple[int, int]:
             and all(low <= n <= high for n in grid)):
         return int(grid[0]), int(grid[1])
     raise ValueError(f"grid must be 3, 9 or (rows, cols) with {low}..{high} each; got {grid!r}")
+
+
+def built_in_like(grid: Grid) -> int:
+    """The built-in size (3 or 9) a grid is treated like where sizes differ: how close the camera comes (the
+    photo generator) and the reader's page warp, rho and hand size; a declared grid goes by its longer side."""
+    if isinstance(grid, (int, np.integer)) and not isinstance(grid, bool):
+        return check_grid(int(grid))
+    return 3 if max(grid_shape(grid)) <= SPARSE_SIDE else 9
 
 
 def parse_grid(text: str) -> Grid:
@@ -72,8 +81,9 @@ def grid_box(grid: Grid, width: int, height: int) -> tuple[float, float, float]:
     return (width - side) / 2, (height - side) / 2, side
 
 
-def _layout(grid: Grid, width: int, height: int) -> tuple[float, float, float, float, float]:
-    """(left, top, grid width, grid height, cell step) in page pixels: a rectangle centred in `grid_box`."""
+def grid_layout(grid: Grid, width: int, height: int) -> tuple[float, float, float, float, float]:
+    """(left, top, grid width, grid height, cell step) in page pixels: a rectangle centred in `grid_box`; the
+    one place that says where the lines and cells lie (the sheet, the photo generator's truth)."""
     rows, cols = grid_shape(grid)
     left, top, side = grid_box(grid, width, height)
     step = side / max(rows, cols)
@@ -87,14 +97,14 @@ def cell_center(grid: Grid, cell: int, width: int, height: int) -> tuple[float, 
     rows, cols = grid_shape(grid)
     if not 0 <= cell < rows * cols:
         raise ValueError(f"cell must be in [0, {rows * cols}); got {cell}")
-    left, top, _, _, step = _layout(grid, width, height)
+    left, top, _, _, step = grid_layout(grid, width, height)
     row, col = divmod(cell, cols)
     return left + (col + 0.5) * step, top + (row + 0.5) * step
 
 
 def cell_size(grid: Grid, width: int, height: int) -> float:
     """Side of one cell in page pixels (draw marks at ~0.5-0.8 of it)."""
-    return _layout(grid, width, height)[4]
+    return grid_layout(grid, width, height)[4]
 
 
 def draw_sheet(grid: Grid, width: int = 600, height: int = 600, border: bool = False,
@@ -106,7 +116,7 @@ def draw_sheet(grid: Grid, width: int = 600, height: int = 600, border: bool = F
         raise ValueError(f"sheet must be at least 40x40 pixels; got {width}x{height}")
     page = np.empty((height, width, 3), np.uint8)
     page[:] = paper
-    left, top, across, down, step = _layout(grid, width, height)
+    left, top, across, down, step = grid_layout(grid, width, height)
     thin = line_width or max(1.0, max(across, down) / 150)
     ultimate = isinstance(grid, (int, np.integer)) and grid == 9
 

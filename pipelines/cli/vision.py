@@ -230,7 +230,8 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
              n: int = typer.Option(20, min=1, max=100_000, help="Number of cells / frames (sequence: one sequence)."),
              seed: int = typer.Option(0, help="Data seed."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
-             grid: int = typer.Option(3, help="frames/sequence: 3 or 9."),
+             grid: str = typer.Option("3", help="frames/sequence: 3 (noughts & crosses), 9 (ultimate) or ROWSxCOLS, "
+                                      "e.g. 6x7 (a declared game's plain grid; 3..9 each)."),
              hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
              style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey."),
              quality: str = typer.Option("clean", "--quality", help="frames/sequence: photo quality, clean or harsh "
@@ -240,7 +241,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
     import cv2
 
     from ncbot.vision.data.conditions import CONDITIONS
-    from ncbot.vision.sheet import check_grid
+    from ncbot.vision.sheet import grid_label, parse_grid
     from ncbot.vision.strokes import STYLES
 
     styles = tuple(s.strip() for s in style.split(",") if s.strip())
@@ -248,7 +249,8 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         raise ValueError(f"--style takes a comma list of {', '.join(STYLES)}; got {style!r}")
     if kind not in ("cells", "frames", "sequence"):
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
-    check_grid(grid)
+    shape = parse_grid(grid)
+    label = grid_label(shape)
     if quality not in CONDITIONS:
         raise ValueError(f"--quality must be one of {', '.join(CONDITIONS)}; got {quality!r}")
     check_writable_dir(out, "--out")
@@ -267,19 +269,19 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         from ncbot.vision.data.frames import make_frame
 
         for i in range(n):
-            frame = make_frame(grid, seed + i, hand=hand, styles=styles, conditions=quality)
-            name = f"frame_{grid}x{grid}_{seed + i}.png"
+            frame = make_frame(shape, seed + i, hand=hand, styles=styles, conditions=quality)
+            name = f"frame_{label}_{seed + i}.png"
             cv2.imwrite(str(out / name), frame.image)
-            records.append({"image": name, "cells": frame.board, "hand": hand,
+            records.append({"image": name, "grid": label, "cells": frame.board, "hand": hand,
                             "page_corners": frame.page_corners.astype(float).round(1).tolist()})
     else:
         from ncbot.vision.data.sequences import make_move_sequence
 
-        seq = make_move_sequence(grid, seed, styles=styles, conditions=quality)
+        seq = make_move_sequence(shape, seed, styles=styles, conditions=quality)
         for i, (image, has_hand) in enumerate(zip(seq.frames, seq.hand)):
             name = f"seq_{seed}_{i:03d}.png"
             cv2.imwrite(str(out / name), image)
-            records.append({"image": name, "hand": has_hand, "known_board": seq.known_board,
+            records.append({"image": name, "grid": label, "hand": has_hand, "known_board": seq.known_board,
                             "move": seq.move, "symbol": seq.symbol})
     atomic_write_text("".join(json.dumps(r) + "\n" for r in records), out / "labels.jsonl")
     typer.echo(f"wrote {len(records)} images and labels.jsonl to {out}")

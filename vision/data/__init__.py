@@ -20,3 +20,7 @@ HARSH_HELDOUT_SEED = TEST_SEED + 3_000_000
 # handwriting ("marker", vision.strokes.TUNING_STYLES): training choices are judged on it, so handwriting the
 # classifier never saw can be measured without looking at the held-out styles or seeds
 HARSH_TUNING_STYLE_OFFSET = 50_000
+# photos and drawing sequences of declared rows x cols grids (and 3x3 beside them), only ever measured
+# (bench/declared_grid_reading.py): DECLARED_SEED + 100,000 x rows + 10,000 x cols, + 0 clean photos,
+# + 3,000 harsh photos, + 6,000 sequences, with the held-out handwriting; never tuned or trained on
+DECLARED_SEED = TEST_SEED + 4_000_000

@@ -1,6 +1,7 @@
 """Seeded camera frames of a game sheet on a table, with the true board.
 
-A scene is a white page with a dark-ink 3x3 or 9x9 grid and hand-drawn marks, lying on a textured table
+A scene is a white page with a dark-ink grid (3x3, 9x9 or a declared game's rows x cols, laid out by
+`ncbot.vision.sheet`) and hand-drawn marks, lying on a textured table
 among clutter, seen by a pinhole camera (Pepper's mouth camera: ~57 deg horizontal field of view) tilted
 up to 30 deg from the sheet normal and rotated +-15 deg, under uneven, tinted light with sensor noise and
 JPEG artefacts. A hand and arm holding a pen can reach over the sheet from the far side (the player sits
@@ -16,13 +17,18 @@ import numpy as np
 
 from ncbot.vision.data.cells import random_ink
 from ncbot.vision.data.conditions import Harsh, check_conditions, distort_points, draw_harsh, lens_maps
-from ncbot.vision.sheet import check_grid, draw_sheet, grid_box
+from ncbot.vision.sheet import Grid, built_in_like, draw_sheet, grid_box, grid_layout, grid_shape
 from ncbot.vision.strokes import draw_mark
 
 SYMBOL_KIND = {"x": "cross", "o": "nought"}
 TABLE_BGR = ((60, 90, 130), (40, 60, 90), (90, 110, 120), (70, 70, 70), (110, 80, 50), (50, 90, 50),
              (120, 120, 125), (30, 30, 35), (80, 120, 160))
 SKIN_BGR = ((150, 180, 225), (120, 150, 200), (90, 120, 170), (60, 85, 130), (45, 60, 95), (170, 190, 230))
+#: How a grid is photographed, by the built-in size it is like (`built_in_like`): the page aspects drawn from,
+#: the sheet's share of the page's shorter side, the least page height as a fraction of the frame's. A 9x9
+#: grid is only readable when it fills the view: the robot leans in (bigger page, less margin).
+VIEW = {3: ((1.0, 1.0, 1.414, 1 / 1.414, 1.2), (0.7, 0.95), 0.5),
+        9: ((1.0, 1.1, 1 / 1.1), (0.9, 1.0), 0.72)}
 
 
 @dataclass
@@ -41,9 +47,9 @@ class Mark:
 class Scene:
     """Everything fixed about one photo set-up; `render` adds the board, a hand and sensor noise."""
 
-    grid: int
+    grid: Grid
     page: np.ndarray                 # BGR page with the grid, no marks
-    grid_rect: tuple[float, float, float]  # (left, top, side) of the grid on the page
+    grid_rect: tuple[float, float, float, float, float]  # (left, top, width, height, cell step) on the page
     homography: np.ndarray           # page pixels -> frame pixels
     background: np.ndarray           # BGR frame without the page
     light: np.ndarray                # (H, W, 3) float gain: gradient, vignette, tint
@@ -67,24 +73,31 @@ class Scene:
         return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0])
 
     def grid_crossings(self) -> np.ndarray:
-        """The grid-line crossings as they lie in the frame (lens included), float32 (grid+1, grid+1, 2): the
+        """The grid-line crossings as they lie in the frame (lens included), float32 (rows+1, cols+1, 2): the
         truth the reader's lattice estimates."""
-        left, top, side = self.grid_rect
-        g = np.linspace(0, side, self.grid + 1)
-        pts = np.stack(np.meshgrid(left + g, top + g), -1).reshape(1, -1, 2).astype(np.float32)
-        return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0]).reshape(self.grid + 1, self.grid + 1, 2)
+        rows, cols = grid_shape(self.grid)
+        left, top, across, down, _ = self.grid_rect
+        gx, gy = np.linspace(0, across, cols + 1), np.linspace(0, down, rows + 1)
+        pts = np.stack(np.meshgrid(left + gx, top + gy), -1).reshape(1, -1, 2).astype(np.float32)
+        return self._through_lens(cv2.perspectiveTransform(pts, self.homography)[0]).reshape(rows + 1, cols + 1, 2)
 
     def _through_lens(self, points: np.ndarray) -> np.ndarray:
         if self.harsh is None:
             return points
         return distort_points(points, self.harsh.lens_k, *self.size)
 
+    def cell_on_page(self, cell: int) -> tuple[float, float]:
+        """Page pixel of a row-major cell's centre (the sheet's layout, moved to where the sheet lies)."""
+        rows, cols = grid_shape(self.grid)
+        if not 0 <= cell < rows * cols:
+            raise ValueError(f"cell must be in [0, {rows * cols}); got {cell}")
+        left, top, _, _, step = self.grid_rect
+        row, col = divmod(cell, cols)
+        return left + (col + 0.5) * step, top + (row + 0.5) * step
+
     def cell_in_frame(self, cell: int) -> tuple[float, float]:
         """Frame pixel of a cell's centre (where a hand drawing there puts the pen)."""
-        left, top, side = self.grid_rect
-        row, col = divmod(cell, self.grid)
-        step = side / self.grid
-        p = np.array([[[left + (col + 0.5) * step, top + (row + 0.5) * step]]], np.float32)
+        p = np.array([[self.cell_on_page(cell)]], np.float32)
         return tuple(float(v) for v in self._through_lens(cv2.perspectiveTransform(p, self.homography)[0])[0])
 
     def mark(self, cell: int, symbol: str) -> Mark:
@@ -92,11 +105,10 @@ class Scene:
         key = cell * 2 + (symbol == "x")
         if key not in self.marks:
             rng = np.random.default_rng([self.mark_seed, key])
-            left, top, side = self.grid_rect
-            step = side / self.grid
-            row, col = divmod(cell, self.grid)
+            x, y = self.cell_on_page(cell)
+            step = self.grid_rect[4]
             jitter = rng.uniform(-0.1, 0.1, 2) * step
-            center = (left + (col + 0.5) * step + jitter[0], top + (row + 0.5) * step + jitter[1])
+            center = (x + jitter[0], y + jitter[1])
             self.marks[key] = Mark(SYMBOL_KIND[symbol], center, step * (rng.uniform(0.45, 0.78) if rng.random() < 0.85 else rng.uniform(0.32, 0.45)),
                                    self.inks[symbol == "x"], int(rng.integers(2**31)),
                                    self.styles[int(rng.integers(len(self.styles)))])
@@ -182,20 +194,20 @@ def _camera_homography(rng: np.random.Generator, page_w: int, page_h: int, width
     raise RuntimeError("could not place the page inside the frame")  # pragma: no cover - 1000 tries suffice
 
 
-def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: int = 480,
+def random_scene(grid: Grid, rng: np.random.Generator, width: int = 640, height: int = 480,
                  styles: tuple[str, ...] = ("pen",), conditions: str = "clean") -> Scene:
     """Draw a random set-up: page shape and grid, pose, table, clutter, lighting, pens; "harsh" conditions
-    add a shadow, a colour cast, dim light, lens distortion, motion blur and JPEG (vision.data.conditions)."""
-    check_grid(grid)
+    add a shadow, a colour cast, dim light, lens distortion, motion blur and JPEG (vision.data.conditions).
+    Only a 3x3 grid is ever hand-drawn: a declared grid is printed, as the robot's sheets are."""
+    aspects, share, min_span = VIEW[built_in_like(grid)]  # a one-line ValueError for a grid it cannot draw
     check_conditions(conditions)
-    # a 9x9 grid is only readable when it fills the view: the robot leans in (bigger page, less margin)
-    aspect = float(rng.choice([1.0, 1.0, 1.414, 1 / 1.414, 1.2] if grid == 3 else [1.0, 1.1, 1 / 1.1]))
+    aspect = float(rng.choice(aspects))
     page_w = 560 if aspect <= 1 else int(560 / aspect)
     page_h = int(page_w * aspect)
     paper = tuple(int(v) for v in np.clip(np.array([240, 244, 246]) + rng.normal(0, 6, 3), 200, 255))
     page = np.empty((page_h, page_w, 3), np.uint8)
     page[:] = paper
-    sub = int(min(page_w, page_h) * (rng.uniform(0.7, 0.95) if grid == 3 else rng.uniform(0.9, 1.0)))
+    sub = int(min(page_w, page_h) * rng.uniform(*share))
     grid_ink = tuple(int(v) for v in rng.integers(10, 70, 3))
     line_width = max(1.0, sub / rng.uniform(110, 220))
     if grid == 3 and rng.random() < 0.35:
@@ -208,8 +220,8 @@ def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: 
     x0 = int(rng.uniform(0.02, 0.98) * (page_w - sub))
     y0 = int(rng.uniform(0.02, 0.98) * (page_h - sub))
     page[y0:y0 + sub, x0:x0 + sub] = sheet
-    left, top, side = grid_box(grid, sub, sub)
-    homography = _camera_homography(rng, page_w, page_h, width, height, 0.5 if grid == 3 else 0.72)
+    left, top, across, down, step = grid_layout(grid, sub, sub)
+    homography = _camera_homography(rng, page_w, page_h, width, height, min_span)
     background = _table(rng, width, height)
     _clutter(background, rng)
     yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
@@ -222,7 +234,7 @@ def random_scene(grid: int, rng: np.random.Generator, width: int = 640, height: 
     same_pen = rng.random() < 0.3
     ink_o = random_ink(rng)
     inks = (ink_o, ink_o if same_pen else random_ink(rng))
-    scene = Scene(grid, page, (x0 + left, y0 + top, side), homography, background, light.astype(np.float32),
+    scene = Scene(grid, page, (x0 + left, y0 + top, across, down, step), homography, background, light.astype(np.float32),
                   noise_sigma=float(rng.uniform(1, 7)),
                   jpeg_quality=int(rng.integers(55, 96)) if rng.random() < 0.5 else None,
                   blur_sigma=float(rng.uniform(0, 1.0)), inks=inks, styles=styles,
@@ -299,8 +311,9 @@ def _shape(img: np.ndarray, kind: str, geom, colour, offset=(0.0, 0.0)) -> None:
 def render(scene: Scene, board: list[str], rng: np.random.Generator, partial: tuple[int, str, float] | None = None,
            hand: Hand | None = None) -> np.ndarray:
     """The frame (H, W, 3 uint8 BGR) showing `board`; `partial` = (cell, symbol, progress) half drawn."""
-    if len(board) != scene.grid ** 2:
-        raise ValueError(f"board must have {scene.grid ** 2} cells; got {len(board)}")
+    n_cells = int(np.prod(grid_shape(scene.grid)))
+    if len(board) != n_cells:
+        raise ValueError(f"board must have {n_cells} cells; got {len(board)}")
     page = scene.page.copy()
     todo = [(c, s, 1.0) for c, s in enumerate(board) if s]
     if partial is not None:
@@ -346,10 +359,11 @@ def _page_scale(scene: Scene) -> float:
     return float(min(1.0, 1.3 * span / max(scene.page.shape[:2])))
 
 
-def random_board(grid: int, rng: np.random.Generator, fill: float | None = None) -> list[str]:
-    """A board with each cell empty / x / o (fill = chance a cell is marked)."""
+def random_board(grid: Grid, rng: np.random.Generator, fill: float | None = None) -> list[str]:
+    """A board with each cell empty / x / o (fill = chance a cell is marked), row-major over rows x cols."""
+    rows, cols = grid_shape(grid)
     fill = rng.uniform(0.2, 0.8) if fill is None else fill
-    return [("x" if rng.random() < 0.5 else "o") if rng.random() < fill else "" for _ in range(grid * grid)]
+    return [("x" if rng.random() < 0.5 else "o") if rng.random() < fill else "" for _ in range(rows * cols)]
 
 
 @dataclass
@@ -362,14 +376,15 @@ class Frame:
     hand: bool
 
 
-def make_frame(grid: int, seed: int, width: int = 640, height: int = 480, hand: bool = False,
+def make_frame(grid: Grid, seed: int, width: int = 640, height: int = 480, hand: bool = False,
                styles: tuple[str, ...] = ("pen",), conditions: str = "clean") -> Frame:
-    """One random photo of a board; same seed -> same pixels ("harsh": see vision.data.conditions)."""
+    """One random photo of a board on a 3x3, 9x9 or declared rows x cols grid; same seed -> same pixels
+    ("harsh": see vision.data.conditions)."""
     rng = np.random.default_rng(seed)
     scene = random_scene(grid, rng, width, height, styles, conditions)
     board = random_board(grid, rng)
     hand_obj = None
     if hand:
-        hand_obj = random_hand(rng, scene.cell_in_frame(int(rng.integers(grid * grid))))
+        hand_obj = random_hand(rng, scene.cell_in_frame(int(rng.integers(len(board)))))
     return Frame(render(scene, board, rng, hand=hand_obj), board, scene.page_corners(), hand)
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncbot.vision.data.frames import random_board, random_hand, random_scene, render
+from ncbot.vision.sheet import Grid
 
 
 @dataclass
@@ -22,15 +23,16 @@ class MoveSequence:
     symbol: str               # "x" or "o"
 
 
-def make_move_sequence(grid: int, seed: int, before: int = 3, drawing: int = 5, after: int = 5,
+def make_move_sequence(grid: Grid, seed: int, before: int = 3, drawing: int = 5, after: int = 5,
                        width: int = 640, height: int = 480, styles: tuple[str, ...] = ("pen",),
                        still_hand: int = 0, conditions: str = "clean") -> MoveSequence:
     """before clean frames, `drawing` frames of the hand drawing (progress rising to 1), `still_hand`
-    frames of the hand resting still after the mark is done, then `after` clean frames."""
+    frames of the hand resting still after the mark is done, then `after` clean frames; grid: 3, 9 or a
+    declared game's (rows, cols)."""
     rng = np.random.default_rng(seed)
     scene = random_scene(grid, rng, width, height, styles, conditions)
     board = random_board(grid, rng, fill=rng.uniform(0.0, 0.6))
-    empty = [i for i, s in enumerate(board) if not s] or [int(rng.integers(grid * grid))]
+    empty = [i for i, s in enumerate(board) if not s] or [int(rng.integers(len(board)))]
     move = int(rng.choice(empty))
     board[move] = ""
     symbol = "x" if rng.random() < 0.5 else "o"
