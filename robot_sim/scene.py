@@ -20,7 +20,7 @@ from ncbot.robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACK
                                     write_pepper_urdf)
 from ncbot.robot_sim.render_system import new_render_system
 from ncbot.robot_sim.sheet import SheetCanvas
-from ncbot.vision.sheet import Grid
+from ncbot.vision.sheet import Grid, built_in_like
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.
@@ -79,8 +79,7 @@ class SceneConfig:
     conditions_seed: int = 0
 
     def resolved_sheet_side(self) -> float:
-        grid = sheet_grid(self.game)
-        small = grid == 3 or (isinstance(grid, tuple) and max(grid) <= 5)
+        small = built_in_like(sheet_grid(self.game)) == 3
         return self.sheet_side or (0.22 if small else 0.28)
 
     def lab_sheet_centre(self) -> tuple[float, float]:
