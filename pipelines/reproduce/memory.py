@@ -148,7 +148,7 @@ class Comparison:
             return "too few seeds"
         if self.p < ALPHA:
             return "yes"
-        return "no" if self.power >= POWER else f"untested (power {self.power:.2f} < {POWER})"
+        return "no" if self.power >= POWER else f"untested (power {self.power:.3f} < {POWER})"
 
 
 def comparisons(arms: list[Arm]) -> list[Comparison]:
