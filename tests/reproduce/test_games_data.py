@@ -63,7 +63,7 @@ def test_a_folder_without_eval_json_is_a_one_line_error_naming_it(tmp_path: Path
 
 def test_run_folders_belong_to_games_data_only(tmp_path: Path) -> None:
     result = ncbot("reproduce", "table", str(tmp_path), "--budget", "quick", "--out", str(tmp_path / "out"))
-    assert result.returncode == 2 and "only games-data takes run folders" in result.stderr, result.stderr
+    assert result.returncode == 2 and "only games-data and memory take run folders" in result.stderr, result.stderr
 
 
 @pytest.mark.parametrize("game, dialogues, subset", [("four", "compact", None), ("standard", "compact", None),
