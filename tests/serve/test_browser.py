@@ -117,7 +117,13 @@ def test_a_whole_ultimate_game_through_the_page(tmp_path):
 
 
 def _labels(driver) -> list[str]:
-    return [label.text for label in driver.find_elements(By.CSS_SELECTOR, "#board .label")]
+    """The board's column and row labels as shown, once every one is displayed (just after the game starts some
+    are not yet, and a hidden element's text reads as "")."""
+    def shown(d) -> list[str] | None:
+        labels = d.find_elements(By.CSS_SELECTOR, "#board .label")
+        return [label.text for label in labels] if labels and all(label.is_displayed() for label in labels) else None
+
+    return wait_for(driver, shown, timeout=30, what="the board's labels")
 
 
 def test_a_whole_four_game_through_the_page(tmp_path):
