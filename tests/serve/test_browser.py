@@ -96,24 +96,36 @@ def test_a_whole_game_through_the_page_with_a_taken_cell_and_a_reload(tmp_path):
     assert study["person_dialogue_acts_per_session"]["max"] >= 4  # typed x2, "no", and the cooperative answers
 
 
-def test_a_whole_ultimate_game_through_the_page(tmp_path):
+def _whole_game_by_the_person_first(tmp_path, game: str, check_page, choose=None, timeout: float = 300) -> list[str]:
+    """Serve ``game``, open it in Chromium with the person first, let ``check_page(driver)`` check the page before
+    the first move, play to the end (``choose(driver, cells)``: the person's cell, default the first free one) and
+    check that the robot saw every move; returns the final board as the page shows it."""
     out = tmp_path / "study"
-    with running_server(out, "--game", "ultimate", "--idle-seconds", "60") as url:
+    with running_server(out, "--game", game, "--idle-seconds", "60") as url:
         driver = open_chromium()
         try:
             start_game(driver, url + "/", first="human")
-            assert len(board(driver)) == 81
-
-            def first_legal(cells: list[str]) -> int:  # the page highlights the small board the person must play in
-                legal = driver.find_elements(By.CSS_SELECTOR, "[data-cell].legal")
-                return int(legal[0].get_attribute("data-cell"))
-
-            outcome = play_to_end(driver, choose=first_legal, timeout=600)
+            check_page(driver)
+            pick = None if choose is None else (lambda cells: choose(driver, cells))
+            outcome = play_to_end(driver, choose=pick, timeout=timeout)
             assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
+            final = board(driver)
         finally:
             driver.quit()
         study = summarize_study(out)
     assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+    return final
+
+
+def test_a_whole_ultimate_game_through_the_page(tmp_path):
+    def first_legal(driver, cells: list[str]) -> int:  # the page highlights the small board the person must play in
+        legal = driver.find_elements(By.CSS_SELECTOR, "[data-cell].legal")
+        return int(legal[0].get_attribute("data-cell"))
+
+    def check_page(driver) -> None:
+        assert len(board(driver)) == 81
+
+    _whole_game_by_the_person_first(tmp_path, "ultimate", check_page, choose=first_legal, timeout=600)
 
 
 def _labels(driver) -> list[str]:
@@ -128,23 +140,14 @@ def _labels(driver) -> list[str]:
 
 def test_a_whole_four_game_through_the_page(tmp_path):
     """A declared 4x4 board: sixteen squares named as the rules name them, the robot sees every move."""
-    out = tmp_path / "study"
-    with running_server(out, "--game", "four", "--idle-seconds", "60") as url:
-        driver = open_chromium()
-        try:
-            start_game(driver, url + "/", first="human")
-            assert len(board(driver)) == 16
-            assert _labels(driver) == ["", "a", "b", "c", "d", "1", "2", "3", "4"]
-            cell = driver.find_element(By.CSS_SELECTOR, '[data-cell="6"]')
-            assert cell.get_attribute("title") == "c2"
-            assert "4 in a line wins" in driver.find_element(By.ID, "rules").get_attribute("textContent")
-            outcome = play_to_end(driver, timeout=300)
-            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
-            final = board(driver)
-        finally:
-            driver.quit()
-        study = summarize_study(out)
-    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+
+    def check_page(driver) -> None:
+        assert len(board(driver)) == 16
+        assert _labels(driver) == ["", "a", "b", "c", "d", "1", "2", "3", "4"]
+        assert driver.find_element(By.CSS_SELECTOR, '[data-cell="6"]').get_attribute("title") == "c2"
+        assert "4 in a line wins" in driver.find_element(By.ID, "rules").get_attribute("textContent")
+
+    final = _whole_game_by_the_person_first(tmp_path, "four", check_page)
     assert final.count("X") >= 4 and final.count("X") - final.count("O") in (0, 1)  # the person opened with x
 
 
@@ -154,26 +157,17 @@ def test_a_whole_connect_four_game_through_the_page_by_columns(tmp_path):
     from ncbot.envs.rules import make_game
 
     rules = make_game("connect_four")
-    out = tmp_path / "study"
-    with running_server(out, "--game", "connect_four", "--idle-seconds", "60") as url:
-        driver = open_chromium()
-        try:
-            start_game(driver, url + "/", first="human")
-            assert len(board(driver)) == 42 and _labels(driver)[:8] == ["", "a", "b", "c", "d", "e", "f", "g"]
-            clicked: list[int] = []
+    clicked: list[int] = []
 
-            def top_of_a_column(cells: list[str]) -> int:  # the first column with room, clicked at its top (row 1)
-                column = next(c for c in range(rules.cols) if cells[c] == "")
-                clicked.append(column)
-                return column
+    def check_page(driver) -> None:
+        assert len(board(driver)) == 42 and _labels(driver)[:8] == ["", "a", "b", "c", "d", "e", "f", "g"]
 
-            outcome = play_to_end(driver, choose=top_of_a_column, timeout=300)
-            assert status(driver).endswith(outcome) and outcome in ("win", "loss", "draw")
-            final = board(driver)
-        finally:
-            driver.quit()
-        study = summarize_study(out)
-    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == 0
+    def top_of_a_column(driver, cells: list[str]) -> int:  # the first column with room, clicked at its top (row 1)
+        column = next(c for c in range(rules.cols) if cells[c] == "")
+        clicked.append(column)
+        return column
+
+    final = _whole_game_by_the_person_first(tmp_path, "connect_four", check_page, choose=top_of_a_column)
     assert clicked and final[:rules.cols].count("") >= 1  # clicks on row 1 did not leave marks up there
     for cell, mark in enumerate(final):  # every mark rests on the bottom or on another mark
         below = cell + rules.cols
