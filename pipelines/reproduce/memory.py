@@ -79,16 +79,15 @@ def _params(checkpoint: Path) -> int | None:
 
 def read_arms(runs_dir: str | Path) -> list[Arm]:
     """Every finished run under ``runs_dir`` (the layout `ncbot ablate` writes), grouped by what it was trained with."""
-    import yaml
-
     runs_dir = Path(runs_dir)
     groups: dict[tuple[str, str, bool, int], list[dict[str, Any]]] = {}
     for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
         for run in runs:
             folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
-            config = yaml.safe_load((folder / "config.yaml").read_text(encoding="utf-8"))
-            key = (str(config["env"]["game"]), str(config["agent"].get("memory", "none")),
-                   bool(config["env"]["temporal"]), int(config["buffer"]["batch_size"]))
+            if not {"played", "temporal", "batch_size"} <= run.keys():
+                raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size the run "
+                                 "was trained with (the arm it belongs to)")
+            key = (run["played"], run["memory"], run["temporal"], run["batch_size"])
             groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
     order = {"none": 0, "gru": 1, "lstm": 2}
     return [Arm(*key, runs=tuple(sorted(runs, key=lambda run: run["seed"])))

@@ -130,17 +130,29 @@ def _identity(run: dict[str, Any]) -> str:
 
 
 def run_settings(run_dir: Path) -> dict[str, Any]:
-    """The game and hidden widths a run was trained with, from its config.yaml ({} if it has none or it is not
-    readable: the table then labels the row by its key)."""
+    """What a run was trained with, from its config.yaml: the hidden widths and game (the table's row labels) and
+    its temporal information (memory, temporal features, batch size: the memory report's arms). A setting the file
+    does not hold (or no readable file) is left out: the table then labels the row by its key."""
     import yaml
 
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8"))
-        hidden = tuple(int(width) for width in config["agent"]["hidden"])
-        game = config.get("env", {}).get("game")
-    except (OSError, yaml.YAMLError, TypeError, KeyError, ValueError, AttributeError):
+    except (OSError, yaml.YAMLError):
         return {}
-    return {"hidden": hidden, **({"played": game} if isinstance(game, str) else {})}
+    if not isinstance(config, dict):
+        return {}
+    env, agent, buffer = (config.get(key) if isinstance(config.get(key), dict) else {}
+                          for key in ("env", "agent", "buffer"))
+    settings: dict[str, Any] = {"memory": str(agent.get("memory", "none"))}
+    if isinstance(agent.get("hidden"), list):
+        settings["hidden"] = tuple(int(width) for width in agent["hidden"])
+    if isinstance(env.get("game"), str):
+        settings["played"] = env["game"]
+    if "temporal" in env:
+        settings["temporal"] = bool(env["temporal"])
+    if isinstance(buffer.get("batch_size"), int):
+        settings["batch_size"] = buffer["batch_size"]
+    return settings
 
 
 def collect_runs(runs_dir: str | Path) -> dict[tuple[str, str, str], list[dict[str, Any]]]:
