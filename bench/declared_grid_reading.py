@@ -1,6 +1,6 @@
 """How well declared rows x cols grids are read from generated photos, with 3x3 beside them as the reference.
 
-Run by hand: `python bench/declared_grid_reading.py [--frames 200] [--sequences 60] [--grids 3x3,4x4,6x7]`.
+Run by hand: `python bench/declared_grid_reading.py [--frames 200] [--sequences 60] [--grids 3x3,4x4,6x7] [--skip 0]`.
 Prints, per grid and photo quality (clean, harsh), how many boards `read_page` returns exactly (with a 95%
 Wilson interval), the cells read right and the photos where no sheet or grid was found; then, per grid, the
 move recogniser on drawing sequences (right move, reported from a frame showing the hand, wrong, missed).
@@ -8,6 +8,8 @@ move recogniser on drawing sequences (right move, reported from a frame showing 
 The photos and sequences follow the rule of `ncbot vision eval`'s held-out figures: seeds no one tuned or
 trained on (`ncbot.vision.data.DECLARED_SEED`, + 100,000 x rows + 10,000 x cols per grid) and the held-out
 handwriting ("sketch", "hershey", `ncbot.vision.strokes.HELDOUT_STYLES`), which the classifier never saw.
+`--skip N` starts each part N seeds later: a change to the reader found by looking at the first photos' failures
+is judged on photos nobody has looked at (e.g. `--skip 1000`).
 """
 from __future__ import annotations
 
@@ -45,9 +47,10 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def read_photos(grid: Grid, quality: str, n: int, classifier: CellClassifier) -> dict:
-    """Read n photos of one grid and quality: exact boards, cells right, failures, and the seeds read wrong."""
-    seed = first_seed(grid, quality)
+def read_photos(grid: Grid, quality: str, n: int, classifier: CellClassifier, skip: int = 0) -> dict:
+    """Read n photos of one grid and quality (from the part's seed + skip): exact boards, cells right, failures,
+    and the seeds read wrong."""
+    seed = first_seed(grid, quality) + skip
     exact, cells_right, cells, failures, wrong = 0, 0, 0, 0, []
     for i in range(n):
         frame = make_frame(grid, seed + i, styles=HELDOUT_STYLES, conditions=quality)
@@ -72,7 +75,10 @@ def main() -> None:
     parser.add_argument("--sequences", type=int, default=60, help="drawing sequences per grid (<= 3000; 0: none)")
     parser.add_argument("--grids", default="3x3,4x4,6x7", help="comma list of 3, 9 or ROWSxCOLS")
     parser.add_argument("--qualities", default="clean,harsh", help="comma list of clean, harsh")
+    parser.add_argument("--skip", type=int, default=0, help="start each part this many seeds later (photos not looked at)")
     args = parser.parse_args()
+    if not 0 <= args.skip or args.skip + max(args.frames, args.sequences) > 3000:
+        parser.error("--skip must be >= 0 and --skip + --frames (and + --sequences) at most 3000 (each part's seed block)")
     if not 1 <= args.frames <= 3000 or not 0 <= args.sequences <= 3000:
         parser.error("--frames must be 1..3000 and --sequences 0..3000 (each part's seed block holds 3,000)")
     grids = [parse_grid(g) for g in args.grids.split(",")]
@@ -87,7 +93,7 @@ def main() -> None:
     wrong_lists = []
     for grid in grids:
         for quality in qualities:
-            r = read_photos(grid, quality, args.frames, classifier)
+            r = read_photos(grid, quality, args.frames, classifier, args.skip)
             low, high = wilson(r["exact"], r["n"])
             print(f"| {grid_label(grid)} | {quality} | {r['seed']}.. | {r['exact']}/{r['n']} = {r['exact'] / r['n']:.3f} "
                   f"[{low:.3f}, {high:.3f}] | {r['cells_right'] / r['cells']:.4f} | {r['failures']} |", flush=True)
@@ -100,7 +106,8 @@ def main() -> None:
         print("|---|---|---|---|---|---|---|---|")
         failures = []
         for grid in grids:
-            s = evaluate_sequences(grid, args.sequences, first_seed(grid, "sequences"), HELDOUT_STYLES, classifier)
+            s = evaluate_sequences(grid, args.sequences, first_seed(grid, "sequences") + args.skip, HELDOUT_STYLES,
+                                   classifier)
             print(f"| {grid_label(grid)} | {s.sequences} | {s.seed}.. | {s.right}/{s.sequences} | "
                   f"{s.on_target}/{s.sequences} | {s.reported_from_hand_frame} | {s.wrong} | {s.missed} |", flush=True)
             failures += [f"- {grid_label(grid)} seed {f['seed']}: {f['problem']}" for f in s.failures]

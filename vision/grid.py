@@ -43,7 +43,7 @@ PAGE_RIM = 0.02               # of the page warp's side: no grid line lies this 
 LINE_GAP = 0.025              # of the page warp's side: gaps this long in a missing 3x3 line's ink are bridged
 WEAK_LINE = 0.2               # of the strongest line's ink: a weaker straight run is a mark's stroke, not the grid
 END_MATCH = 0.35              # of a cell: a line end no further inside than this from where even spacing puts
-                              # a 3x3 grid's edge may be that edge (a broken line ends further inside)
+                              # a sparse grid's edge may be that edge (a broken line ends further inside)
 FRAME_MATCH = 0.15            # of a cell: lines ending this close to a crossing line end at the grid's frame
 UNSURE_MARGIN = 0.5            # SVM score gap below which a cell is looked at again, turned and mirrored
 
@@ -121,23 +121,26 @@ def _lines(mask: np.ndarray, min_length: float) -> list[Line]:
     return [line for line in found if line.ink >= WEAK_LINE * strongest]
 
 
-def _edges(along: list[Line], across: list[Line], cells: int) -> tuple[float, float]:
-    """A 3x3 grid's extent along one axis from the lines running along it (`along`: where they start and
-    end) and its two inner lines crossing it (`across`: their centres).
+def _edges(along: list[Line], across: list[Line], cells: int, sparse: bool) -> tuple[float, float]:
+    """A sparse grid's extent along one axis from the lines running along it (`along`: where they start and
+    end) and its inner lines crossing it (`across`: their centres).
 
     A line's end is where a shadow's edge, a faint stretch of pen or a motion streak broke it off, so the
-    median end of a 3x3 grid's two lines is pulled inwards when one of them breaks short. Even spacing of
-    the inner lines says where each edge should lie: the line end nearest to that, of those not clearly
-    short of it, is the edge (a hand-drawn # is uneven and overshoots); when every line stops short, the
-    prediction, unless they stop at a crossing line and none goes past it (then that line is a frame).
-    `cells`: the grid's cells along the axis (3 on a 3x3 grid; other counts take the median ends)."""
+    median end of the lines is pulled inwards when one of them breaks short. Even spacing of the inner lines
+    says where each edge should lie, one cell beyond the outermost inner line: the line end nearest to that, of
+    those not clearly short of it, is the edge (a hand-drawn # is uneven and overshoots); when every line stops
+    short, the prediction, unless they stop at a crossing line and none goes past it (then that line is a frame).
+    `cells`: the grid's cells along the axis; `sparse`: a grid read like 3x3 (`built_in_like`). A dense grid
+    (9x9, a declared 6x7), or inner lines not all found or not evenly spaced, takes the median ends."""
     starts, ends = [line.start for line in along], [line.end for line in along]
     median = (float(np.median(starts)), float(np.median(ends)))
-    if cells != 3 or len(across) != 2:  # 9x9: n-1 lines found are often not the inner ones (a frame, a gap)
+    if not sparse or len(across) != cells - 1:  # dense: n-1 lines found are often not the inner ones (a frame, a gap)
         return median
-    low, high = sorted(line.centre for line in across)
-    step = high - low
-    if step <= 0:
+    centres = sorted(line.centre for line in across)
+    low, high = centres[0], centres[-1]
+    step = (high - low) / (cells - 2)
+    gaps = np.diff(centres)
+    if step <= 0 or gaps.min() < 0.6 * step or gaps.max() > 1.4 * step:
         return median
     reach = END_MATCH * step
     near = [e for e in starts if e <= low - step + reach]
@@ -194,8 +197,9 @@ def _grid_lines(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarr
         cols = lines(False, int(LINE_GAP * side))
     if not rows or not cols:
         return None
-    x0, x1 = _framed(cols, n_cols, _edges(rows, cols, n_cols))
-    y0, y1 = _framed(rows, n_rows, _edges(cols, rows, n_rows))
+    sparse = built_in_like(grid) == 3
+    x0, x1 = _framed(cols, n_cols, _edges(rows, cols, n_cols, sparse))
+    y0, y1 = _framed(rows, n_rows, _edges(cols, rows, n_rows, sparse))
     if x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
         return None
     return _snap(x0, x1, n_cols, [c.centre for c in cols]), _snap(y0, y1, n_rows, [r.centre for r in rows]), ink

@@ -1,4 +1,4 @@
-"""Harsh photos: a 3x3 grid's extent when its lines break off short or fade to dashes,
+"""Harsh photos: a sparse grid's extent (3x3, a declared grid up to 5 a side) when its lines break off short or fade to dashes,
 and straight scraps of marks that are no grid frame. Photos are from the TUNING split (the held-out split is
 only ever evaluated); the drawn sheets are plain pictures with a known grid."""
 from __future__ import annotations
@@ -47,6 +47,24 @@ def test_a_grid_line_broken_off_short_does_not_shrink_the_grid() -> None:
     assert _grid_error(_sheet()) < 0.1
     # the median end of the two vertical lines (360 and 260 px) put the bottom edge a sixth of the grid high
     assert _grid_error(_sheet(broken=True)) < 0.1
+
+
+@pytest.mark.parametrize("cells", [4, 5])
+def test_lines_broken_off_short_do_not_shrink_a_declared_sparse_grid(cells: int) -> None:
+    """A declared grid up to 5 a side takes its edges from the even spacing of its inner lines, as 3x3 does: with
+    all but one vertical line stopping at half the grid's height, the median of their ends put the bottom edge
+    half a grid high."""
+    step = 300.0 / cells
+    img = np.full((SIDE, SIDE, 3), 250, np.uint8)
+    top, bottom = int(LEFT), int(LEFT + 300)
+    for k in range(1, cells):
+        at = int(LEFT + k * step)
+        stop = bottom if k == 1 else int(LEFT + 150)
+        cv2.line(img, (at, top), (at, stop), (30, 30, 30), 3)
+        cv2.line(img, (top, at), (bottom, at), (30, 30, 30), 3)
+    found = read_page(img, (cells, cells)).grid_corners
+    truth = np.array([[LEFT, LEFT], [LEFT + 300, LEFT], [LEFT + 300, LEFT + 300], [LEFT, LEFT + 300]])
+    assert float(np.abs(found - truth).max() / step) < 0.15
 
 
 def test_grid_lines_faded_to_dashes_are_still_found() -> None:
