@@ -1,5 +1,5 @@
-"""Harsh photos: a sparse grid's extent (3x3, a declared grid up to 5 a side) when its lines break off short or fade to dashes,
-and straight scraps of marks that are no grid frame. Photos are from the TUNING split (the held-out split is
+"""Harsh photos: a sparse grid's extent (3x3, a declared grid up to 5 a side) when its lines break off short or
+fade to dashes, and straight scraps of marks that are no grid frame. Photos are from the TUNING split (the held-out split is
 only ever evaluated); the drawn sheets are plain pictures with a known grid."""
 from __future__ import annotations
 
