@@ -1,13 +1,13 @@
-"""`ncbot reproduce memory RUNS_DIR`: temporal information three ways (none, the paper's temporal features, a
-recurrent Q-network, both), compared over seeds from the runs of an `ncbot ablate` grid such as
-pipelines/configs/memory_question.yaml.
+"""`ncbot reproduce memory RUNS_DIR...`: temporal information three ways (none, the paper's temporal features, a
+recurrent Q-network, both), compared over seeds from the runs of `ncbot ablate` grids such as
+pipelines/configs/memory_question.yaml (3x3) and memory_ultimate.yaml (Ultimate), one report for every game.
 
 Why its own report: the paper's table compares agents; this one compares how the Proposed agent learns the order of
 the moves, so each arm is told apart by what its runs were trained with (config.yaml: `agent.memory`,
 `env.temporal`, `buffer.batch_size`), and the report adds what the choice costs: parameters, training time per
 frame and training games to 0.95. Every comparison is a one-sided Welch's t-test over seeds (one sample = one
 seed's robot-first task success), with the 95 % interval of the difference, its power to detect the paper's own
-difference for claim (ii) and a Holm-adjusted p over the family of comparisons.
+difference for claim (ii) on that game and a Holm-adjusted p over the family of comparisons.
 """
 from __future__ import annotations
 
@@ -28,7 +28,9 @@ SEEDS_CSV = "table_seeds.csv"
 FIGURE = "curves.png"
 THRESHOLDS = (0.95, 0.99)  # training games until the periodic task success first reached these
 GAME_LABELS = {"standard": "3x3", "ultimate": "Ultimate"}
-PAPER_DIFFERENCE = 0.9980 - 0.9868  # claim (ii) on 3x3: Proposed + temporal minus Proposed (the paper's table)
+#: claim (ii), Proposed + temporal minus Proposed in the paper's table: 3x3, and Ultimate at 100 units (the width of
+#: the memory grids)
+PAPER_DIFFERENCE = {"standard": 0.9980 - 0.9868, "ultimate": 0.9753 - 0.9377}
 ALPHA = 0.05
 POWER = 0.8
 
@@ -77,18 +79,24 @@ def _params(checkpoint: Path) -> int | None:
     return sum(tensor.numel() for tensor in state["qnet"].values())
 
 
-def read_arms(runs_dir: str | Path) -> list[Arm]:
-    """Every finished run under ``runs_dir`` (the layout `ncbot ablate` writes), grouped by what it was trained with."""
-    runs_dir = Path(runs_dir)
+def read_arms(runs_dirs: str | Path | list[str | Path]) -> list[Arm]:
+    """Every finished run under the runs folders (the layout `ncbot ablate` writes), grouped by what it was trained
+    with. One arm's seeds may come from several folders, but not the same seed twice (one ValueError naming both)."""
     groups: dict[tuple[str, str, bool, int], list[dict[str, Any]]] = {}
-    for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
-        for run in runs:
-            folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
-            if not {"played", "temporal", "batch_size"} <= run.keys():
-                raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size the run "
-                                 "was trained with (the arm it belongs to)")
-            key = (run["played"], run["memory"], run["temporal"], run["batch_size"])
-            groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
+    where: dict[tuple[tuple[str, str, bool, int], int], Path] = {}
+    for runs_dir in map(Path, runs_dirs if isinstance(runs_dirs, list) else [runs_dirs]):
+        for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
+            for run in runs:
+                folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
+                if not {"played", "temporal", "batch_size"} <= run.keys():
+                    raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size "
+                                     "the run was trained with (the arm it belongs to)")
+                key = (run["played"], run["memory"], run["temporal"], run["batch_size"])
+                twin = where.setdefault((key, run["seed"]), folder)
+                if twin != folder:
+                    raise ValueError(f"{twin} and {folder} are the same seed of one arm (game, memory, temporal "
+                                     "features, batch size): keep one")
+                groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
     order = {"none": 0, "gru": 1, "lstm": 2}
     return [Arm(*key, runs=tuple(sorted(runs, key=lambda run: run["seed"])))
             for key, runs in sorted(groups.items(), key=lambda item: (item[0][0], order.get(item[0][1], 9),
@@ -136,10 +144,10 @@ class Comparison:
 
     @property
     def power(self) -> float:
-        """Power to detect the paper's difference with the smaller side's seeds at the pooled spread."""
+        """Power to detect the paper's difference on this game with the smaller side's seeds at the pooled spread."""
         a, b = self.samples
         std = math.sqrt((mean_and_variance(a)[1] + mean_and_variance(b)[1]) / 2)
-        return power_of(PAPER_DIFFERENCE, std, min(len(a), len(b)), ALPHA)
+        return power_of(PAPER_DIFFERENCE[self.better.game], std, min(len(a), len(b)), ALPHA)
 
     @property
     def verdict(self) -> str:
@@ -227,8 +235,9 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
     lines += ["", "## The questions", "",
               f"One-sided Welch's t-test over seeds of robot-first task success, H1: the first arm is higher; alpha "
               f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
-              f"these seeds detect the paper's own claim-(ii) difference ({PAPER_DIFFERENCE:.4f}, 3x3) at the pooled "
-              f"spread between seeds; a \"no\" with power below {POWER} is untested, not refuted. Holm p: adjusted "
+              "these seeds detect the paper's own claim-(ii) difference on that game ("
+              + ", ".join(f"{GAME_LABELS[game]} {difference:.4f}" for game, difference in PAPER_DIFFERENCE.items())
+              + f") at the pooled spread between seeds; a \"no\" with power below {POWER} is untested, not refuted. Holm p: adjusted "
               "over every question below, for a family-wise reading.", "",
               "| question | game | first arm | second arm | difference | p | Holm p | power | higher? | "
               "difference, robot second (not tested) |",
@@ -258,32 +267,35 @@ def seeds_csv(arms: list[Arm]) -> str:
 
 
 def plot(arms: list[Arm], path: Path) -> Path:
-    """Mean periodic task success (both seats) against training games, one line per arm, seeds' range shaded."""
+    """Mean periodic task success (both seats) against training games, one panel per game and one line per arm,
+    seeds' range shaded."""
     from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for arm in arms:
-        length = min(len(run.get("history", [])) for run in arm.runs)
-        if not length:
-            continue
-        games = [sum(run["history"][i]["episodes"] for run in arm.runs) / len(arm.runs) for i in range(length)]
-        success = [[run["history"][i]["task_success"] for run in arm.runs] for i in range(length)]
-        ax.plot(games, [sum(s) / len(s) for s in success], marker=".",
-                label=f"{GAME_LABELS.get(arm.game, arm.game)}: {arm.label}")
-        ax.fill_between(games, [min(s) for s in success], [max(s) for s in success], alpha=0.12)
-    for threshold in THRESHOLDS:
-        ax.axhline(threshold, color="grey", linestyle="--", linewidth=0.8)
-    ax.set_xlabel("simulated training games (mean over seeds)")
-    ax.set_ylabel("task success, periodic evaluation (both seats)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    games = list(dict.fromkeys(arm.game for arm in arms))
+    fig, axes = plt.subplots(1, len(games), figsize=(8 * len(games), 4.5), squeeze=False)
+    for ax, game in zip(axes[0], games):
+        for arm in (arm for arm in arms if arm.game == game):
+            length = min(len(run.get("history", [])) for run in arm.runs)
+            if not length:
+                continue
+            played = [sum(run["history"][i]["episodes"] for run in arm.runs) / len(arm.runs) for i in range(length)]
+            success = [[run["history"][i]["task_success"] for run in arm.runs] for i in range(length)]
+            ax.plot(played, [sum(s) / len(s) for s in success], marker=".", label=arm.label)
+            ax.fill_between(played, [min(s) for s in success], [max(s) for s in success], alpha=0.12)
+        for threshold in THRESHOLDS:
+            ax.axhline(threshold, color="grey", linestyle="--", linewidth=0.8)
+        ax.set_title(GAME_LABELS.get(game, game))
+        ax.set_xlabel("simulated training games (mean over seeds)")
+        ax.set_ylabel("task success, periodic evaluation (both seats)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
     return save_figure(fig, path)
 
 
-def write_memory_report(runs_dir: str | Path, out: str | Path, command: str) -> dict[str, Any]:
-    """Write OUT/table.md, OUT/table_seeds.csv and OUT/curves.png from the finished runs under ``runs_dir``."""
-    arms = read_arms(runs_dir)
+def write_memory_report(runs_dirs: str | Path | list[str | Path], out: str | Path, command: str) -> dict[str, Any]:
+    """Write OUT/table.md, OUT/table_seeds.csv and OUT/curves.png from the finished runs under the runs folders."""
+    arms = read_arms(runs_dirs)
     found = comparisons(arms)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

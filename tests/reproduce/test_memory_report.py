@@ -1,4 +1,4 @@
-"""`ncbot reproduce memory`: temporal information three ways, read from a grid's run folders
+"""`ncbot reproduce memory`: temporal information three ways, read from grids' run folders
 (pipelines/reproduce/memory.py)."""
 from __future__ import annotations
 
@@ -29,19 +29,19 @@ def _history(success: float) -> list[dict]:
             for games, value in ((400, 0.94), (800, 0.96), (1200, success))]
 
 
-def grid_runs(root: Path, arms: dict = ARMS) -> Path:
+def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard") -> Path:
     """Run folders in the layout `ncbot ablate` writes, each with the config.yaml, eval.json and checkpoint a
     finished run has (a Q-network of a size that tells the arms apart)."""
     for (suite, memory, temporal, batch), values in arms.items():
         cell = f"proposed-{'temporal' if temporal else 'notemporal'}"
         for seed, success in enumerate(values):
-            folder = root / suite / "standard" / cell / f"seed{seed}"
+            folder = root / suite / game / cell / f"seed{seed}"
             folder.mkdir(parents=True)
-            config = {"env": {"game": "standard", "temporal": temporal}, "agent": {"memory": memory},
+            config = {"env": {"game": game, "temporal": temporal}, "agent": {"memory": memory},
                       "buffer": {"batch_size": batch}}
             (folder / "config.yaml").write_text(yaml.safe_dump(config))
             (folder / "eval.json").write_text(json.dumps({
-                "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{suite}{cell}{seed}",
+                "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{game}{suite}{cell}{seed}",
                 "history": _history(success),
                 "first": {"games": 3000, "task_success": success, "win": success - 0.03, "avg_reward": 0.8,
                           "avg_length": 11.9},
@@ -95,9 +95,35 @@ def test_the_report_and_the_seeds_csv(tmp_path: Path) -> None:
     assert Path(written["files"][2]).stat().st_size > 0
 
 
+def test_one_report_reads_the_grids_of_both_games(tmp_path: Path) -> None:
+    feed_forward = {key: values for key, values in ARMS.items() if key[0] == "ff"}
+    standard = grid_runs(tmp_path / "standard", feed_forward)
+    ultimate = grid_runs(tmp_path / "ultimate", feed_forward, game="ultimate")
+    arms = read_arms([standard, ultimate])
+    assert [(a.game, a.temporal) for a in arms] == [("standard", False), ("standard", True), ("ultimate", False),
+                                                    ("ultimate", True)]
+    found = comparisons(arms)
+    assert [(c.better.game, c.question) for c in found] == [
+        ("standard", "temporal features help (feed-forward, batch 2)"),
+        ("ultimate", "temporal features help (feed-forward, batch 2)")]
+    # the same seeds and spread: the power is to detect each game's own paper difference, larger on Ultimate
+    assert found[1].power > found[0].power
+    written = write_memory_report([str(standard), str(ultimate)], tmp_path / "out", "ncbot reproduce memory a b")
+    assert written["runs"] == 20 and written["arms"] == 4
+    text = (tmp_path / "out" / "table.md").read_text()
+    assert any(line.startswith("| Ultimate | feed-forward, temporal features, batch 2") for line in text.splitlines())
+
+
+def test_a_seed_of_one_arm_in_two_folders_is_one_line(tmp_path: Path) -> None:
+    feed_forward = {key: values for key, values in ARMS.items() if key[0] == "ff"}
+    first, second = grid_runs(tmp_path / "a", feed_forward), grid_runs(tmp_path / "b", feed_forward)
+    with pytest.raises(ValueError, match="are the same seed of one arm"):
+        read_arms([first, second])
+
+
 def test_a_wrong_call_is_one_line_and_exit_2(tmp_path: Path) -> None:
     result = ncbot("reproduce", "memory", "--out", str(tmp_path / "out"))
-    assert result.returncode == 2 and "memory reads one runs folder" in result.stderr
+    assert result.returncode == 2 and "memory reads runs folders" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     empty = tmp_path / "empty"
     empty.mkdir()
