@@ -74,6 +74,29 @@ def drop_logs_after(path: Path, next_file: int | None) -> list[Path]:
     return dropped
 
 
+def lock_holder(path: Path) -> int | None:
+    """The pid of the `ncbot train` holding RUN/.lock now (-1 if it wrote none yet), or None when nobody holds it.
+
+    A shared, non-blocking probe, released at once: a writer taking the lock in that same instant would be refused
+    as if another run held it, so the probe is for status and scheduling, never for a run's own claim."""
+    import fcntl
+
+    lock = path / LOCK_NAME
+    if not lock.is_file():
+        return None
+    fd = os.open(lock, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError as error:
+        if error.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            raise
+        holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+        return int(holder) if holder.isdigit() else -1
+    finally:
+        os.close(fd)  # closing the descriptor drops the probe's shared lock
+    return None
+
+
 class RunLock:
     """An exclusive `flock` on RUN/.lock for as long as the run writes; the kernel releases it if the run dies."""
 

@@ -181,16 +181,29 @@ def ablate_command(
                                           "(default: a local instance); every node must see the runs folder."),
     gpus_per_run: float = typer.Option(1.0, "--gpus-per-run", min=0.01, max=8.0,
                                        help="With --backend ray: GPUs each CUDA run asks for (a fraction shares one)."),
+    status: bool = typer.Option(False, "--status", help="Start nothing: print where every run of the grid stands "
+                                "(finished with its task success, training now, stopped at a checkpoint, not started)."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
-    from ncbot.pipelines.train.ablate import run_ablation
+    from ncbot.pipelines.train.ablate import grid_status, run_ablation
 
+    if status:
+        states = grid_status(config, seeds=seeds, out=out, only=only, overrides=list(overrides or []))
+        width = max(len(name) for name, _, _ in states)
+        for name, where, detail in states:
+            typer.echo(f"{name:<{width}}  {where}" + (f": {detail}" if detail else ""))
+        counts: dict[str, int] = {}
+        for _, where, _ in states:
+            counts[where] = counts.get(where, 0) + 1
+        typer.echo(f"{len(states)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()))
+        return
     if out is not None:
         check_writable_dir(out, "--out")
 
     summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address,
                            overrides=list(overrides or []), gpus_per_run=gpus_per_run)
-    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), "
+    held = f", {summary['held']} skipped (another ncbot is training them)" if summary["held"] else ""
+    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done){held}, "
                f"{summary['failed']} failed; runs in {summary['runs_dir']}")
     if summary["failed"]:
         raise typer.Exit(1)

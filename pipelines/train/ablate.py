@@ -2,7 +2,9 @@
 
 Each run is a separate `ncbot train` process (its own torch thread, its own crash domain), so a failing run does
 not take the grid down and an interrupted grid resumes: runs with `eval.json` are skipped, runs with periodic
-checkpoints but no `eval.json` are continued with `--resume`.
+checkpoints but no `eval.json` are continued with `--resume`. Several `ncbot ablate` processes may work on one runs
+folder (two terminals, two machines sharing it): just before a run starts, one that another process has finished or
+is training (its folder's lock is held) is skipped. `--status` says where every run of the grid stands.
 """
 from __future__ import annotations
 
@@ -37,6 +39,31 @@ class PlannedRun:
     @property
     def finished(self) -> bool:
         return (self.run_dir / "eval.json").is_file()
+
+    def state(self) -> tuple[str, str]:
+        """(where the run stands, a detail): finished (robot-first / robot-second task success), training now (the
+        pid holding its folder, its newest checkpoint), stopped (the checkpoint it resumes from) or not started."""
+        import json
+
+        from ncbot.pipelines.checkpoint import periodic_checkpoints
+        from ncbot.pipelines.run_folder import lock_holder
+
+        if self.finished:
+            try:
+                report = json.loads((self.run_dir / "eval.json").read_text(encoding="utf-8"))
+                return "finished", (f"task success {report['first']['task_success']:.4f} robot first, "
+                                    f"{report['second']['task_success']:.4f} robot second")
+            except (OSError, ValueError, KeyError, TypeError):
+                return "finished", "eval.json unreadable"
+        if not self.run_dir.is_dir():
+            return "not started", ""
+        frames = [int(path.stem.removeprefix("step-")) for path in periodic_checkpoints(self.run_dir)
+                  if path.stem.removeprefix("step-").isdigit()]
+        at = f"checkpoint at {max(frames):,} frames" if frames else "no checkpoint yet"
+        holder = lock_holder(self.run_dir)
+        if holder is not None:
+            return "training now", f"pid {holder if holder > 0 else '?'}, {at}"
+        return ("stopped", f"resumes from the {at}") if frames else ("not started", "")
 
     def settings(self) -> tuple[str, int, str]:
         """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it
@@ -182,12 +209,20 @@ class _Children:
 
 
 STOPPED = -15  # the code a run reports when the grid was stopped before it started
+HELD = -16  # the code of a run another ncbot process is training (its folder's lock is held): skipped, not failed
 
 
 def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str, int]:
     """One `ncbot train` subprocess; its output goes to the run's train.log. ``children``: the local pool's
-    registry (a Ray task, alone in its worker, gets its own)."""
+    registry (a Ray task, alone in its worker, gets its own). A run another process finished or is training since
+    the grid was planned is not started (0, or ``HELD``)."""
+    from ncbot.pipelines.run_folder import lock_holder
+
     children = children if children is not None else _Children()
+    if run.finished:
+        return run.name, 0
+    if run.run_dir.is_dir() and lock_holder(run.run_dir) is not None:
+        return run.name, HELD
     run.run_dir.mkdir(parents=True, exist_ok=True)
     with open(run.run_dir / "train.log", "a") as log:
         child = children.start(run.command(), log)
@@ -215,8 +250,10 @@ def check_backend(backend: str, workers: int, address: str | None = None) -> Non
 
 
 def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local", address: str | None = None,
-                 runs_dir: str | Path | None = None, desc: str = "ablate", gpus_per_run: float = 1.0) -> list[str]:
-    """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names.
+                 runs_dir: str | Path | None = None, desc: str = "ablate", gpus_per_run: float = 1.0,
+                 held: list[str] | None = None) -> list[str]:
+    """Run the planned runs, ``workers`` at a time, in local processes or as Ray tasks; returns the failed runs' names
+    (and appends to ``held`` the runs skipped because another process is training them).
 
     Ray (pipelines/train/ray_backend.py): ``address`` None starts a local instance, else joins the cluster at HOST:PORT;
     every node must see ``runs_dir`` at the same absolute path (checked before any run starts). Each Ray task asks for
@@ -230,7 +267,10 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
     bar = progress_bar(total=len(todo), unit="run", desc=desc)
 
     def done(name: str, code: int) -> None:
-        if code != 0:
+        if code == HELD:
+            if held is not None:
+                held.append(name)
+        elif code != 0:
             failed.append(name)
         bar.update(1)
 
@@ -257,14 +297,10 @@ def execute_runs(todo: list[PlannedRun], *, workers: int, backend: str = "local"
     return failed
 
 
-def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
-                 out: str | Path | None = None, only: str | None = None, address: str | None = None,
-                 overrides: list[str] | None = None, gpus_per_run: float = 1.0) -> dict[str, Any]:
-    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder.
-
-    ``only``: keep the runs whose name holds this text; a filter that keeps none is a ValueError naming a few runs.
-    ``overrides``: key=value applied to every run (``plan_runs``)."""
-    check_backend(backend, workers, address)
+def planned_runs(grid_path: str | Path, *, seeds: int, out: str | Path | None = None, only: str | None = None,
+                 overrides: list[str] | None = None) -> list[PlannedRun]:
+    """The grid's runs (``plan_runs``), kept to those whose name holds ``only``; a filter that keeps none is a
+    ValueError naming a few runs."""
     planned = plan_runs(grid_path, seeds=seeds, runs_dir=out, overrides=overrides)
     if only is not None:
         kept = [run for run in planned if only in run.name]
@@ -272,9 +308,29 @@ def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, bac
             examples = ", ".join(run.name for run in planned[:3]) + (", ..." if len(planned) > 3 else "")
             raise ValueError(f"--only {only!r} matches none of the {len(planned)} runs of the grid (e.g. {examples})")
         planned = kept
+    return planned
+
+
+def grid_status(grid_path: str | Path, *, seeds: int = 3, out: str | Path | None = None, only: str | None = None,
+                overrides: list[str] | None = None) -> list[tuple[str, str, str]]:
+    """(run name, where it stands, a detail) for every run of the grid (``PlannedRun.state``); nothing starts."""
+    return [(run.name, *run.state()) for run in planned_runs(grid_path, seeds=seeds, out=out, only=only,
+                                                             overrides=overrides)]
+
+
+def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",
+                 out: str | Path | None = None, only: str | None = None, address: str | None = None,
+                 overrides: list[str] | None = None, gpus_per_run: float = 1.0) -> dict[str, Any]:
+    """Run every unfinished cell of the grid with `workers` in parallel; returns counts and the runs folder.
+
+    ``only``: keep the runs whose name holds this text (``planned_runs``). ``overrides``: key=value applied to every
+    run (``plan_runs``). A run another process is training is skipped and counted as held."""
+    check_backend(backend, workers, address)
+    planned = planned_runs(grid_path, seeds=seeds, out=out, only=only, overrides=overrides)
     todo = [run for run in planned if not run.finished]
     runs_dir = Path(out) if out else Path(load_grid(grid_path).get("runs_dir", "runs/ablation"))
+    held: list[str] = []
     failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir,
-                          gpus_per_run=gpus_per_run)
-    return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
-            "failed_runs": failed, "runs_dir": str(runs_dir)}
+                          gpus_per_run=gpus_per_run, held=held)
+    return {"done": len(todo) - len(failed) - len(held), "skipped": len(planned) - len(todo), "held": len(held),
+            "failed": len(failed), "failed_runs": failed, "runs_dir": str(runs_dir)}

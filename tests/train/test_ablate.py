@@ -2,6 +2,7 @@
 the table has the paper's numbers beside ours and the curves PNG is written."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -85,3 +86,38 @@ def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None
     assert grid_run.returncode == 143, err
     assert "terminated (SIGTERM)" in (first / "train.log").read_text()  # the child was stopped, not orphaned
     assert not (first.parent / "seed1").exists()  # the queued run never started
+
+
+def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(tmp_path: Path) -> None:
+    """Two `ncbot ablate` processes on one runs folder: a run the other one is training (its folder's lock held) is
+    skipped and counted as held, not started a second time and not failed; `--status` names each run's state."""
+    import json
+
+    from ncbot.pipelines.run_folder import RunLock
+    from ncbot.pipelines.train.ablate import HELD, PlannedRun, _run_local, grid_status
+    from tests.learning_helpers import ncbot
+
+    grid = _grid(tmp_path)
+    runs = tmp_path / "runs" / "fast" / "standard"
+    finished, stopped, held = (runs / "proposed-notemporal" / "seed0", runs / "proposed-temporal" / "seed0",
+                               runs / "dqn_variant-notemporal" / "seed0")
+    finished.mkdir(parents=True)
+    (finished / "eval.json").write_text(json.dumps({"first": {"task_success": 0.99}, "second": {"task_success": 0.9}}))
+    (stopped / "checkpoints").mkdir(parents=True)
+    (stopped / "checkpoints" / "step-000050000.pt").write_bytes(b"")
+    lock = RunLock(held)  # another ncbot train, as far as the folder can tell
+    try:
+        states = {name.split("/")[2]: (where, detail) for name, where, detail in grid_status(grid, seeds=1)}
+        assert states["proposed-notemporal"] == ("finished", "task success 0.9900 robot first, 0.9000 robot second")
+        assert states["proposed-temporal"] == ("stopped", "resumes from the checkpoint at 50,000 frames")
+        assert states["dqn_variant-notemporal"][0] == "training now"
+        assert f"pid {os.getpid()}" in states["dqn_variant-notemporal"][1]
+        assert _run_local(PlannedRun("held", held, tmp_path / "grid.yaml")) == ("held", HELD)
+        assert _run_local(PlannedRun("done", finished, tmp_path / "grid.yaml")) == ("done", 0)
+        assert not (held / "train.log").exists() and not (finished / "train.log").exists()  # nothing was started
+        result = ncbot("ablate", str(grid), "--seeds", "1", "--status")
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.strip().splitlines()[-1] == "3 runs: 1 training now, 1 finished, 1 stopped"
+    finally:
+        lock.release()
+    assert grid_status(grid, seeds=1)[0][1] == "not started"  # the lock is gone with its holder, no checkpoint
