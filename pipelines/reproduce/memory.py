@@ -155,7 +155,10 @@ class Comparison:
             return "too few seeds"
         if self.p < ALPHA:
             return "yes"
-        return "no" if self.power >= POWER else f"untested (power {self.power:.3f} < {POWER})"
+        if self.power < POWER:
+            return f"untested (power {self.power:.3f} < {POWER})"
+        # powered but not significant: "no" only where the arm did not come out ahead at all
+        return "no" if self.difference.mean <= 0 else f"not shown (p >= {ALPHA})"
 
 
 def comparisons(arms: list[Arm]) -> list[Comparison]:
@@ -237,7 +240,9 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
               f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
               "these seeds detect the paper's own claim-(ii) difference on that game ("
               + ", ".join(f"{GAME_LABELS[game]} {difference:.4f}" for game, difference in PAPER_DIFFERENCE.items())
-              + f") at the pooled spread between seeds; a \"no\" with power below {POWER} is untested, not refuted. Holm p: adjusted "
+              + f") at the pooled spread between seeds; below power {POWER} a question is untested, not refuted; "
+              "above it, \"no\" when the first arm did not come out ahead, \"not shown\" when it did but not "
+              "significantly. Holm p: adjusted "
               "over every question below, for a family-wise reading.", "",
               "| question | game | first arm | second arm | difference | p | Holm p | power | higher? | "
               "difference, robot second (not tested) |",

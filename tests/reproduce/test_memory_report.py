@@ -129,3 +129,15 @@ def test_a_wrong_call_is_one_line_and_exit_2(tmp_path: Path) -> None:
     empty.mkdir()
     result = ncbot("reproduce", "memory", str(empty), "--out", str(tmp_path / "out"))
     assert result.returncode == 2 and "no finished runs" in result.stderr, result.stderr
+
+
+def test_a_powered_difference_that_is_not_significant_reads_not_shown_not_no(tmp_path: Path) -> None:
+    """"no" is kept for an arm that did not come out ahead; one ahead but not significantly is "not shown"."""
+    arms = {("ff", "none", False, 2): [0.890, 0.892, 0.889, 0.894, 0.891],
+            ("ff", "none", True, 2): [0.920, 0.880, 0.925, 0.890, 0.905]}
+    found = comparisons(read_arms(grid_runs(tmp_path, arms, game="ultimate")))
+    assert len(found) == 1 and found[0].power >= 0.8 and 0.05 <= found[0].p
+    assert found[0].verdict == "not shown (p >= 0.05)"
+    flipped = {("ff", "none", False, 2): arms[("ff", "none", True, 2)],
+               ("ff", "none", True, 2): arms[("ff", "none", False, 2)]}
+    assert comparisons(read_arms(grid_runs(tmp_path / "flipped", flipped, game="ultimate")))[0].verdict == "no"
