@@ -19,6 +19,7 @@ COLUMN_LETTERS = "abcdefghi"
 # Mark codes on a board. In the rules x / o (x moves first); in the env and the opponents the seats.
 EMPTY, X, O = 0, 1, 2
 ROBOT, HUMAN = 1, 2  # the env's board codes of the two seats, whoever opens
+USER = HUMAN  # the dialogue env's simulated user sits in the human seat
 SEATS = {ROBOT: "robot", HUMAN: "human"}
 DRAWN = 3  # a drawn subgrid (Ultimate owner grid), and a drawn game in the outcome codes below
 

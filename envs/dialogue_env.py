@@ -13,7 +13,8 @@ except the action count. See docs/env.md for rewards, features and every key.
 
 This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
 specs in ``ncbot.envs.dialogue_tables``, the option checks in ``ncbot.envs.env_options``, the exact TorchRL shortcuts in
-``ncbot.envs.env_speed``, the simulated user's half of a step in ``ncbot.envs.user_turn``. Who opens is the option ``first`` (``env.first``).
+``ncbot.envs.env_speed``, the simulated user's half of a step in ``ncbot.envs.user_turn``. Who opens is the option
+``first`` (``env.first``).
 
 The paper's ambiguous readings are options (defaults = this project's first reading; the paper configs set the
 readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
@@ -32,7 +33,8 @@ from torchrl.envs import EnvBase
 
 import ncbot.envs.dialogue as dlg
 from ncbot.envs.core import (
-    FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, check_free_move, check_game,  # noqa: F401
+    FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, USER,  # noqa: F401
+    check_free_move, check_game,
 )
 from ncbot.envs.threat_features import threat_planes
 from ncbot.envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
@@ -48,7 +50,6 @@ from ncbot.envs.misread import MisreadBoard
 from ncbot.envs.user_turn import SimulatedUserTurn
 
 ILLEGAL_ACT_REWARD = REWARD_ILLEGAL  # the paper's penalty for a repeated move, applied to every refused act (ours)
-USER = HUMAN  # the simulated user sits in the human seat
 
 
 class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):

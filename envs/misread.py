@@ -11,11 +11,9 @@ from __future__ import annotations
 
 import torch
 
-from ncbot.envs.core import HUMAN, REWARD_ILLEGAL, ROBOT
+from ncbot.envs.core import REWARD_ILLEGAL, ROBOT, USER
 from ncbot.envs.dialogue_tables import N_STAGES
 from ncbot.envs.engine import uniform_choice
-
-USER = HUMAN  # the simulated user sits in the human seat
 
 
 class MisreadBoard:

@@ -12,10 +12,8 @@ from typing import Any
 
 import torch
 
-from ncbot.envs.core import HUMAN
+from ncbot.envs.core import USER
 from ncbot.envs.dialogue_tables import reply_tables
-
-USER = HUMAN  # the simulated user sits in the human seat
 
 
 class SimulatedUserTurn:
