@@ -94,6 +94,14 @@ def periodic_path(run_dir: str | os.PathLike, frames: int) -> Path:
     return Path(run_dir) / PERIODIC_DIR / f"step-{frames:09d}.pt"
 
 
+def periodic_frames(path: str | os.PathLike) -> int:
+    """The frames a periodic checkpoint was saved at, from its name (``periodic_path``'s inverse)."""
+    match = PERIODIC_PATTERN.match(Path(path).name)
+    if match is None:
+        raise ValueError(f"{str(path)!r} is not a periodic checkpoint (expected {PERIODIC_DIR}/step-NNNNNNNNN.pt)")
+    return int(match.group(1))
+
+
 def periodic_checkpoints(run_dir: str | os.PathLike) -> list[Path]:
     """Periodic checkpoints of a run, oldest first."""
     folder = Path(run_dir) / PERIODIC_DIR

@@ -185,6 +185,8 @@ def ablate_command(
                                 "(finished with its task success, training now, stopped at a checkpoint, not started)."),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
+    from collections import Counter
+
     from ncbot.pipelines.train.ablate import grid_status, run_ablation
 
     if status:
@@ -192,9 +194,7 @@ def ablate_command(
         width = max(len(name) for name, _, _ in states)
         for name, where, detail in states:
             typer.echo(f"{name:<{width}}  {where}" + (f": {detail}" if detail else ""))
-        counts: dict[str, int] = {}
-        for _, where, _ in states:
-            counts[where] = counts.get(where, 0) + 1
+        counts = Counter(where for _, where, _ in states)
         typer.echo(f"{len(states)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()))
         return
     if out is not None:

@@ -45,7 +45,7 @@ class PlannedRun:
         pid holding its folder, its newest checkpoint), stopped (the checkpoint it resumes from) or not started."""
         import json
 
-        from ncbot.pipelines.checkpoint import periodic_checkpoints
+        from ncbot.pipelines.checkpoint import periodic_checkpoints, periodic_frames
         from ncbot.pipelines.run_folder import lock_holder
 
         if self.finished:
@@ -55,15 +55,12 @@ class PlannedRun:
                                     f"{report['second']['task_success']:.4f} robot second")
             except (OSError, ValueError, KeyError, TypeError):
                 return "finished", "eval.json unreadable"
-        if not self.run_dir.is_dir():
-            return "not started", ""
-        frames = [int(path.stem.removeprefix("step-")) for path in periodic_checkpoints(self.run_dir)
-                  if path.stem.removeprefix("step-").isdigit()]
-        at = f"checkpoint at {max(frames):,} frames" if frames else "no checkpoint yet"
+        found = periodic_checkpoints(self.run_dir)  # oldest first
+        at = f"checkpoint at {periodic_frames(found[-1]):,} frames" if found else "no checkpoint yet"
         holder = lock_holder(self.run_dir)
         if holder is not None:
             return "training now", f"pid {holder if holder > 0 else '?'}, {at}"
-        return ("stopped", f"resumes from the {at}") if frames else ("not started", "")
+        return ("stopped", f"resumes from the {at}") if found else ("not started", "")
 
     def settings(self) -> tuple[str, int, str]:
         """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it
@@ -221,7 +218,7 @@ def _run_local(run: PlannedRun, children: _Children | None = None) -> tuple[str,
     children = children if children is not None else _Children()
     if run.finished:
         return run.name, 0
-    if run.run_dir.is_dir() and lock_holder(run.run_dir) is not None:
+    if lock_holder(run.run_dir) is not None:
         return run.name, HELD
     run.run_dir.mkdir(parents=True, exist_ok=True)
     with open(run.run_dir / "train.log", "a") as log:
