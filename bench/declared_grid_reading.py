@@ -78,11 +78,11 @@ def main() -> None:
     parser.add_argument("--skip", type=int, default=0,
                         help="start each part this many seeds later (photos not looked at)")
     args = parser.parse_args()
+    if not 1 <= args.frames <= 3000 or not 0 <= args.sequences <= 3000:
+        parser.error("--frames must be 1..3000 and --sequences 0..3000 (each part's seed block holds 3,000)")
     if not 0 <= args.skip or args.skip + max(args.frames, args.sequences) > 3000:
         parser.error("--skip must be >= 0 and --skip + --frames (and + --sequences) at most 3000 "
                      "(each part's seed block)")
-    if not 1 <= args.frames <= 3000 or not 0 <= args.sequences <= 3000:
-        parser.error("--frames must be 1..3000 and --sequences 0..3000 (each part's seed block holds 3,000)")
     grids = [parse_grid(g) for g in args.grids.split(",")]
     qualities = [q.strip() for q in args.qualities.split(",")]
     torch.set_num_threads(1)
