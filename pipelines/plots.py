@@ -144,3 +144,32 @@ def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str |
     axes[0].set_ylabel("task success (greedy periodic evaluation)")
     fig.suptitle(title or "learning curves per agent (mean over seeds, band = min..max)")
     return save_figure(fig, path)
+
+
+def plot_run_profiles(rows: dict[str, dict[str, list[float]]], path: str | os.PathLike, title: str = "") -> Path:
+    """Every run's task success, one panel per game row: the share of an agent's runs scoring above each threshold
+    (a performance profile, Agarwal et al. 2021), so a reader sees each seed rather than a mean. ``rows``: game row
+    label -> agent label -> one score per run."""
+    import numpy as np
+
+    from ncbot.pipelines.reproduce.aggregate import performance_profile
+
+    plt = pyplot()
+    labels = list(rows)
+    agents = sorted({agent for by_agent in rows.values() for agent in by_agent})
+    colours = {agent: f"C{i % 10}" for i, agent in enumerate(agents)}  # one colour per agent on every panel
+    fig, axes = plt.subplots(1, max(1, len(labels)), figsize=(4.5 * max(1, len(labels)), 4), sharey=True, squeeze=False)
+    for ax, label in zip(axes[0], labels):
+        scores = [s for runs in rows[label].values() for s in runs]
+        low = min(scores) if scores else 0.0
+        thresholds = np.linspace(max(0.0, low - 0.02), 1.0, 400)
+        for agent, runs in sorted(rows[label].items()):
+            ax.step(thresholds, performance_profile(runs, thresholds), where="post", color=colours[agent],
+                    label=f"{agent} ({len(runs)} runs)")
+        ax.set_title(label, fontsize=10)
+        ax.set_xlabel("task success threshold, robot first")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0, 0].set_ylabel("share of runs above the threshold")
+    fig.suptitle(title or "run-score distributions (performance profiles)")
+    return save_figure(fig, path)

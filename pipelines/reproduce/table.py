@@ -20,6 +20,7 @@ from typing import Any
 
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims
+from ncbot.pipelines.reproduce.pooled import pooled_comparisons, pooled_dict, pooled_scores, render_pooled
 from ncbot.pipelines.reproduce.seed_stats import CONFIDENCE, Interval, proportion_interval, t_interval
 
 GAME_ORDER = list(GAME_LABELS)
@@ -298,18 +299,20 @@ class Report:
     claims: list[Claim]
     table: str
     claims_text: str
+    pooled: dict[str, Any]
 
     def to_dict(self) -> dict[str, Any]:
         return {"command": self.command, "confidence": CONFIDENCE,
                 "interval": "Student t over seeds (rates: on the logit scale); prediction interval of one new run",
-                "rows": [row.to_dict() for row in self.rows], "claims": [claim.to_dict() for claim in self.claims]}
+                "rows": [row.to_dict() for row in self.rows], "claims": [claim.to_dict() for claim in self.claims],
+                "pooled": self.pooled}
 
 
 def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out: str | Path | None = None,
                  command: str | None = None) -> Report:
-    """Write the table (default RUNS_DIR/table.md), the claims (default paper_claims.md beside it) and
-    curves_<suite>_<game>.png next to the table."""
-    from ncbot.pipelines.plots import plot_agent_curves
+    """Write the table (default RUNS_DIR/table.md), the claims (default paper_claims.md beside it),
+    curves_<suite>_<game>.png and every run's task success as profiles_<suite>.png next to the table."""
+    from ncbot.pipelines.plots import plot_agent_curves, plot_run_profiles
 
     runs_dir = Path(runs_dir)
     out = Path(out) if out else runs_dir / "table.md"
@@ -319,9 +322,13 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
     command = command or f"ncbot table {runs_dir} --out {out} --claims {claims_out}"
     groups = collect_runs(runs_dir)
     seeds_out = out.with_name(f"{out.stem}_seeds.csv")
-    rows, claims = table_rows(groups), evaluate_claims(seed_samples(groups))
+    samples = seed_samples(groups)
+    rows, claims = table_rows(groups), evaluate_claims(samples)
+    shown = {(row.suite, row.game, row.cell): row.game_label for row in rows}  # an untrained agent's Ultimate once
+    scores = pooled_scores({key: values for key, values in samples.items() if key in shown}, shown)
+    comparisons = pooled_comparisons(samples)
     report = Report(command, rows, claims, render_table(rows, command, claims_out.name, seeds_out.name),
-                    render_claims(claims, command))
+                    render_claims(claims, command) + render_pooled(scores, comparisons), pooled_dict(scores, comparisons))
     for path, text in ((out, report.table), (claims_out, report.claims_text), (seeds_out, seeds_csv(groups))):
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(text, path)
@@ -334,6 +341,12 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
                 sum(run[seat]["task_success"] for run in runs) / len(runs) for seat in ("first", "second"))
         else:
             by_plot[(suite, game)][label] = [r.get("history", []) for r in runs]
+    profiles: dict[str, dict[str, dict[str, list[float]]]] = defaultdict(lambda: defaultdict(dict))
+    for (suite, game, cell), values in sorted(samples.items(), key=lambda item: _order(item[0])):
+        profiles[suite][GAME_LABELS.get(game, game)][CELL_LABELS.get(cell, cell)] = values["task_success"]
+    for suite, rows_of_suite in profiles.items():
+        plot_run_profiles(rows_of_suite, out.parent / f"profiles_{suite}.png",
+                          title=f"{suite} settings: share of runs (seeds) above each task success, robot first")
     for (suite, game) in sorted(set(by_plot) | set(levels)):
         plot_agent_curves(by_plot.get((suite, game), {}), out.parent / f"curves_{suite}_{game}.png",
                           title=f"{GAME_LABELS.get(game, game)}, {suite} settings: mean over seeds, band min..max",
