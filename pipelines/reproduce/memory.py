@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval
 from ncbot.pipelines.reproduce.claims import welch_greater
 from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
                                                   t_interval)
@@ -138,6 +139,13 @@ class Comparison:
     def difference_second(self) -> Interval:
         """The same robot second: shown beside the test, not tested (the paper's set-up is robot first)."""
         return welch_difference(self.better.values("second.task_success"), self.worse.values("second.task_success"))
+
+    @property
+    def improvement(self) -> tuple[float, float, float]:
+        """P(a seed of ``better`` beats a seed of ``worse``), robot first, with its bootstrap interval over seeds."""
+        a, b = self.samples
+        return improvement_interval([a], [b])
+
     @property
     def p(self) -> float | None:
         return welch_greater(*self.samples)[2]
@@ -243,15 +251,20 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
               + f") at the pooled spread between seeds; below power {POWER} a question is untested, not refuted; "
               "above it, \"no\" when the first arm did not come out ahead, \"not shown\" when it did but not "
               "significantly. Holm p: adjusted "
-              "over every question below, for a family-wise reading.", "",
+              "over every question below, for a family-wise reading. P(run ahead): the probability that a seed of "
+              "the first arm beats a seed of the second (every pair, ties half; Agarwal et al. 2021) with the 95 % "
+              f"percentile interval of a bootstrap over seeds ({BOOTSTRAP_REPS} resamples, fixed generator seed), "
+              "free of a normality assumption but narrower than nominal at 5 seeds a side: it describes, the test "
+              "decides.", "",
               "| question | game | first arm | second arm | difference | p | Holm p | power | higher? | "
-              "difference, robot second (not tested) |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "P(run ahead) | difference, robot second (not tested) |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for c in found:
         p = "–" if c.p is None else f"{c.p:.3f}"
         holm = "–" if c.holm_p is None else f"{c.holm_p:.3f}"
         lines.append(f"| {c.question} | {GAME_LABELS.get(c.better.game, c.better.game)} | {c.better.label} | {c.worse.label} | "
-                     f"{c.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} | {c.difference_second.text(4)} |")
+                     f"{c.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} | "
+                     f"{c.improvement[0]:.2f} [{c.improvement[1]:.2f}, {c.improvement[2]:.2f}] | {c.difference_second.text(4)} |")
     return "\n".join(lines) + "\n"
 
 
