@@ -99,6 +99,11 @@ def performance_profile(scores: Sequence[float], thresholds: Sequence[float]) ->
     return (values[None, :] > np.asarray(thresholds, dtype=float)[:, None]).mean(axis=1)
 
 
+def interval_text(found: tuple[float, float, float]) -> str:
+    """(point, low, high) as the reports print a probability and its interval: "0.76 [0.40, 1.00]"."""
+    return f"{found[0]:.2f} [{found[1]:.2f}, {found[2]:.2f}]"
+
+
 def reading(low: float, high: float) -> str:
     """What an interval of P(X > Y) says of "X beats Y": above 1/2 as claimed, below against it, else neither."""
     return "as claimed" if low > 0.5 else ("against the claim" if high < 0.5 else "not separated")

@@ -21,7 +21,7 @@ import statistics
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval
+from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, interval_text
 from ncbot.pipelines.reproduce.seed_stats import mean_and_variance
 
 ALPHA = 0.05
@@ -144,8 +144,7 @@ class Claim:
                                                for found in self.improvements]}
 
     def improvements_text(self) -> str:
-        return "<br>".join("–" if found is None else f"{found[0]:.2f} [{found[1]:.2f}, {found[2]:.2f}]"
-                           for found in self.improvements)
+        return "<br>".join("–" if found is None else interval_text(found) for found in self.improvements)
 
 
 def evaluate_claims(samples: dict[tuple[str, str, str], dict[str, list[float]]]) -> list[Claim]:

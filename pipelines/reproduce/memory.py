@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ncbot.fileio import atomic_write_text
-from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval
+from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, interval_text
 from ncbot.pipelines.reproduce.claims import welch_greater
 from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
                                                   t_interval)
@@ -264,7 +264,7 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
         holm = "–" if c.holm_p is None else f"{c.holm_p:.3f}"
         lines.append(f"| {c.question} | {GAME_LABELS.get(c.better.game, c.better.game)} | {c.better.label} | {c.worse.label} | "
                      f"{c.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} | "
-                     f"{c.improvement[0]:.2f} [{c.improvement[1]:.2f}, {c.improvement[2]:.2f}] | {c.difference_second.text(4)} |")
+                     f"{interval_text(c.improvement)} | {c.difference_second.text(4)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -11,7 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, iqm_interval, reading
+from ncbot.pipelines.reproduce.aggregate import (BOOTSTRAP_REPS, improvement_interval, interval_text, iqm_interval,
+                                                 reading)
 from ncbot.pipelines.reproduce.claims import CELL_LABELS, CLAIMS, GAME_LABELS
 
 Samples = dict[tuple[str, str, str], dict[str, list[float]]]
@@ -128,7 +129,7 @@ def render_pooled(scores: list[PooledScore], comparisons: list[PooledComparison]
     for found in comparisons:
         lines.append(f"| {found.suite} | {CELL_LABELS.get(found.larger, found.larger)} > "
                      f"{CELL_LABELS.get(found.smaller, found.smaller)} | {found.metric} | {_labels(found.games)} | "
-                     f"{found.runs[0]} vs {found.runs[1]} | {found.p:.2f} [{found.low:.2f}, {found.high:.2f}] | "
+                     f"{found.runs[0]} vs {found.runs[1]} | {interval_text((found.p, found.low, found.high))} | "
                      f"{found.reading} |")
     if not comparisons:
         lines.append("| – | no comparison has 2 seeds a side in a common game row | – | – | – | – | – |")
