@@ -110,6 +110,16 @@ def periodic_checkpoints(run_dir: str | os.PathLike) -> list[Path]:
     return sorted(p for p in folder.iterdir() if PERIODIC_PATTERN.match(p.name))
 
 
+def checkpoint_rate(found: list[Path]) -> float | None:
+    """Frames per second between the two newest periodic checkpoints (``periodic_checkpoints``), from their names
+    and modification times; None with fewer than two or no time between them."""
+    if len(found) < 2:
+        return None
+    (older, newer) = found[-2:]
+    seconds = newer.stat().st_mtime - older.stat().st_mtime
+    return (periodic_frames(newer) - periodic_frames(older)) / seconds if seconds > 0 else None
+
+
 def save_periodic(state: dict[str, Any], run_dir: str | os.PathLike, frames: int, keep: int) -> Path:
     """Write one periodic checkpoint and delete the oldest beyond `keep`."""
     path = atomic_save({"format": FORMAT, **state}, periodic_path(run_dir, frames))

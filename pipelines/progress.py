@@ -24,7 +24,7 @@ def is_terminal(stream: IO[str]) -> bool:
         return False
 
 
-def _duration(seconds: float) -> str:
+def duration(seconds: float) -> str:
     seconds = int(round(seconds))
     hours, rest = divmod(seconds, 3600)
     return f"{hours}:{rest // 60:02d}:{rest % 60:02d}" if hours else f"{rest // 60}:{rest % 60:02d}"
@@ -106,10 +106,10 @@ class LineProgress:
             parts.append(f"{100 * self.n / self.total:3.0f}% {_amount(self.n, self.unit_scale)}/"
                          f"{_amount(self.total, self.unit_scale)} {self.unit}")
             eta = (self.total - self.n) / rate if rate > 0 else float("nan")
-            timing = f"{_duration(elapsed)} elapsed, ETA {_duration(eta) if eta == eta else '?'}"
+            timing = f"{duration(elapsed)} elapsed, ETA {duration(eta) if eta == eta else '?'}"
         else:
             parts.append(f"{_amount(self.n, self.unit_scale)} {self.unit}")
-            timing = f"{_duration(elapsed)} elapsed"
+            timing = f"{duration(elapsed)} elapsed"
         parts.append(f" [{timing}, {_amount(rate, self.unit_scale) if self.unit_scale else f'{rate:.3g}'} {self.unit}/s]")
         if self.postfix:
             parts.append(f" {self.postfix}")

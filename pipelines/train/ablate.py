@@ -59,8 +59,35 @@ class PlannedRun:
         at = f"checkpoint at {periodic_frames(found[-1]):,} frames" if found else "no checkpoint yet"
         holder = lock_holder(self.run_dir)
         if holder is not None:
-            return "training now", f"pid {holder if holder > 0 else '?'}, {at}"
+            return "training now", f"pid {holder if holder > 0 else '?'}, {at}{self._pace(found)}"
         return ("stopped", f"resumes from the {at}") if found else ("not started", "")
+
+    def _pace(self, found: list[Path]) -> str:
+        """", N frames/s, about H:MM:SS left" from the two newest checkpoints and the run's collector.total_frames
+        (an estimate: evaluations and a games cap are not foreseen); "" where either is missing."""
+        import time
+
+        from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
+        from ncbot.pipelines.progress import duration
+
+        total = self._total_frames()
+        if found and total is not None and periodic_frames(found[-1]) >= total:
+            return ", every frame trained: the final evaluation"
+        rate = checkpoint_rate(found)
+        if rate is None or total is None:
+            return ""
+        left = max(0.0, (total - periodic_frames(found[-1])) / rate - (time.time() - found[-1].stat().st_mtime))
+        return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
+
+    def _total_frames(self) -> int | None:
+        """collector.total_frames of the config.yaml `ncbot train` wrote into the run folder; None if unreadable."""
+        from ncbot.fileio.yaml_file import read_yaml
+
+        try:
+            total = read_yaml(self.run_dir / "config.yaml", "run config", "the config.yaml ncbot train wrote")["collector"]["total_frames"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        return total if isinstance(total, int) else None
 
     def settings(self) -> tuple[str, int, str]:
         """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it

@@ -3,6 +3,7 @@ the table has the paper's numbers beside ours and the curves PNG is written."""
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 import pytest
@@ -67,7 +68,6 @@ def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None
     import signal
     import subprocess
     import sys
-    import time
 
     base = write_tiny_config(tmp_path, collector={"total_frames": 10_000_000}, eval={"games": 20, "periodic_games": 10})
     grid = {"runs_dir": str(tmp_path / "runs"), "suites": {"fast": {"standard": {"config": base.name}}},
@@ -121,3 +121,33 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
     finally:
         lock.release()
     assert grid_status(grid, seeds=1)[0][1] == "not started"  # the lock is gone with its holder, no checkpoint
+
+
+def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path) -> None:
+    """The two newest checkpoints' frames and times give the rate; the run's config.yaml its total frames."""
+    from ncbot.pipelines.run_folder import RunLock
+    from ncbot.pipelines.train.ablate import PlannedRun
+
+    run_dir = tmp_path / "seed0"
+    (run_dir / "checkpoints").mkdir(parents=True)
+    (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
+    now = time.time()
+    for frames, age in ((100_000, 600.0), (150_000, 400.0)):  # 50,000 frames in 200 s, the newer 400 s ago
+        path = run_dir / "checkpoints" / f"step-{frames:09d}.pt"
+        path.write_bytes(b"")
+        os.utime(path, (now - age, now - age))
+    run = PlannedRun("seed0", run_dir, tmp_path / "grid.yaml")
+    lock = RunLock(run_dir)
+    try:
+        where, detail = run.state()
+        # 250,000 frames at 250 frames/s is 1,000 s from the newer checkpoint, 400 s of which have passed
+        assert (where, detail.split(", ", 1)[1]) == \
+            ("training now", "checkpoint at 150,000 frames, 250 frames/s, about 10:00 left of 400,000 frames")
+        last = run_dir / "checkpoints" / "step-000400000.pt"
+        last.write_bytes(b"")
+        assert run.state()[1].endswith("every frame trained: the final evaluation")
+        last.unlink()
+        (run_dir / "config.yaml").write_text("collector: {}\n")  # no total: no estimate, still the checkpoint
+        assert run.state()[1].endswith("checkpoint at 150,000 frames")
+    finally:
+        lock.release()
