@@ -146,30 +146,40 @@ def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str |
     return save_figure(fig, path)
 
 
-def plot_run_profiles(rows: dict[str, dict[str, list[float]]], path: str | os.PathLike, title: str = "") -> Path:
-    """Every run's task success, one panel per game row: the share of an agent's runs scoring above each threshold
-    (a performance profile, Agarwal et al. 2021), so a reader sees each seed rather than a mean. ``rows``: game row
-    label -> agent label -> one score per run."""
+def plot_run_profiles(panels: dict[str, dict[str, list[float]]], path: str | os.PathLike, title: str = "") -> Path:
+    """Every run's task success, one panel per game row (and settings): the share of an agent's runs scoring above
+    each threshold (a performance profile, Agarwal et al. 2021), so a reader sees each seed rather than a mean.
+    ``panels``: panel title -> agent label -> one score per run; up to 3 panels a line."""
     import numpy as np
 
     from ncbot.pipelines.reproduce.aggregate import performance_profile
 
     plt = pyplot()
-    labels = list(rows)
-    agents = sorted({agent for by_agent in rows.values() for agent in by_agent})
+    titles = list(panels) or ["no runs"]
+    columns = min(3, len(titles))
+    lines = -(-len(titles) // columns)
+    agents = sorted({agent for by_agent in panels.values() for agent in by_agent})
     colours = {agent: f"C{i % 10}" for i, agent in enumerate(agents)}  # one colour per agent on every panel
-    fig, axes = plt.subplots(1, max(1, len(labels)), figsize=(4.5 * max(1, len(labels)), 4), sharey=True, squeeze=False)
-    for ax, label in zip(axes[0], labels):
-        scores = [s for runs in rows[label].values() for s in runs]
-        low = min(scores) if scores else 0.0
-        thresholds = np.linspace(max(0.0, low - 0.02), 1.0, 400)
-        for agent, runs in sorted(rows[label].items()):
+    fig, axes = plt.subplots(lines, columns, figsize=(4.5 * columns, 4.3 * lines), sharex=True, sharey=True,
+                             squeeze=False)
+    lowest = min((s for by_agent in panels.values() for runs in by_agent.values() for s in runs), default=0.0)
+    thresholds = np.linspace(max(0.0, lowest - 0.02), 1.0, 400)  # one scale on every panel, to compare them
+    for ax, title_of_panel in zip(axes.flat, titles):
+        by_agent = panels.get(title_of_panel, {})
+        for agent, runs in sorted(by_agent.items()):
             ax.step(thresholds, performance_profile(runs, thresholds), where="post", color=colours[agent],
                     label=f"{agent} ({len(runs)} runs)")
-        ax.set_title(label, fontsize=10)
-        ax.set_xlabel("task success threshold, robot first")
+        ax.set_title(title_of_panel, fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    axes[0, 0].set_ylabel("share of runs above the threshold")
+        if by_agent:
+            ax.legend(fontsize=7)
+    for ax in axes.flat[len(titles):]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("share of runs above the threshold")
+    for ax in axes.flat[max(0, len(titles) - columns):len(titles)]:  # the lowest panel of each column
+        ax.set_xlabel("task success threshold, robot first")
+        ax.xaxis.set_tick_params(labelbottom=True)
     fig.suptitle(title or "run-score distributions (performance profiles)")
+    fig.tight_layout()
     return save_figure(fig, path)

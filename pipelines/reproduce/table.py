@@ -311,7 +311,7 @@ class Report:
 def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out: str | Path | None = None,
                  command: str | None = None) -> Report:
     """Write the table (default RUNS_DIR/table.md), the claims (default paper_claims.md beside it),
-    curves_<suite>_<game>.png and every run's task success as profiles_<suite>.png next to the table."""
+    curves_<suite>_<game>.png and every run's task success as <table>_profiles.png next to the table."""
     from ncbot.pipelines.plots import plot_agent_curves, plot_run_profiles
 
     runs_dir = Path(runs_dir)
@@ -341,12 +341,11 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
                 sum(run[seat]["task_success"] for run in runs) / len(runs) for seat in ("first", "second"))
         else:
             by_plot[(suite, game)][label] = [r.get("history", []) for r in runs]
-    profiles: dict[str, dict[str, dict[str, list[float]]]] = defaultdict(lambda: defaultdict(dict))
-    for (suite, game, cell), values in sorted(samples.items(), key=lambda item: _order(item[0])):
-        profiles[suite][GAME_LABELS.get(game, game)][CELL_LABELS.get(cell, cell)] = values["task_success"]
-    for suite, rows_of_suite in profiles.items():
-        plot_run_profiles(rows_of_suite, out.parent / f"profiles_{suite}.png",
-                          title=f"{suite} settings: share of runs (seeds) above each task success, robot first")
+    profiles: dict[str, dict[str, list[float]]] = defaultdict(dict)
+    for (suite, game, cell), values in sorted(samples.items(), key=lambda item: (item[0][0], _order(item[0]))):
+        profiles[f"{GAME_LABELS.get(game, game)}, {suite} settings"][CELL_LABELS.get(cell, cell)] = values["task_success"]
+    plot_run_profiles(profiles, out.with_name(f"{out.stem}_profiles.png"),
+                      title="every run: the share of an agent's seeds above each task success, robot first")
     for (suite, game) in sorted(set(by_plot) | set(levels)):
         plot_agent_curves(by_plot.get((suite, game), {}), out.parent / f"curves_{suite}_{game}.png",
                           title=f"{GAME_LABELS.get(game, game)}, {suite} settings: mean over seeds, band min..max",

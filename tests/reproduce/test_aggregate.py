@@ -83,4 +83,4 @@ def test_claims_report_pools_the_rows_both_agents_have(tmp_path: Path) -> None:
     assert claim_i.improvements == ((1.0, 1.0, 1.0), (1.0, 1.0, 1.0))
     assert "1.00 [1.00, 1.00]<br>1.00 [1.00, 1.00]" in report.claims_text
     assert json.dumps(report.to_dict())  # serialisable, pooled included
-    assert (tmp_path / "profiles_paper.png").stat().st_size > 10_000
+    assert (tmp_path / "t_profiles.png").stat().st_size > 10_000
