@@ -110,14 +110,19 @@ def periodic_checkpoints(run_dir: str | os.PathLike) -> list[Path]:
     return sorted(p for p in folder.iterdir() if PERIODIC_PATTERN.match(p.name))
 
 
-def checkpoint_rate(found: list[Path]) -> float | None:
-    """Frames per second between the two newest periodic checkpoints (``periodic_checkpoints``), from their names
-    and modification times; None with fewer than two or no time between them."""
-    if len(found) < 2:
+def checkpoint_rate(found: list[Path], since: float | None = None) -> float | None:
+    """Frames per second of the process training the run, from its periodic checkpoints (``periodic_checkpoints``):
+    between the two newest it wrote, or, with one, from its start. ``since``: when that process started (its lock);
+    older checkpoints are an earlier process's (a resumed run), whose pace and pauses say nothing of this one's, so
+    the newest of them only gives the frames it resumed from. None when there is nothing to measure."""
+    points = [(path.stat().st_mtime, periodic_frames(path)) for path in found]
+    if since is not None:
+        before = [frames for written, frames in points if written < since]
+        points = [(since, before[-1] if before else 0)] + [(w, f) for w, f in points if w >= since]
+    if len(points) < 2:
         return None
-    (older, newer) = found[-2:]
-    seconds = newer.stat().st_mtime - older.stat().st_mtime
-    return (periodic_frames(newer) - periodic_frames(older)) / seconds if seconds > 0 else None
+    (older_time, older_frames), (newer_time, newer_frames) = points[-2:]
+    return (newer_frames - older_frames) / (newer_time - older_time) if newer_time > older_time else None
 
 
 def save_periodic(state: dict[str, Any], run_dir: str | os.PathLike, frames: int, keep: int) -> Path:

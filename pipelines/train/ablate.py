@@ -63,17 +63,23 @@ class PlannedRun:
         return ("stopped", f"resumes from the {at}") if found else ("not started", "")
 
     def _pace(self, found: list[Path]) -> str:
-        """", N frames/s, about H:MM:SS left" from the two newest checkpoints and the run's collector.total_frames
-        (an estimate: evaluations and a games cap are not foreseen); "" where either is missing."""
+        """", N frames/s, about H:MM:SS left" from the checkpoints the training process wrote (`checkpoint_rate`) and
+        the run's collector.total_frames (an estimate: evaluations and a games cap are not foreseen); "" where either
+        is missing."""
         import time
 
         from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
         from ncbot.pipelines.progress import duration
+        from ncbot.pipelines.run_folder import LOCK_NAME
 
         total = self._total_frames()
         if found and total is not None and periodic_frames(found[-1]) >= total:
             return ", every frame trained: the final evaluation"
-        rate = checkpoint_rate(found)
+        try:
+            started = (self.run_dir / LOCK_NAME).stat().st_mtime  # the holder writes its pid there on taking it
+        except OSError:
+            started = None
+        rate = checkpoint_rate(found, since=started)
         if rate is None or total is None:
             return ""
         left = max(0.0, (total - periodic_frames(found[-1])) / rate - (time.time() - found[-1].stat().st_mtime))

@@ -139,10 +139,17 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path) -> No
     run = PlannedRun("seed0", run_dir, tmp_path / "grid.yaml")
     lock = RunLock(run_dir)
     try:
+        os.utime(run_dir / ".lock", (now - 700, now - 700))  # the training started before both checkpoints
         where, detail = run.state()
         # 250,000 frames at 250 frames/s is 1,000 s from the newer checkpoint, 400 s of which have passed
         assert (where, detail.split(", ", 1)[1]) == \
             ("training now", "checkpoint at 150,000 frames, 250 frames/s, about 10:00 left of 400,000 frames")
+        # resumed 500 s ago from the older checkpoint: its pace is from then (50,000 frames in 100 s), not the
+        # earlier process's, whose pauses between sessions would make the estimate hours long
+        os.utime(run_dir / ".lock", (now - 500, now - 500))
+        assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 1:40 left of 400,000 frames")
+        os.utime(run_dir / ".lock", (now - 300, now - 300))  # resumed after both: nothing of its own yet
+        assert run.state()[1].endswith("checkpoint at 150,000 frames")
         last = run_dir / "checkpoints" / "step-000400000.pt"
         last.write_bytes(b"")
         assert run.state()[1].endswith("every frame trained: the final evaluation")
