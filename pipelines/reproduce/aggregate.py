@@ -73,11 +73,11 @@ def _percentile(draws: np.ndarray, confidence: float) -> tuple[float, float]:
 def iqm_interval(strata: Strata, reps: int = BOOTSTRAP_REPS, seed: int = BOOTSTRAP_SEED,
                  confidence: float = CONFIDENCE) -> tuple[float, float, float]:
     """(IQM over every run of every stratum, low, high): the percentile interval of a stratified bootstrap."""
+    from scipy.stats import trim_mean
+
     _check_strata(strata)
     rng = np.random.default_rng(seed)
     draws = np.concatenate([_resampled(runs, reps, rng) for runs in strata], axis=1)
-    from scipy.stats import trim_mean
-
     point = iqm(np.concatenate([np.asarray(runs, float) for runs in strata]))
     return (point, *_percentile(trim_mean(draws, 0.25, axis=1), confidence))
 
@@ -107,4 +107,3 @@ def interval_text(found: tuple[float, float, float]) -> str:
 def reading(low: float, high: float) -> str:
     """What an interval of P(X > Y) says of "X beats Y": above 1/2 as claimed, below against it, else neither."""
     return "as claimed" if low > 0.5 else ("against the claim" if high < 0.5 else "not separated")
-
