@@ -145,7 +145,7 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path) -> No
         assert (where, detail.split(", ", 1)[1]) == \
             ("training now", "checkpoint at 150,000 frames, 250 frames/s, about 10:00 left of 400,000 frames")
         # resumed 500 s ago from the older checkpoint: its pace is from then (50,000 frames in 100 s), not the
-        # earlier process's, whose pauses between sessions would make the estimate hours long
+        # earlier process's, whose stop before the resume would make the estimate hours long
         os.utime(run_dir / ".lock", (now - 500, now - 500))
         assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 1:40 left of 400,000 frames")
         os.utime(run_dir / ".lock", (now - 300, now - 300))  # resumed after both: nothing of its own yet
