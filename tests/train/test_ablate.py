@@ -123,7 +123,7 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
     assert grid_status(grid, seeds=1)[0][1] == "not started"  # the lock is gone with its holder, no checkpoint
 
 
-def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path) -> None:
+def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The two newest checkpoints' frames and times give the rate; the run's config.yaml its total frames."""
     from ncbot.pipelines.run_folder import RunLock
     from ncbot.pipelines.train.ablate import PlannedRun
@@ -132,6 +132,7 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path) -> No
     (run_dir / "checkpoints").mkdir(parents=True)
     (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
     now = time.time()
+    monkeypatch.setattr(time, "time", lambda: now)  # the clock stands still while the test reads the estimate
     for frames, age in ((100_000, 600.0), (150_000, 400.0)):  # 50,000 frames in 200 s, the newer 400 s ago
         path = run_dir / "checkpoints" / f"step-{frames:09d}.pt"
         path.write_bytes(b"")
