@@ -97,6 +97,15 @@ def lock_holder(path: Path) -> int | None:
     return None
 
 
+def lock_taken_at(path: Path) -> float | None:
+    """When the current or last holder took RUN/.lock (epoch seconds), or None without one: `RunLock` rewrites the
+    file with its pid on taking it, so its modification time is the holder's start."""
+    try:
+        return (path / LOCK_NAME).stat().st_mtime
+    except OSError:
+        return None
+
+
 class RunLock:
     """An exclusive `flock` on RUN/.lock for as long as the run writes; the kernel releases it if the run dies."""
 

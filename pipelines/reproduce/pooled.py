@@ -25,7 +25,7 @@ class PooledScore:
 
     suite: str
     cell: str
-    games: tuple[str, ...]  # the game rows' labels, as the table names them
+    game_labels: tuple[str, ...]  # its game rows, as the table names them
     runs: int
     iqm: float
     low: float
@@ -81,7 +81,8 @@ def pooled_comparisons(samples: Samples) -> list[PooledComparison]:
                 if (suite, metric, larger, smaller) in seen:
                     continue
                 seen.add((suite, metric, larger, smaller))
-                games = [g for g in _games(samples, suite, larger, metric) if g in _games(samples, suite, smaller, metric)]
+                other = _games(samples, suite, smaller, metric)
+                games = [game for game in _games(samples, suite, larger, metric) if game in other]
                 if not games:
                     continue
                 a = [samples[(suite, game, larger)][metric] for game in games]
@@ -117,7 +118,7 @@ def render_pooled(scores: list[PooledScore], comparisons: list[PooledComparison]
         "|---|---|---|---|---|",
     ]
     for score in scores:
-        lines.append(f"| {score.suite} | {CELL_LABELS.get(score.cell, score.cell)} | {', '.join(score.games)} | "
+        lines.append(f"| {score.suite} | {CELL_LABELS.get(score.cell, score.cell)} | {', '.join(score.game_labels)} | "
                      f"{score.runs} | {score.iqm:.4f} [{score.low:.4f}, {score.high:.4f}] |")
     if not scores:
         lines.append("| – | – | no agent has 2 seeds in a game row | – | – |")

@@ -70,27 +70,30 @@ class PlannedRun:
 
         from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
         from ncbot.pipelines.progress import duration
-        from ncbot.pipelines.run_folder import LOCK_NAME
+        from ncbot.pipelines.run_folder import lock_taken_at
 
         total = self._total_frames()
-        if found and total is not None and periodic_frames(found[-1]) >= total:
-            return ", every frame trained: the final evaluation"
-        try:
-            started = (self.run_dir / LOCK_NAME).stat().st_mtime  # the holder writes its pid there on taking it
-        except OSError:
-            started = None
-        rate = checkpoint_rate(found, since=started)
-        if rate is None or total is None:
+        if not found or total is None:
             return ""
-        left = max(0.0, (total - periodic_frames(found[-1])) / rate - (time.time() - found[-1].stat().st_mtime))
+        newest = periodic_frames(found[-1])
+        if newest >= total:
+            return ", every frame trained: the final evaluation"
+        rate = checkpoint_rate(found, since=lock_taken_at(self.run_dir))
+        if rate is None:
+            return ""
+        left = max(0.0, (total - newest) / rate - (time.time() - found[-1].stat().st_mtime))
         return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
 
-    def _total_frames(self) -> int | None:
-        """collector.total_frames of the config.yaml `ncbot train` wrote into the run folder; None if unreadable."""
+    def _saved_config(self) -> Any:
+        """The config.yaml `ncbot train` wrote into the run folder, as read (one-line errors from `read_yaml`)."""
         from ncbot.fileio.yaml_file import read_yaml
 
+        return read_yaml(self.run_dir / "config.yaml", "run config", "the config.yaml ncbot train wrote")
+
+    def _total_frames(self) -> int | None:
+        """collector.total_frames of the run's saved config.yaml; None if unreadable or not there."""
         try:
-            total = read_yaml(self.run_dir / "config.yaml", "run config", "the config.yaml ncbot train wrote")["collector"]["total_frames"]
+            total = self._saved_config()["collector"]["total_frames"]
         except (OSError, ValueError, KeyError, TypeError):
             return None
         return total if isinstance(total, int) else None
@@ -100,11 +103,8 @@ class PlannedRun:
         resumes, else its config and overrides (what a Ray task asks for: pipelines/train/ray_backend.py)."""
         from ncbot.pipelines.config import config_from_dict, load_config
 
-        saved = self.run_dir / "config.yaml"
-        if "--resume" in self.command() and saved.is_file():
-            from ncbot.fileio.yaml_file import read_yaml
-
-            config = config_from_dict(read_yaml(saved, "run config", "the config.yaml ncbot train wrote"))
+        if "--resume" in self.command() and (self.run_dir / "config.yaml").is_file():
+            config = config_from_dict(self._saved_config())
         else:
             config = load_config(self.config, self.overrides)
         return self.name, config.train.num_threads, config.train.device
