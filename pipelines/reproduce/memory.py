@@ -4,7 +4,9 @@ pipelines/configs/memory_question.yaml (3x3) and memory_ultimate.yaml (Ultimate)
 
 Why its own report: the paper's table compares agents; this one compares how the Proposed agent learns the order of
 the moves, so each arm is told apart by what its runs were trained with (config.yaml: `agent.memory`,
-`env.temporal`, `buffer.batch_size`), and the report adds what the choice costs: parameters, training time per
+`env.temporal`, `buffer.batch_size`) and its recipe (`loss.reward`: the paper's protocol trains on the paper's
+rewards, the default recipes on game outcomes; arms of two recipes are never compared), and the report adds what
+the choice costs: parameters, training time per
 frame and training games to 0.95. Every comparison is a one-sided Welch's t-test over seeds (one sample = one
 seed's robot-first task success), with the 95 % interval of the difference, its power to detect the paper's own
 difference for claim (ii) on that game and a Holm-adjusted p over the family of comparisons.
@@ -32,6 +34,8 @@ GAME_LABELS = {"standard": "3x3", "ultimate": "Ultimate"}
 #: claim (ii), Proposed + temporal minus Proposed in the paper's table: 3x3, and Ultimate at 100 units (the width of
 #: the memory grids)
 PAPER_DIFFERENCE = {"standard": 0.9980 - 0.9868, "ultimate": 0.9753 - 0.9377}
+#: the recipe, told by the reward the learner trains on (`loss.reward`)
+RECIPES = {"paper": "the paper's protocol", "outcome": "default recipe"}
 ALPHA = 0.05
 POWER = 0.8
 
@@ -41,6 +45,7 @@ class Arm:
     """The runs of one way of giving the agent the move order, at one batch size, on one game."""
 
     game: str
+    reward: str  # paper | outcome: the recipe (RECIPES)
     memory: str  # none | gru | lstm
     temporal: bool
     batch_size: int
@@ -50,10 +55,15 @@ class Arm:
     def label(self) -> str:
         features = "temporal features" if self.temporal else "no temporal features"
         network = "feed-forward" if self.memory == "none" else self.memory.upper()
-        return f"{network}, {features}, batch {self.batch_size}"
+        return f"{network}, {features}, batch {self.batch_size}{recipe_suffix(self.reward)}"
 
     def values(self, metric: str) -> list[float]:
         return [value for run in self.runs if (value := run_metric(run, metric)) is not None]
+
+
+def recipe_suffix(reward: str) -> str:
+    """What a label adds for the recipe: nothing for the paper's protocol (the report's first and main setting)."""
+    return "" if reward == "paper" else f", {RECIPES.get(reward, reward)}"
 
 
 def run_metric(run: dict[str, Any], metric: str) -> float | None:
@@ -83,8 +93,8 @@ def _params(checkpoint: Path) -> int | None:
 def read_arms(runs_dirs: str | Path | list[str | Path]) -> list[Arm]:
     """Every finished run under the runs folders (the layout `ncbot ablate` writes), grouped by what it was trained
     with. One arm's seeds may come from several folders, but not the same seed twice (one ValueError naming both)."""
-    groups: dict[tuple[str, str, bool, int], list[dict[str, Any]]] = {}
-    where: dict[tuple[tuple[str, str, bool, int], int], Path] = {}
+    groups: dict[tuple[str, str, str, bool, int], list[dict[str, Any]]] = {}
+    where: dict[tuple[tuple[str, str, str, bool, int], int], Path] = {}
     for runs_dir in map(Path, runs_dirs if isinstance(runs_dirs, list) else [runs_dirs]):
         for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
             for run in runs:
@@ -92,16 +102,17 @@ def read_arms(runs_dirs: str | Path | list[str | Path]) -> list[Arm]:
                 if not {"played", "temporal", "batch_size"} <= run.keys():
                     raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size "
                                      "the run was trained with (the arm it belongs to)")
-                key = (run["played"], run["memory"], run["temporal"], run["batch_size"])
+                key = (run["played"], run.get("reward", "paper"), run["memory"], run["temporal"], run["batch_size"])
                 twin = where.setdefault((key, run["seed"]), folder)
                 if twin != folder:
-                    raise ValueError(f"{twin} and {folder} are the same seed of one arm (game, memory, temporal "
-                                     "features, batch size): keep one")
+                    raise ValueError(f"{twin} and {folder} are the same seed of one arm (game, recipe, memory, "
+                                     "temporal features, batch size): keep one")
                 groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
     order = {"none": 0, "gru": 1, "lstm": 2}
     return [Arm(*key, runs=tuple(sorted(runs, key=lambda run: run["seed"])))
-            for key, runs in sorted(groups.items(), key=lambda item: (item[0][0], order.get(item[0][1], 9),
-                                                                          item[0][3], item[0][2]))]
+            for key, runs in sorted(groups.items(), key=lambda item: (item[0][0], item[0][1] != "paper", item[0][1],
+                                                                          order.get(item[0][2], 9), item[0][4],
+                                                                          item[0][3]))]
 
 
 def welch_difference(a: list[float], b: list[float]) -> Interval:
@@ -170,25 +181,26 @@ class Comparison:
 
 
 def comparisons(arms: list[Arm]) -> list[Comparison]:
-    """The questions the grid can answer, each between two arms of the same game that differ in one thing (or, for
-    "memory instead of the features", in the way the move order is given); Holm-adjusted over the family."""
+    """The questions the grid can answer, each between two arms of the same game and recipe that differ in one thing
+    (or, for "memory instead of the features", in the way the move order is given); Holm-adjusted over the family."""
     found = []
-    by_key = {(arm.game, arm.memory, arm.temporal, arm.batch_size): arm for arm in arms}
-    for (game, memory, temporal, batch), arm in by_key.items():
-        twin = by_key.get((game, memory, False, batch))
+    by_key = {(arm.game, arm.reward, arm.memory, arm.temporal, arm.batch_size): arm for arm in arms}
+    for (game, reward, memory, temporal, batch), arm in by_key.items():
+        recipe = recipe_suffix(reward)
+        network = "feed-forward" if memory == "none" else memory.upper()
+        twin = by_key.get((game, reward, memory, False, batch))
         if temporal and twin is not None and len(arm.runs) > 1 and len(twin.runs) > 1:
-            found.append(Comparison(f"temporal features help ({'feed-forward' if memory == 'none' else memory.upper()}, "
-                                    f"batch {batch})", arm, twin))
-        plain = by_key.get((game, "none", temporal, batch))
+            found.append(Comparison(f"temporal features help ({network}, batch {batch}{recipe})", arm, twin))
+        plain = by_key.get((game, reward, "none", temporal, batch))
         if memory != "none" and plain is not None and len(arm.runs) > 1 and len(plain.runs) > 1:
-            found.append(Comparison(f"{memory.upper()} helps ({'with' if temporal else 'no'} temporal features, "
-                                    f"batch {batch})", arm, plain))
+            found.append(Comparison(f"{network} helps ({'with' if temporal else 'no'} temporal features, "
+                                    f"batch {batch}{recipe})", arm, plain))
         if memory != "none" and not temporal:
-            for (other_game, other_memory, other_temporal, other_batch), features in by_key.items():
-                if (other_game, other_memory, other_temporal) == (game, "none", True) and len(features.runs) > 1 \
-                        and len(arm.runs) > 1:
-                    found.append(Comparison(f"{memory.upper()} instead of the features (batch {batch} vs "
-                                            f"{other_batch})", arm, features))
+            for (other_game, other_reward, other_memory, other_temporal, other_batch), features in by_key.items():
+                if (other_game, other_reward, other_memory, other_temporal) == (game, reward, "none", True) \
+                        and len(features.runs) > 1 and len(arm.runs) > 1:
+                    found.append(Comparison(f"{network} instead of the features (batch {batch} vs "
+                                            f"{other_batch}{recipe})", arm, features))
     return _holm(found)
 
 
@@ -269,31 +281,32 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
 
 
 def seeds_csv(arms: list[Arm]) -> str:
-    columns = ("game", "memory", "temporal", "batch_size", "seed", "run_id", "frames", "train_wall_time_s", "params",
+    columns = ("game", "reward", "memory", "temporal", "batch_size", "seed", "run_id", "frames", "train_wall_time_s", "params",
                "games_to_0.95", "games_to_0.99", "first.task_success", "first.win", "first.draw", "first.loss", "first.truncated",
                "first.avg_length", "second.task_success", "second.win", "second.loss")
     rows = [",".join(columns)]
     for arm in arms:
         for run in arm.runs:
             reached = [run_metric(run, f"games_to_{threshold}") for threshold in THRESHOLDS]
-            values = [arm.game, arm.memory, str(arm.temporal).lower(), arm.batch_size, run["seed"], run.get("run_id", ""),
+            values = [arm.game, arm.reward, arm.memory, str(arm.temporal).lower(), arm.batch_size, run["seed"],
+                      run.get("run_id", ""),
                       run["frames"], run["train_wall_time_s"], run.get("params") or "",
                       *("" if games is None else int(games) for games in reached),
-                      *(run[seat].get(key, "") for seat, key in (s.split(".") for s in columns[11:]))]
+                      *(run[seat].get(key, "") for seat, key in (s.split(".") for s in columns[12:]))]
             rows.append(",".join(str(value) for value in values))
     return "\n".join(rows) + "\n"
 
 
 def plot(arms: list[Arm], path: Path) -> Path:
-    """Mean periodic task success (both seats) against training games, one panel per game and one line per arm,
-    seeds' range shaded."""
+    """Mean periodic task success (both seats) against training games, one panel per game and recipe (their
+    budgets differ by tens of thousands of games) and one line per arm, seeds' range shaded."""
     from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
-    games = list(dict.fromkeys(arm.game for arm in arms))
-    fig, axes = plt.subplots(1, len(games), figsize=(8 * len(games), 4.5), squeeze=False)
-    for ax, game in zip(axes[0], games):
-        for arm in (arm for arm in arms if arm.game == game):
+    panels = list(dict.fromkeys((arm.game, arm.reward) for arm in arms))
+    fig, axes = plt.subplots(1, len(panels), figsize=(8 * len(panels), 4.5), squeeze=False)
+    for ax, (game, reward) in zip(axes[0], panels):
+        for arm in (arm for arm in arms if (arm.game, arm.reward) == (game, reward)):
             length = min(len(run.get("history", [])) for run in arm.runs)
             if not length:
                 continue
@@ -303,7 +316,7 @@ def plot(arms: list[Arm], path: Path) -> Path:
             ax.fill_between(played, [min(s) for s in success], [max(s) for s in success], alpha=0.12)
         for threshold in THRESHOLDS:
             ax.axhline(threshold, color="grey", linestyle="--", linewidth=0.8)
-        ax.set_title(GAME_LABELS.get(game, game))
+        ax.set_title(f"{GAME_LABELS.get(game, game)}, {RECIPES.get(reward, reward)}")
         ax.set_xlabel("simulated training games (mean over seeds)")
         ax.set_ylabel("task success, periodic evaluation (both seats)")
         ax.grid(alpha=0.3)

@@ -132,7 +132,8 @@ def _identity(run: dict[str, Any]) -> str:
 
 def run_settings(run_dir: Path) -> dict[str, Any]:
     """What a run was trained with, from its config.yaml: the hidden widths and game (the table's row labels) and
-    its temporal information (memory, temporal features, batch size: the memory report's arms). A setting the file
+    its temporal information (memory, temporal features, batch size) and reward (the memory report's arms and
+    recipes). A setting the file
     does not hold (or no readable file) is left out: the table then labels the row by its key."""
     import yaml
 
@@ -142,9 +143,9 @@ def run_settings(run_dir: Path) -> dict[str, Any]:
         return {}
     if not isinstance(config, dict):
         return {}
-    env, agent, buffer = (config.get(key) if isinstance(config.get(key), dict) else {}
-                          for key in ("env", "agent", "buffer"))
-    settings: dict[str, Any] = {"memory": str(agent.get("memory", "none"))}
+    env, agent, buffer, loss = (config.get(key) if isinstance(config.get(key), dict) else {}
+                                for key in ("env", "agent", "buffer", "loss"))
+    settings: dict[str, Any] = {"memory": str(agent.get("memory", "none")), "reward": str(loss.get("reward", "paper"))}
     if isinstance(agent.get("hidden"), list):
         settings["hidden"] = tuple(int(width) for width in agent["hidden"])
     if isinstance(env.get("game"), str):

@@ -83,3 +83,27 @@ def test_a_reader_that_leaves_early_stops_ncbot_quietly(tmp_path: Path) -> None:
     process.stdout.close()  # before the child has written anything (it is still importing)
     assert process.wait(timeout=60) == 141
     assert process.stderr.read() == b""
+
+
+def test_every_shipped_grid_plans_runs_whose_configs_load(tmp_path: Path, monkeypatch) -> None:
+    """A grid's suites name configs and overrides that only `ncbot train` would read: a typo there would surface
+    hours into a grid. Every run of every shipped grid loads with its overrides now."""
+    import yaml
+
+    from ncbot.pipelines.train.ablate import plan_runs
+
+    monkeypatch.chdir(tmp_path)
+    grids = [name for name in shipped_configs()
+             if "grid" in (yaml.safe_load(shipped_config(name).read_text(encoding="utf-8")) or {})]
+    assert {"ablation", "memory_question", "memory_ultimate", "memory_default", "screening"} <= set(grids)
+    for grid in grids:
+        runs = plan_runs(grid, seeds=1, runs_dir=tmp_path / grid)
+        assert runs, grid
+        for run in runs:
+            config = load_config(run.config, run.overrides)
+            assert config.train.seed == 0, run.name
+    memory_default = {run.name: load_config(run.config, run.overrides)
+                      for run in plan_runs("memory_default", seeds=1, runs_dir=tmp_path / "md")}
+    assert {(c.env.game, c.agent.memory, c.env.temporal, c.loss.reward) for c in memory_default.values()} == {
+        (game, memory, temporal, "outcome") for game in ("standard", "ultimate") for memory in ("none", "gru")
+        for temporal in (False, True)}

@@ -29,7 +29,7 @@ def _history(success: float) -> list[dict]:
             for games, value in ((400, 0.94), (800, 0.96), (1200, success))]
 
 
-def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard") -> Path:
+def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard", reward: str | None = None) -> Path:
     """Run folders in the layout `ncbot ablate` writes, each with the config.yaml, eval.json and checkpoint a
     finished run has (a Q-network of a size that tells the arms apart)."""
     for (suite, memory, temporal, batch), values in arms.items():
@@ -39,6 +39,8 @@ def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard") -> Path:
             folder.mkdir(parents=True)
             config = {"env": {"game": game, "temporal": temporal}, "agent": {"memory": memory},
                       "buffer": {"batch_size": batch}}
+            if reward is not None:  # a config without loss.reward trains on the paper's rewards (its default)
+                config["loss"] = {"reward": reward}
             (folder / "config.yaml").write_text(yaml.safe_dump(config))
             (folder / "eval.json").write_text(json.dumps({
                 "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{game}{suite}{cell}{seed}",
@@ -94,7 +96,7 @@ def test_the_report_and_the_seeds_csv(tmp_path: Path) -> None:
     assert cells[2] == "0, 1, 2, 3, 4" and cells[3].startswith("0.9978 [") and cells[-1] == "132"
     assert "(4 of 5 seeds)" in next(line for line in text.splitlines() if "feed-forward, no temporal features, batch 2" in line)
     csv = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
-    assert len(csv) == 31 and csv[0].startswith("game,memory,temporal,batch_size,seed")
+    assert len(csv) == 31 and csv[0].startswith("game,reward,memory,temporal,batch_size,seed")
     assert Path(written["files"][2]).stat().st_size > 0
 
 
@@ -115,6 +117,35 @@ def test_one_report_reads_the_grids_of_both_games(tmp_path: Path) -> None:
     assert written["runs"] == 20 and written["arms"] == 4
     text = (tmp_path / "out" / "table.md").read_text()
     assert any(line.startswith("| Ultimate | feed-forward, temporal features, batch 2") for line in text.splitlines())
+
+
+def test_arms_of_two_recipes_are_told_apart_and_never_compared(tmp_path: Path) -> None:
+    """The default recipes (outcome rewards, batch 1024) beside the paper's protocol: same game, memory and features,
+    yet other arms; each question stays inside one recipe, and the curves get a panel per recipe."""
+    paper = grid_runs(tmp_path / "paper", {key: ARMS[key] for key in [("ff", "none", False, 2), ("gru", "gru", False, 16)]},
+                      reward="paper")
+    default_arms = {("ff", "none", False, 1024): [0.999, 0.998, 1.0, 0.999, 0.997],
+                    ("ff", "none", True, 1024): [0.998, 0.999, 0.999, 1.0, 0.998],
+                    ("gru", "gru", False, 1024): [0.995, 0.997, 0.999, 0.998, 0.996]}
+    default = grid_runs(tmp_path / "default", default_arms, reward="outcome")
+    arms = read_arms([default, paper])
+    assert [(a.reward, a.memory, a.temporal, a.batch_size) for a in arms] == [
+        ("paper", "none", False, 2), ("paper", "gru", False, 16), ("outcome", "none", False, 1024),
+        ("outcome", "none", True, 1024), ("outcome", "gru", False, 1024)]
+    assert arms[2].label == "feed-forward, no temporal features, batch 1024, default recipe"
+    assert arms[0].label == "feed-forward, no temporal features, batch 2"
+    found = comparisons(arms)
+    assert sorted(c.question for c in found) == [
+        "GRU helps (no temporal features, batch 1024, default recipe)",
+        "GRU instead of the features (batch 1024 vs 1024, default recipe)",
+        "temporal features help (feed-forward, batch 1024, default recipe)"]
+    # the paper's GRU has no feed-forward arm with the features in its own recipe: no question, though the default
+    # recipe has one
+    assert all(c.better.reward == c.worse.reward for c in found)
+    written = write_memory_report([str(paper), str(default)], tmp_path / "out", "ncbot reproduce memory a b")
+    assert written["arms"] == 5
+    csv = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
+    assert sum(line.split(",")[1] == "outcome" for line in csv[1:]) == 15
 
 
 def test_a_seed_of_one_arm_in_two_folders_is_one_line(tmp_path: Path) -> None:
