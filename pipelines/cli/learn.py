@@ -230,6 +230,39 @@ def table_command(
     typer.echo(json.dumps(report.to_dict()) if as_json else report.table + "\n" + report.claims_text)
 
 
+def compare_command(
+    runs: list[str] = typer.Argument(..., help="Finished run folders (eval.json), or folders of them such as a grid "
+                                     "cell (seed0/, seed1/, ...): the set expected to be ahead."),
+    against: list[str] = typer.Option(..., "--against", help="The runs to compare with (repeat the option, or "
+                                      "name a folder of run folders)."),
+    metric: str = typer.Option("first.task_success", "--metric", help="SEAT.KEY of eval.json: first (robot first, "
+                               "the paper's set-up) or second, e.g. task_success, win, truncated, avg_length."),
+    less: bool = typer.Option(False, "--less", help="H1: RUN's mean is below --against's (e.g. avg_length: "
+                              "shorter dialogues)."),
+    effect: Optional[float] = typer.Option(None, "--effect", help="The difference worth detecting, fixed before the "
+                                           "runs: prints the runs' power to detect it; below 0.8 a result that is "
+                                           "not significant reads untested, not refuted."),
+    alpha: float = typer.Option(0.05, "--alpha", help="Significance level of the one-sided test."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Also write the report to this markdown file."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of the markdown."),
+) -> None:
+    """Is one set of runs ahead of another over seeds? One-sided Welch's t-test, the difference's interval, power,
+    P(a run beats a run) and a rank test."""
+    import shlex
+    import sys
+
+    from ncbot.fileio import atomic_write_text
+    from ncbot.pipelines.reproduce.compare import compare
+
+    if out is not None:
+        check_writable_file(out, "--out", (".md",))
+    found = compare(runs, against, metric, larger=not less, effect=effect, alpha=alpha)
+    text = found.markdown("ncbot " + shlex.join(sys.argv[1:]))
+    if out is not None:
+        atomic_write_text(text, out)
+    typer.echo(json.dumps(found.to_dict()) if as_json else text)
+
+
 def train_value_command(
     out: str = typer.Option(..., "--out", "-o", help="Folder for positions.pt, value.pt, value.json and value.png."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids (the agent's env.free_move)."),
@@ -266,4 +299,5 @@ def register(app: typer.Typer) -> None:
     app.command("train-value")(train_value_command)
     app.command("ablate")(ablate_command)
     app.command("table")(table_command)
+    app.command("compare")(compare_command)
     app.command("configs")(configs_command)

@@ -118,15 +118,20 @@ def required_seeds(difference: float, std: float, alpha: float = 0.05, power: fl
     return max(2, math.ceil(2 * (z * std / difference) ** 2) + 1)
 
 
-def power_of(difference: float, std: float, n: int, alpha: float = 0.05) -> float:
-    """Power of the one-sided Welch test with ``n`` seeds a side, equal spreads ``std``, to detect ``difference``
-    (noncentral t with df = 2n - 2)."""
+def power_of(difference: float, std: float, n: int, alpha: float = 0.05, n_other: int | None = None) -> float:
+    """Power of the one-sided Welch test with ``n`` seeds on one side and ``n_other`` (default ``n``) on the other,
+    equal spreads ``std``, to detect ``difference`` (noncentral t with the Welch-Satterthwaite df; 2n - 2 when the
+    sides are equal)."""
     from scipy.stats import nct, t as student_t
 
-    if n < 2:
+    m = n if n_other is None else n_other
+    if min(n, m) < 2:
         return float("nan")
     if std == 0:
         return 1.0
-    df = 2 * n - 2
-    shift = difference / (std * math.sqrt(2 / n))
-    return float(nct.sf(student_t.ppf(1 - alpha, df), df, shift))
+    if m == n:
+        df, scale = 2 * n - 2, math.sqrt(2 / n)
+    else:
+        df = (1 / n + 1 / m) ** 2 / ((1 / n) ** 2 / (n - 1) + (1 / m) ** 2 / (m - 1))
+        scale = math.sqrt(1 / n + 1 / m)
+    return float(nct.sf(student_t.ppf(1 - alpha, df), df, difference / (std * scale)))

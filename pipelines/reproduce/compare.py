@@ -1,0 +1,186 @@
+"""`ncbot compare RUN... --against RUN...`: is one set of training runs ahead of another, over seeds?
+
+Why a command of its own: the table and the memory report compare the arms of one grid; a researcher's own question
+(a reading against paper mode, a change against main, a test planned before its runs on seeds chosen for it) pits
+two sets of run folders that no grid groups. Each run is one sample (its eval.json's metric, e.g. robot-first task
+success over 3000 test games); the decision is a one-sided Welch's t-test over runs, as in the claims, beside what
+the field asks of few-seed comparisons (Henderson et al. 2018; Agarwal et al. 2021): the two-sided interval of the
+difference, the power the runs have to detect a stated effect, the probability that a run of one set beats a run
+of the other with its bootstrap interval, and a rank test that assumes no normality.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ncbot.pipelines.reproduce.aggregate import improvement_interval, interval_text
+from ncbot.pipelines.reproduce.claims import welch_greater
+from ncbot.pipelines.reproduce.memory import welch_difference
+from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
+                                                  t_interval)
+from ncbot.pipelines.reproduce.table import DEFAULT_GAMES
+
+RATES = ("task_success", "win", "draw", "loss", "truncated", "all_negative")  # shares of test games: logit intervals
+POWER = 0.8
+
+
+@dataclass(frozen=True)
+class RunValue:
+    folder: Path
+    identity: str  # the run id `ncbot train` writes (a copied folder keeps it), else the folder
+    value: float
+    games: int
+
+
+def run_folders(paths: list[str]) -> list[Path]:
+    """Each path is a finished run folder (eval.json) or a folder of them (seed0/, seed1/, ...: a grid's cell)."""
+    found: list[Path] = []
+    for raw in paths:
+        path = Path(raw)
+        if (path / "eval.json").is_file():
+            found.append(path)
+        elif path.is_dir() and (inner := sorted(p.parent for p in path.glob("*/eval.json"))):
+            found.extend(inner)
+        else:
+            raise FileNotFoundError(f"{raw} is neither a finished run folder (with eval.json) nor a folder of them")
+    return found
+
+
+def read_values(paths: list[str], metric: str) -> list[RunValue]:
+    """The metric of every run under ``paths`` (e.g. first.task_success: robot first)."""
+    seat, _, key = metric.partition(".")
+    values = []
+    for folder in run_folders(paths):
+        report: dict[str, Any] = json.loads((folder / "eval.json").read_text(encoding="utf-8"))
+        block = report.get(seat)
+        if not isinstance(block, dict) or not isinstance(block.get(key), (int, float)):
+            known = sorted(f"{s}.{k}" for s in ("first", "second") if isinstance(report.get(s), dict)
+                           for k, v in report[s].items() if isinstance(v, (int, float)))
+            raise ValueError(f"--metric {metric!r} is not in {folder}/eval.json; expected one of {', '.join(known)}")
+        values.append(RunValue(folder, str(report.get("run_id") or folder.resolve()), float(block[key]),
+                               int(block.get("games", DEFAULT_GAMES))))
+    return values
+
+
+def _check(runs: list[RunValue], others: list[RunValue]) -> None:
+    """Every run counts once (a folder named twice, on one side or both, or a copy of one: the same run id), and
+    each side has the two runs a spread needs."""
+    seen: dict[str, Path] = {}
+    for run in runs + others:
+        if run.identity in seen:
+            raise ValueError(f"{seen[run.identity]} and {run.folder} are the same run (run id {run.identity}): "
+                             "a run counts once")
+        seen[run.identity] = run.folder
+    for side, found in (("RUN", runs), ("--against", others)):
+        if len(found) < 2:
+            raise ValueError(f"{side} needs at least 2 finished runs (seeds) to compare over seeds, got {len(found)}")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """H1: the metric's mean over ``runs`` is above (``larger=True``) or below the mean over ``others``."""
+
+    metric: str
+    runs: list[RunValue]
+    others: list[RunValue]
+    larger: bool = True
+    effect: float | None = None
+    alpha: float = 0.05
+
+    def samples(self) -> tuple[list[float], list[float]]:
+        a, b = [r.value for r in self.runs], [r.value for r in self.others]
+        return (a, b) if self.larger else ([-v for v in a], [-v for v in b])
+
+    def interval(self, runs: list[RunValue]) -> Interval:
+        if self.metric.partition(".")[2] in RATES:
+            return proportion_interval([r.value for r in runs], min(r.games for r in runs))
+        return t_interval([r.value for r in runs])
+
+    @property
+    def difference(self) -> Interval:
+        """mean(RUN) - mean(--against), two-sided 95 % Welch interval (on the metric's own scale and sign)."""
+        return welch_difference([r.value for r in self.runs], [r.value for r in self.others])
+
+    @property
+    def welch(self) -> tuple[float | None, float | None, float | None]:
+        return welch_greater(*self.samples())
+
+    @property
+    def rank_p(self) -> float:
+        from scipy.stats import mannwhitneyu
+
+        return float(mannwhitneyu(*self.samples(), alternative="greater").pvalue)
+
+    @property
+    def improvement(self) -> tuple[float, float, float]:
+        a, b = self.samples()
+        return improvement_interval([a], [b])
+
+    @property
+    def power(self) -> float | None:
+        """Power of these runs to detect ``effect`` at the pooled spread (None without an effect)."""
+        if self.effect is None:
+            return None
+        a, b = self.samples()
+        std = math.sqrt((mean_and_variance(a)[1] + mean_and_variance(b)[1]) / 2)
+        return power_of(self.effect, std, len(a), self.alpha, len(b))
+
+    @property
+    def verdict(self) -> str:
+        p = self.welch[2]
+        word = "higher" if self.larger else "lower"
+        if p is not None and p < self.alpha:
+            return f"RUN {word} at alpha {self.alpha} (p = {p:.3g})"
+        if self.power is not None and self.power < POWER:
+            return f"untested: power {self.power:.2f} < {POWER} to detect {self.effect:g}"
+        if self.difference.mean == 0 or (self.difference.mean > 0) != self.larger:
+            return f"no: RUN did not come out {word}"
+        return f"not shown (p = {p:.3g} >= {self.alpha})"
+
+    def to_dict(self) -> dict[str, Any]:
+        t, df, p = self.welch
+        difference = self.difference
+        return {"metric": self.metric, "direction": "greater" if self.larger else "less", "alpha": self.alpha,
+                "runs": [{"folder": str(r.folder), "value": r.value} for r in self.runs],
+                "against": [{"folder": str(r.folder), "value": r.value} for r in self.others],
+                "mean": self.interval(self.runs).mean, "against_mean": self.interval(self.others).mean,
+                "difference": difference.mean, "difference_low": difference.low, "difference_high": difference.high,
+                "t": t, "df": df, "p": p, "rank_p": self.rank_p,
+                "p_run_ahead": list(self.improvement), "effect": self.effect, "power": self.power,
+                "verdict": self.verdict}
+
+    def markdown(self, command: str) -> str:
+        t, df, p = self.welch
+        op = ">" if self.larger else "<"
+        lines = [f"# {self.metric}: RUN {op} --against", "", f"Made by `{command}`.", "",
+                 "| side | runs | mean [95 % interval] | s | per run |", "|---|---|---|---|---|"]
+        for side, runs in (("RUN", self.runs), ("--against", self.others)):
+            spread = math.sqrt(mean_and_variance([r.value for r in runs])[1])
+            lines.append(f"| {side} | {len(runs)} | {self.interval(runs).text(4)} | {spread:.4f} | "
+                         + ", ".join(f"{r.value:.4f}" for r in runs) + " |")
+        difference = self.difference
+        test = "t = –" if t is None else f"t = {t:.2f}, df = {df:.1f}"
+        lines += ["", f"- difference RUN - against: {difference.text(4)} (two-sided 95 % Welch interval)",
+                  f"- one-sided Welch's t-test, H1 mean(RUN) {op} mean(against): {test}, p = "
+                  + ("–" if p is None else f"{p:.3g}"),
+                  f"- one-sided Mann-Whitney U (no normality assumed): p = {self.rank_p:.3g}",
+                  f"- P(a run of RUN is {'above' if self.larger else 'below'} a run of against): "
+                  f"{interval_text(self.improvement)} (percentile bootstrap over runs: describes, the test decides)"]
+        if self.power is not None:
+            lines.append(f"- power to detect {self.effect:g} at the pooled spread with these runs: {self.power:.2f}")
+        lines += [f"- verdict: {self.verdict}", ""]
+        return "\n".join(lines)
+
+
+def compare(paths: list[str], against: list[str], metric: str = "first.task_success", larger: bool = True,
+            effect: float | None = None, alpha: float = 0.05) -> Comparison:
+    if not 0 < alpha < 1:
+        raise ValueError(f"--alpha must be between 0 and 1, got {alpha}")
+    if effect is not None and effect <= 0:
+        raise ValueError(f"--effect is the size of the difference to detect, a positive number; got {effect}")
+    runs, others = read_values(paths, metric), read_values(against, metric)
+    _check(runs, others)
+    return Comparison(metric, runs, others, larger, effect, alpha)
