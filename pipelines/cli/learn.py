@@ -190,12 +190,21 @@ def ablate_command(
     from ncbot.pipelines.train.ablate import grid_status, run_ablation
 
     if status:
-        states = grid_status(config, seeds=seeds, out=out, only=only, overrides=list(overrides or []))
+        from ncbot.pipelines.progress import duration
+
+        states, left = grid_status(config, seeds=seeds, out=out, only=only, overrides=list(overrides or []))
         width = max(len(name) for name, _, _ in states)
         for name, where, detail in states:
             typer.echo(f"{name:<{width}}  {where}" + (f": {detail}" if detail else ""))
         counts = Counter(where for _, where, _ in states)
         typer.echo(f"{len(states)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()))
+        if left.estimated:
+            unknown = (f"; {left.unknown} more with no finished seed of their cell to go by" if left.unknown else "")
+            typer.echo(f"left: about {duration(left.seconds)} of training over {left.estimated} runs, about "
+                       f"{duration(left.seconds / workers)} at --workers {workers} (each run at its own pace, else at "
+                       f"the median of its cell's finished seeds){unknown}")
+        elif left.unknown:
+            typer.echo(f"left: {left.unknown} runs, none with a finished seed of its cell to estimate from")
         return
     if out is not None:
         check_writable_dir(out, "--out")

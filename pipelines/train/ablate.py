@@ -66,23 +66,65 @@ class PlannedRun:
         """", N frames/s, about H:MM:SS left" from the checkpoints the training process wrote (`checkpoint_rate`) and
         the run's collector.total_frames (an estimate: evaluations and a games cap are not foreseen); "" where either
         is missing."""
-        import time
-
-        from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
+        from ncbot.pipelines.checkpoint import periodic_frames
         from ncbot.pipelines.progress import duration
-        from ncbot.pipelines.run_folder import lock_taken_at
 
         total = self._total_frames()
         if not found or total is None:
             return ""
-        newest = periodic_frames(found[-1])
-        if newest >= total:
+        if periodic_frames(found[-1]) >= total:
             return ", every frame trained: the final evaluation"
+        pace = self._rate_and_left(found, total)
+        if pace is None:
+            return ""
+        rate, left = pace
+        return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
+
+    def _rate_and_left(self, found: list[Path], total: int) -> tuple[float, float] | None:
+        """(frames/s of the process training the run now, seconds it has left), or None before it wrote 2 checkpoints."""
+        import time
+
+        from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
+        from ncbot.pipelines.run_folder import lock_taken_at
+
         rate = checkpoint_rate(found, since=lock_taken_at(self.run_dir))
         if rate is None:
-            return ""
-        left = max(0.0, (total - newest) / rate - (time.time() - found[-1].stat().st_mtime))
-        return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
+            return None
+        newest = periodic_frames(found[-1])
+        return rate, max(0.0, (total - newest) / rate - (time.time() - found[-1].stat().st_mtime))
+
+    @property
+    def cell(self) -> str:
+        """The run's grid cell: its name without the seed (seeds of one cell cost about the same)."""
+        return self.name.rsplit("/", 1)[0]
+
+    def wall_time(self) -> float | None:
+        """A finished run's training wall time (eval.json's train_wall_time_s); None otherwise."""
+        import json
+
+        try:
+            seconds = json.loads((self.run_dir / "eval.json").read_text(encoding="utf-8"))["train_wall_time_s"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        return float(seconds) if isinstance(seconds, (int, float)) else None
+
+    def seconds_left(self, typical: float | None) -> float | None:
+        """Training time this run still needs: its own pace while it trains, else ``typical`` (a finished seed's of
+        its cell) scaled by the frames its checkpoint has left; None where neither is known."""
+        from ncbot.pipelines.checkpoint import periodic_checkpoints, periodic_frames
+        from ncbot.pipelines.run_folder import lock_holder
+
+        if self.finished:
+            return 0.0
+        found = periodic_checkpoints(self.run_dir)
+        total = self._total_frames() if found else None
+        if found and total:
+            done = min(1.0, periodic_frames(found[-1]) / total)
+            pace = self._rate_and_left(found, total) if lock_holder(self.run_dir) is not None else None
+            if pace is not None:
+                return pace[1]
+            return None if typical is None else typical * (1.0 - done)
+        return typical
 
     def _saved_config(self) -> Any:
         """The config.yaml `ncbot train` wrote into the run folder, as read (one-line errors from `read_yaml`)."""
@@ -342,10 +384,42 @@ def planned_runs(grid_path: str | Path, *, seeds: int, out: str | Path | None = 
 
 
 def grid_status(grid_path: str | Path, *, seeds: int = 3, out: str | Path | None = None, only: str | None = None,
-                overrides: list[str] | None = None) -> list[tuple[str, str, str]]:
-    """(run name, where it stands, a detail) for every run of the grid (``PlannedRun.state``); nothing starts."""
-    return [(run.name, *run.state()) for run in planned_runs(grid_path, seeds=seeds, out=out, only=only,
-                                                             overrides=overrides)]
+                overrides: list[str] | None = None) -> tuple[list[tuple[str, str, str]], TimeLeft]:
+    """(run name, where it stands, a detail) for every run of the grid (``PlannedRun.state``), and the training time
+    left (``grid_time_left``); nothing starts."""
+    runs = planned_runs(grid_path, seeds=seeds, out=out, only=only, overrides=overrides)
+    return [(run.name, *run.state()) for run in runs], grid_time_left(runs)
+
+
+@dataclass(frozen=True)
+class TimeLeft:
+    """The grid's training time still to run, summed over its runs (``PlannedRun.seconds_left``)."""
+
+    seconds: float  # over the runs with an estimate
+    estimated: int  # unfinished runs with an estimate
+    unknown: int  # unfinished runs whose cell has no finished seed yet (and no pace of their own)
+
+
+def grid_time_left(runs: list[PlannedRun]) -> TimeLeft:
+    """What is left of the grid, in training time: each unfinished run at its own pace, or at the median training
+    time of its cell's finished seeds. Seeds of one cell cost about the same; a shared machine's load does not."""
+    import statistics
+
+    typical: dict[str, list[float]] = {}
+    for run in runs:
+        if (seconds := run.wall_time()) is not None:
+            typical.setdefault(run.cell, []).append(seconds)
+    medians = {cell: statistics.median(times) for cell, times in typical.items()}
+    seconds, estimated, unknown = 0.0, 0, 0
+    for run in runs:
+        if run.finished:
+            continue
+        left = run.seconds_left(medians.get(run.cell))
+        if left is None:
+            unknown += 1
+        else:
+            seconds, estimated = seconds + left, estimated + 1
+    return TimeLeft(seconds, estimated, unknown)
 
 
 def run_ablation(grid_path: str | Path, *, seeds: int = 3, workers: int = 2, backend: str = "local",

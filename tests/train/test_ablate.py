@@ -107,7 +107,7 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
     (stopped / "checkpoints" / "step-000050000.pt").write_bytes(b"")
     lock = RunLock(held)  # another ncbot train, as far as the folder can tell
     try:
-        states = {name.split("/")[2]: (where, detail) for name, where, detail in grid_status(grid, seeds=1)}
+        states = {name.split("/")[2]: (where, detail) for name, where, detail in grid_status(grid, seeds=1)[0]}
         assert states["proposed-notemporal"] == ("finished", "task success 0.9900 robot first, 0.9000 robot second")
         assert states["proposed-temporal"] == ("stopped", "resumes from the checkpoint at 50,000 frames")
         assert states["dqn_variant-notemporal"][0] == "training now"
@@ -117,10 +117,12 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
         assert not (held / "train.log").exists() and not (finished / "train.log").exists()  # nothing was started
         result = ncbot("ablate", str(grid), "--seeds", "1", "--status")
         assert result.returncode == 0, result.stderr
-        assert result.stdout.strip().splitlines()[-1] == "3 runs: 1 training now, 1 finished, 1 stopped"
+        assert result.stdout.strip().splitlines()[-2:] == [
+            "3 runs: 1 training now, 1 finished, 1 stopped",
+            "left: 2 runs, none with a finished seed of its cell to estimate from"]
     finally:
         lock.release()
-    assert grid_status(grid, seeds=1)[0][1] == "not started"  # the lock is gone with its holder, no checkpoint
+    assert grid_status(grid, seeds=1)[0][0][1] == "not started"  # the lock is gone with its holder, no checkpoint
 
 
 def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -159,3 +161,33 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monke
         assert run.state()[1].endswith("checkpoint at 150,000 frames")
     finally:
         lock.release()
+
+
+def test_status_sums_the_training_time_left_from_each_cells_finished_seeds(tmp_path: Path) -> None:
+    """A run not started costs its cell's median finished seed, a stopped one the share of frames its checkpoint has
+    left; a cell with no finished seed is counted apart, not guessed."""
+    import json
+
+    from ncbot.pipelines.train.ablate import grid_status
+    from tests.learning_helpers import ncbot
+
+    grid = _grid(tmp_path)
+    cell = tmp_path / "runs" / "fast" / "standard" / "proposed-temporal"
+    for seed, seconds in ((0, 100.0), (1, 300.0), (2, 200.0)):  # median 200 s
+        (cell / f"seed{seed}").mkdir(parents=True)
+        (cell / f"seed{seed}" / "eval.json").write_text(json.dumps(
+            {"train_wall_time_s": seconds, "first": {"task_success": 0.99}, "second": {"task_success": 0.9}}))
+    stopped = cell / "seed3"
+    (stopped / "checkpoints").mkdir(parents=True)
+    (stopped / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
+    (stopped / "checkpoints" / "step-000100000.pt").write_bytes(b"")  # a quarter trained: 150 s left
+    states, left = grid_status(grid, seeds=5, only="proposed-temporal")
+    assert [where for _, where, _ in states] == ["finished"] * 3 + ["stopped", "not started"]
+    assert (left.seconds, left.estimated, left.unknown) == (150.0 + 200.0, 2, 0)
+    _, everything = grid_status(grid, seeds=5)  # the other cells have no finished seed
+    assert (everything.seconds, everything.estimated, everything.unknown) == (350.0, 2, 10)
+    result = ncbot("ablate", str(grid), "--seeds", "5", "--only", "proposed-temporal", "--status", "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().splitlines()[-1] == (
+        "left: about 5:50 of training over 2 runs, about 2:55 at --workers 2 (each run at its own pace, else at the "
+        "median of its cell's finished seeds)")
