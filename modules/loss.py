@@ -166,7 +166,26 @@ class CompetitiveDQNLoss(LossModule):
         """Q(s, .) of the online network on the rows' observations (float32, with gradients; other losses on the
         same network, e.g. the search teacher's margin loss, read it here)."""
         with self._matmul_precision():
-            return self._qnet(tensordict.select(*self._qnet.in_keys)).get(self.tensor_keys.action_value).float()
+            return self._online_q(tensordict).float()
+
+    def _online_q(self, tensordict: TensorDictBase) -> torch.Tensor:
+        """The online Q-network on the rows' observations: its module on the tensors of its in_keys, as `QValues`
+        runs it, without a selected copy of the batch (same module, same inputs, same bits)."""
+        qnet = self._qnet
+        return qnet.module(*(tensordict.get(key) for key in qnet.in_keys))
+
+    def _bootstrap_value(self, tensordict: TensorDictBase) -> torch.Tensor:
+        """max over the next state's bootstrap mask of the target network's Q(s', a'), shape [..., 1].
+
+        What TD(0)'s `_next_value` computes by running `target_value_network` on `step_mdp(tensordict)`, done on the
+        tensors: the same modules, inputs and ops (QValues' module, then MaskedArgmax's fill and max), so the same
+        bits, without the step_mdp copy and two TensorDict passes, which cost more than the products themselves
+        at the paper's batch of 2. The estimator still computes the return from it."""
+        qnet, best = self.target_value_network[0], self.target_value_network[1]
+        next_state = tensordict.get("next")
+        values = qnet.module(*(next_state.get(key) for key in qnet.in_keys))
+        masked = values.masked_fill(~next_state.get(best.mask_key), torch.finfo(values.dtype).min)
+        return masked.max(-1)[0].unsqueeze(-1)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         """Loss on Q(s, a) against the masked TD(0) target; writes `td_error` (|Q - y|) for prioritised replay and,
@@ -174,9 +193,11 @@ class CompetitiveDQNLoss(LossModule):
         sampling, as TorchRL's DQNLoss does)."""
         keys = self.tensor_keys
         with self._matmul_precision():
-            q_values = self._qnet(tensordict.select(*self._qnet.in_keys)).get(keys.action_value).float()
+            q_values = self._online_q(tensordict).float()
             with torch.no_grad():
                 next_value = self._double_dqn_next_value(tensordict)
+                if next_value is None:
+                    next_value = self._bootstrap_value(tensordict)
                 target = self.value_estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
         predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
         error = distance_loss(predicted, target.float(), self.loss_function)

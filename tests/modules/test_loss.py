@@ -336,3 +336,26 @@ def test_bound_target_network_is_the_swapped_in_target_bit_for_bit() -> None:
     assert torch.equal(swapped_and_bound(fresh.loss_module, batch)[1], swapped_and_bound(learner.loss_module, batch)[0])
     assert sum(1 for _ in learner.loss_module.parameters()) == online == 6
     assert not any("target_value_network." in key for key in learner.loss_module.state_dict())
+
+
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_bootstrap_on_the_tensors_is_the_estimators_target_pass_bit_for_bit(precision: str) -> None:
+    """The loss computes the bootstrap value on the tensors (`_bootstrap_value`) instead of TorchRL's TD(0)
+    `_next_value` (step_mdp, then `target_value_network`): the same bits, under fp32 and bf16, through hard updates,
+    with masks that hide the best action; and so the same loss and TD errors."""
+    from torchrl.envs.utils import step_mdp
+
+    learner, buffer = _learner(target_period=3), _filled_buffer(batch=8)
+    loss = learner.loss_module
+    loss.precision = precision  # (optim.precision in a config)
+    for _ in range(5):
+        learner.update(buffer.sample())
+        batch = buffer.sample()
+        assert not batch.get(("next", "bootstrap_mask")).all()  # some next actions masked out
+        with torch.no_grad(), loss._matmul_precision():
+            direct = loss._bootstrap_value(batch)
+            through = loss.target_value_network(step_mdp(batch, keep_other=False))["bootstrap_value"]
+            estimated = loss.value_estimator.value_estimate(batch.clone())  # TorchRL's own target pass
+            given = loss.value_estimator.value_estimate(batch.clone(), next_value=direct)
+        assert direct.shape == through.shape and torch.equal(direct, through)
+        assert torch.equal(estimated, given)
