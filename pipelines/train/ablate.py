@@ -81,7 +81,11 @@ class PlannedRun:
         return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
 
     def _rate_and_left(self, found: list[Path], total: int) -> tuple[float, float] | None:
-        """(frames/s of the process training the run now, seconds it has left), or None before it wrote 2 checkpoints."""
+        """(frames/s of the process training the run now, seconds it has left), or None before it wrote 2 checkpoints.
+
+        The time since the newest checkpoint counts as progress at that rate, but never past the next checkpoint
+        (checkpoint.every_frames of its config), which would have been written: a run that slowed down or was paused
+        is not estimated as done."""
         import time
 
         from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
@@ -91,7 +95,19 @@ class PlannedRun:
         if rate is None:
             return None
         newest = periodic_frames(found[-1])
-        return rate, max(0.0, (total - newest) / rate - (time.time() - found[-1].stat().st_mtime))
+        left = (total - newest) / rate - (time.time() - found[-1].stat().st_mtime)
+        every = self._checkpoint_every()
+        if every is not None:
+            left = max(left, (total - min(total, newest + every)) / rate)
+        return rate, max(0.0, left)
+
+    def _checkpoint_every(self) -> int | None:
+        """checkpoint.every_frames of the run's saved config.yaml; None if unreadable or not there."""
+        try:
+            every = self._saved_config()["checkpoint"]["every_frames"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        return every if isinstance(every, int) and every > 0 else None
 
     @property
     def cell(self) -> str:

@@ -153,6 +153,13 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monke
         assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 1:40 left of 400,000 frames")
         os.utime(run_dir / ".lock", (now - 300, now - 300))  # resumed after both: nothing of its own yet
         assert run.state()[1].endswith("checkpoint at 150,000 frames")
+        # checkpoints every 50,000 frames: 400 s after the newer one (200 s of frames at 500 frames/s) the run cannot
+        # be past 200,000 frames, or it would have written that checkpoint: 200,000 frames left, 6:40, not 0:00
+        (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\ncheckpoint:\n  every_frames: 50000\n")
+        os.utime(run_dir / ".lock", (now - 500, now - 500))
+        assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 6:40 left of 400,000 frames")
+        (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
+        os.utime(run_dir / ".lock", (now - 300, now - 300))
         last = run_dir / "checkpoints" / "step-000400000.pt"
         last.write_bytes(b"")
         assert run.state()[1].endswith("every frame trained: the final evaluation")
