@@ -170,6 +170,8 @@ class Comparison:
 
     @property
     def verdict(self) -> str:
+        if min(min(side) for side in self.samples) == 1.0:  # every test game of every seed won or drawn
+            return "at the ceiling (every seed 1.0000): cannot tell"
         if self.p is None:
             return "too few seeds"
         if self.p < ALPHA:
@@ -262,7 +264,8 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
               + ", ".join(f"{GAME_LABELS[game]} {difference:.4f}" for game, difference in PAPER_DIFFERENCE.items())
               + f") at the pooled spread between seeds; below power {POWER} a question is untested, not refuted; "
               "above it, \"no\" when the first arm did not come out ahead, \"not shown\" when it did but not "
-              "significantly. Holm p: adjusted "
+              "significantly; \"at the ceiling\" when every seed of both arms won or drew every test game. Holm p: "
+              "adjusted "
               "over every question below, for a family-wise reading. P(run ahead): the probability that a seed of "
               "the first arm beats a seed of the second (every pair, ties half; Agarwal et al. 2021) with the 95 % "
               f"percentile interval of a bootstrap over seeds ({BOOTSTRAP_REPS} resamples, fixed generator seed), "

@@ -142,6 +142,10 @@ def test_arms_of_two_recipes_are_told_apart_and_never_compared(tmp_path: Path) -
     # the paper's GRU has no feed-forward arm with the features in its own recipe: no question, though the default
     # recipe has one
     assert all(c.better.reward == c.worse.reward for c in found)
+    # both arms at task success 1 on every seed: no test can separate them, and the verdict says so, not "no"
+    at_ceiling = {("ff", "none", False, 1024): [1.0] * 5, ("ff", "none", True, 1024): [1.0] * 5}
+    ceiling = comparisons(read_arms(grid_runs(tmp_path / "ceiling", at_ceiling, reward="outcome")))
+    assert [c.verdict for c in ceiling] == ["at the ceiling (every seed 1.0000): cannot tell"]
     written = write_memory_report([str(paper), str(default)], tmp_path / "out", "ncbot reproduce memory a b")
     assert written["arms"] == 5
     csv = (tmp_path / "out" / "table_seeds.csv").read_text().splitlines()
