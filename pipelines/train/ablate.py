@@ -69,23 +69,23 @@ class PlannedRun:
         from ncbot.pipelines.checkpoint import periodic_frames
         from ncbot.pipelines.progress import duration
 
-        total = self._total_frames()
+        total, every = self._frame_settings()
         if not found or total is None:
             return ""
         if periodic_frames(found[-1]) >= total:
             return ", every frame trained: the final evaluation"
-        pace = self._rate_and_left(found, total)
+        pace = self._rate_and_left(found, total, every)
         if pace is None:
             return ""
         rate, left = pace
         return f", {rate:,.0f} frames/s, about {duration(left)} left of {total:,} frames"
 
-    def _rate_and_left(self, found: list[Path], total: int) -> tuple[float, float] | None:
+    def _rate_and_left(self, found: list[Path], total: int, every: int | None) -> tuple[float, float] | None:
         """(frames/s of the process training the run now, seconds it has left), or None before it wrote 2 checkpoints.
 
         The time since the newest checkpoint counts as progress at that rate, but never past the next checkpoint
-        (checkpoint.every_frames of its config), which would have been written: a run that slowed down or was paused
-        is not estimated as done."""
+        (``every``: checkpoint.every_frames of its config), which would have been written: a run that slowed down or
+        was paused is not estimated as done."""
         import time
 
         from ncbot.pipelines.checkpoint import checkpoint_rate, periodic_frames
@@ -96,18 +96,9 @@ class PlannedRun:
             return None
         newest = periodic_frames(found[-1])
         left = (total - newest) / rate - (time.time() - found[-1].stat().st_mtime)
-        every = self._checkpoint_every()
         if every is not None:
             left = max(left, (total - min(total, newest + every)) / rate)
         return rate, max(0.0, left)
-
-    def _checkpoint_every(self) -> int | None:
-        """checkpoint.every_frames of the run's saved config.yaml; None if unreadable or not there."""
-        try:
-            every = self._saved_config()["checkpoint"]["every_frames"]
-        except (OSError, ValueError, KeyError, TypeError):
-            return None
-        return every if isinstance(every, int) and every > 0 else None
 
     @property
     def cell(self) -> str:
@@ -133,10 +124,10 @@ class PlannedRun:
         if self.finished:
             return 0.0
         found = periodic_checkpoints(self.run_dir)
-        total = self._total_frames() if found else None
+        total, every = self._frame_settings() if found else (None, None)
         if found and total:
             done = min(1.0, periodic_frames(found[-1]) / total)
-            pace = self._rate_and_left(found, total) if lock_holder(self.run_dir) is not None else None
+            pace = self._rate_and_left(found, total, every) if lock_holder(self.run_dir) is not None else None
             if pace is not None:
                 return pace[1]
             return None if typical is None else typical * (1.0 - done)
@@ -148,13 +139,21 @@ class PlannedRun:
 
         return read_yaml(self.run_dir / "config.yaml", "run config", "the config.yaml ncbot train wrote")
 
-    def _total_frames(self) -> int | None:
-        """collector.total_frames of the run's saved config.yaml; None if unreadable or not there."""
+    def _frame_settings(self) -> tuple[int | None, int | None]:
+        """(collector.total_frames, checkpoint.every_frames) of the run's saved config.yaml, read once; each None if
+        unreadable or not there."""
         try:
-            total = self._saved_config()["collector"]["total_frames"]
-        except (OSError, ValueError, KeyError, TypeError):
-            return None
-        return total if isinstance(total, int) else None
+            saved = self._saved_config()
+        except (OSError, ValueError):
+            return None, None
+
+        def setting(section: str, key: str) -> int | None:
+            block = saved.get(section) if isinstance(saved, dict) else None
+            value = block.get(key) if isinstance(block, dict) else None
+            return value if isinstance(value, int) else None
+
+        every = setting("checkpoint", "every_frames")
+        return setting("collector", "total_frames"), every if every is not None and every > 0 else None
 
     def settings(self) -> tuple[str, int, str]:
         """(name, train.num_threads, train.device) of the run as it will start: its folder's config.yaml when it
