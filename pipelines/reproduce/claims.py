@@ -9,23 +9,18 @@ A claim made of several comparisons is reproduced only when every comparison is 
 intersection-union test: valid at alpha without a multiplicity correction; its p-value is the largest one).
 Each claim is tested on its own: no correction across the claims and rows of the table.
 
-Zero variance (every seed gave the same value, common for task success near 1): Welch's statistic is
-undefined only when BOTH sides are constant; then the difference is exact and p is 0 when the claimed side is
-larger, 1 otherwise (t and df are reported as None). One constant side is ordinary Welch (df = n - 1 of the
-other side). Constancy is decided on the values themselves, so rounding in a mean never fakes a spread.
+The test itself, zero variance included, is `ncbot.pipelines.reproduce.two_sample`'s, shared with the memory
+report and `ncbot compare`.
 """
 from __future__ import annotations
 
-import math
 import statistics
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, interval_text
-from ncbot.pipelines.reproduce.seed_stats import mean_and_variance
+from ncbot.pipelines.reproduce.two_sample import ALPHA, POWER, TwoSampleTest, holm, welch_greater
 
-ALPHA = 0.05
-POWER = 0.8  # the power below which a claim that is not reproduced counts as untested
 MIN_SEEDS = 5
 TOO_FEW = f"too few seeds (need >= {MIN_SEEDS})"
 
@@ -86,22 +81,6 @@ class Welch:
         stat = "–" if self.p is None else ("both sides constant" if self.t is None else
                                             f"t={self.t:.2f}, df={self.df:.1f}")
         return f"{sides[0]} > {sides[1]}: {stat}, p={_p(self.p)}"
-
-
-def welch_greater(larger: list[float], smaller: list[float]) -> tuple[float | None, float | None, float | None]:
-    """(t, df, p) of the one-sided Welch's t-test H1: mean(larger) > mean(smaller); see the module docstring
-    for zero variance. (None, None, None) when a side has fewer than 2 values."""
-    from scipy.stats import t as student_t
-
-    if min(len(larger), len(smaller)) < 2:
-        return None, None, None
-    (mean_a, var_a), (mean_b, var_b) = mean_and_variance(larger), mean_and_variance(smaller)
-    se_a, se_b = var_a / len(larger), var_b / len(smaller)
-    if se_a + se_b == 0.0:
-        return None, None, 0.0 if mean_a > mean_b else 1.0
-    t = (mean_a - mean_b) / math.sqrt(se_a + se_b)
-    df = (se_a + se_b) ** 2 / (se_a ** 2 / (len(larger) - 1) + se_b ** 2 / (len(smaller) - 1))
-    return t, df, float(student_t.sf(t, df))
 
 
 @dataclass(frozen=True)
@@ -172,8 +151,6 @@ def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: s
            comparisons: list[tuple[str, str, str]]) -> float | None:
     """The smallest power over the claim's comparisons to detect the paper's own difference (its table's two
     numbers) with our seeds and our pooled spread; None where the paper gives no number or a side has < 2 seeds."""
-    from ncbot.pipelines.reproduce.seed_stats import power_of
-
     powers = []
     for metric, larger, smaller in comparisons:
         column = {"task_success": 1, "avg_length": 2}.get(metric)
@@ -183,22 +160,13 @@ def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: s
         a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
         if min(len(a), len(b)) < 2 or difference <= 0:
             return None
-        spread = math.sqrt((statistics.variance(a) + statistics.variance(b)) / 2)
-        powers.append(power_of(difference, spread, min(len(a), len(b)), ALPHA))
+        powers.append(TwoSampleTest(tuple(a), tuple(b)).power(difference))
     return min(powers) if powers else None
 
 
 def _with_holm(claims: list[Claim]) -> list[Claim]:
     """Holm's step-down adjustment of the claims' p-values over the whole report (claims without p keep None)."""
-    from dataclasses import replace
-
-    ranked = sorted((claim.p, i) for i, claim in enumerate(claims) if claim.p is not None)
-    adjusted: dict[int, float] = {}
-    running = 0.0
-    for rank, (p, i) in enumerate(ranked):
-        running = max(running, min(1.0, (len(ranked) - rank) * p))
-        adjusted[i] = running
-    return [replace(claim, holm_p=adjusted.get(i)) for i, claim in enumerate(claims)]
+    return [replace(claim, holm_p=holm_p) for claim, holm_p in zip(claims, holm([claim.p for claim in claims]))]
 
 
 def _row_order(row: tuple[str, str]) -> tuple:

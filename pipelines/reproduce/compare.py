@@ -13,18 +13,17 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from ncbot.pipelines.reproduce.aggregate import improvement_interval, interval_text
-from ncbot.pipelines.reproduce.claims import welch_greater
-from ncbot.pipelines.reproduce.memory import welch_difference
-from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
-                                                  t_interval)
+from ncbot.pipelines.reproduce.aggregate import interval_text
+from ncbot.pipelines.reproduce.seed_stats import Interval, mean_and_variance, proportion_interval, t_interval
 from ncbot.pipelines.reproduce.table import DEFAULT_GAMES
+from ncbot.pipelines.reproduce.two_sample import (ALPHA, NO, POWER, SHOWN, UNTESTED, TwoSampleTest,
+                                                  welch_difference)
 
 RATES = ("task_success", "win", "draw", "loss", "truncated", "all_negative")  # shares of test games: logit intervals
-POWER = 0.8
 
 
 @dataclass(frozen=True)
@@ -88,11 +87,14 @@ class Comparison:
     others: list[RunValue]
     larger: bool = True
     effect: float | None = None
-    alpha: float = 0.05
+    alpha: float = ALPHA
 
-    def samples(self) -> tuple[list[float], list[float]]:
-        a, b = [r.value for r in self.runs], [r.value for r in self.others]
-        return (a, b) if self.larger else ([-v for v in a], [-v for v in b])
+    @cached_property
+    def test(self) -> TwoSampleTest:
+        """The one-sided test, on values negated when H1 says "below"."""
+        sign = 1.0 if self.larger else -1.0
+        return TwoSampleTest(tuple(sign * r.value for r in self.runs), tuple(sign * r.value for r in self.others),
+                             self.alpha)
 
     def interval(self, runs: list[RunValue]) -> Interval:
         if self.metric.partition(".")[2] in RATES:
@@ -105,55 +107,36 @@ class Comparison:
         return welch_difference([r.value for r in self.runs], [r.value for r in self.others])
 
     @property
-    def welch(self) -> tuple[float | None, float | None, float | None]:
-        return welch_greater(*self.samples())
-
-    @property
-    def rank_p(self) -> float:
-        from scipy.stats import mannwhitneyu
-
-        return float(mannwhitneyu(*self.samples(), alternative="greater").pvalue)
-
-    @property
-    def improvement(self) -> tuple[float, float, float]:
-        a, b = self.samples()
-        return improvement_interval([a], [b])
-
-    @property
     def power(self) -> float | None:
         """Power of these runs to detect ``effect`` at the pooled spread (None without an effect)."""
-        if self.effect is None:
-            return None
-        a, b = self.samples()
-        std = math.sqrt((mean_and_variance(a)[1] + mean_and_variance(b)[1]) / 2)
-        return power_of(self.effect, std, len(a), self.alpha, len(b))
+        return None if self.effect is None else self.test.power(self.effect)
 
     @property
     def verdict(self) -> str:
-        p = self.welch[2]
+        reading, p = self.test.reading(self.effect), self.test.p
         word = "higher" if self.larger else "lower"
-        if p is not None and p < self.alpha:
+        if reading == SHOWN:
             return f"RUN {word} at alpha {self.alpha} (p = {p:.3g})"
-        if self.power is not None and self.power < POWER:
+        if reading == UNTESTED:
             return f"untested: power {self.power:.2f} < {POWER} to detect {self.effect:g}"
-        if self.difference.mean == 0 or (self.difference.mean > 0) != self.larger:
+        if reading == NO:
             return f"no: RUN did not come out {word}"
         return f"not shown (p = {p:.3g} >= {self.alpha})"
 
     def to_dict(self) -> dict[str, Any]:
-        t, df, p = self.welch
+        t, df, p = self.test.welch
         difference = self.difference
         return {"metric": self.metric, "direction": "greater" if self.larger else "less", "alpha": self.alpha,
                 "runs": [{"folder": str(r.folder), "value": r.value} for r in self.runs],
                 "against": [{"folder": str(r.folder), "value": r.value} for r in self.others],
                 "mean": self.interval(self.runs).mean, "against_mean": self.interval(self.others).mean,
                 "difference": difference.mean, "difference_low": difference.low, "difference_high": difference.high,
-                "t": t, "df": df, "p": p, "rank_p": self.rank_p,
-                "p_run_ahead": list(self.improvement), "effect": self.effect, "power": self.power,
+                "t": t, "df": df, "p": p, "rank_p": self.test.rank_p,
+                "p_run_ahead": list(self.test.improvement), "effect": self.effect, "power": self.power,
                 "verdict": self.verdict}
 
     def markdown(self, command: str) -> str:
-        t, df, p = self.welch
+        t, df, p = self.test.welch
         op = ">" if self.larger else "<"
         lines = [f"# {self.metric}: RUN {op} --against", "", f"Made by `{command}`.", "",
                  "| side | runs | mean [95 % interval] | s | per run |", "|---|---|---|---|---|"]
@@ -166,9 +149,9 @@ class Comparison:
         lines += ["", f"- difference RUN - against: {difference.text(4)} (two-sided 95 % Welch interval)",
                   f"- one-sided Welch's t-test, H1 mean(RUN) {op} mean(against): {test}, p = "
                   + ("–" if p is None else f"{p:.3g}"),
-                  f"- one-sided Mann-Whitney U (no normality assumed): p = {self.rank_p:.3g}",
+                  f"- one-sided Mann-Whitney U (no normality assumed): p = {self.test.rank_p:.3g}",
                   f"- P(a run of RUN is {'above' if self.larger else 'below'} a run of against): "
-                  f"{interval_text(self.improvement)} (percentile bootstrap over runs: describes, the test decides)"]
+                  f"{interval_text(self.test.improvement)} (percentile bootstrap over runs: describes, the test decides)"]
         if self.power is not None:
             lines.append(f"- power to detect {self.effect:g} at the pooled spread with these runs: {self.power:.2f}")
         lines += [f"- verdict: {self.verdict}", ""]

@@ -13,18 +13,18 @@ difference for claim (ii) on that game and a Holm-adjusted p over the family of 
 """
 from __future__ import annotations
 
-import math
 import statistics
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 from ncbot.fileio import atomic_write_text
-from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, interval_text
-from ncbot.pipelines.reproduce.claims import welch_greater
-from ncbot.pipelines.reproduce.seed_stats import (Interval, mean_and_variance, power_of, proportion_interval,
-                                                  t_interval)
+from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, interval_text
+from ncbot.pipelines.reproduce.seed_stats import Interval, proportion_interval, t_interval
 from ncbot.pipelines.reproduce.table import DEFAULT_GAMES, collect_runs
+from ncbot.pipelines.reproduce.two_sample import (ALPHA, NOT_SHOWN, POWER, SHOWN, UNTESTED, TwoSampleTest, holm,
+                                                  welch_difference)
 
 MARKDOWN = "table.md"
 SEEDS_CSV = "table_seeds.csv"
@@ -36,8 +36,6 @@ GAME_LABELS = {"standard": "3x3", "ultimate": "Ultimate"}
 PAPER_DIFFERENCE = {"standard": 0.9980 - 0.9868, "ultimate": 0.9753 - 0.9377}
 #: the recipe, told by the reward the learner trains on (`loss.reward`)
 RECIPES = {"paper": "the paper's protocol", "outcome": "default recipe"}
-ALPHA = 0.05
-POWER = 0.8
 
 
 @dataclass(frozen=True)
@@ -115,19 +113,6 @@ def read_arms(runs_dirs: str | Path | list[str | Path]) -> list[Arm]:
                                                                           item[0][3]))]
 
 
-def welch_difference(a: list[float], b: list[float]) -> Interval:
-    """mean(a) - mean(b) with its two-sided 95 % Welch interval (unequal variances, Welch-Satterthwaite df)."""
-    from scipy.stats import t as student_t
-
-    (mean_a, var_a), (mean_b, var_b) = mean_and_variance(a), mean_and_variance(b)
-    se2 = var_a / len(a) + var_b / len(b)
-    if se2 == 0:
-        return Interval(mean_a - mean_b, mean_a - mean_b, mean_a - mean_b, len(a) + len(b))
-    df = se2 ** 2 / ((var_a / len(a)) ** 2 / (len(a) - 1) + (var_b / len(b)) ** 2 / (len(b) - 1))
-    half = float(student_t.ppf(0.975, df)) * math.sqrt(se2)
-    return Interval(mean_a - mean_b, mean_a - mean_b - half, mean_a - mean_b + half, len(a) + len(b))
-
-
 @dataclass(frozen=True)
 class Comparison:
     """H1: arm ``better`` has a higher mean robot-first task success than arm ``worse``."""
@@ -137,14 +122,10 @@ class Comparison:
     worse: Arm
     holm_p: float | None = None
 
-    @property
-    def samples(self) -> tuple[list[float], list[float]]:
-        return self.better.values("first.task_success"), self.worse.values("first.task_success")
-
-    @property
-    def difference(self) -> Interval:
-        """Mean difference of robot-first task success and its two-sided 95 % Welch interval."""
-        return welch_difference(*self.samples)
+    @cached_property
+    def test(self) -> TwoSampleTest:
+        return TwoSampleTest(tuple(self.better.values("first.task_success")),
+                             tuple(self.worse.values("first.task_success")))
 
     @property
     def difference_second(self) -> Interval:
@@ -152,34 +133,22 @@ class Comparison:
         return welch_difference(self.better.values("second.task_success"), self.worse.values("second.task_success"))
 
     @property
-    def improvement(self) -> tuple[float, float, float]:
-        """P(a seed of ``better`` beats a seed of ``worse``), robot first, with its bootstrap interval over seeds."""
-        a, b = self.samples
-        return improvement_interval([a], [b])
-
-    @property
-    def p(self) -> float | None:
-        return welch_greater(*self.samples)[2]
-
-    @property
     def power(self) -> float:
-        """Power to detect the paper's difference on this game with the smaller side's seeds at the pooled spread."""
-        a, b = self.samples
-        std = math.sqrt((mean_and_variance(a)[1] + mean_and_variance(b)[1]) / 2)
-        return power_of(PAPER_DIFFERENCE[self.better.game], std, min(len(a), len(b)), ALPHA)
+        """Power to detect the paper's difference on this game with these seeds at the pooled spread."""
+        return self.test.power(PAPER_DIFFERENCE[self.better.game])
 
     @property
     def verdict(self) -> str:
-        if min(min(side) for side in self.samples) == 1.0:  # every test game of every seed won or drawn
+        if min(self.test.larger + self.test.smaller) == 1.0:  # every test game of every seed won or drawn
             return "at the ceiling (every seed 1.0000): cannot tell"
-        if self.p is None:
-            return "too few seeds"
-        if self.p < ALPHA:
+        reading = self.test.reading(PAPER_DIFFERENCE[self.better.game])
+        if reading == SHOWN:
             return "yes"
-        if self.power < POWER:
+        if reading == UNTESTED:
             return f"untested (power {self.power:.3f} < {POWER})"
-        # powered but not significant: "no" only where the arm did not come out ahead at all
-        return "no" if self.difference.mean <= 0 else f"not shown (p >= {ALPHA})"
+        if reading == NOT_SHOWN:
+            return f"not shown (p >= {ALPHA})"
+        return reading  # no, or too few runs
 
 
 def comparisons(arms: list[Arm]) -> list[Comparison]:
@@ -207,12 +176,8 @@ def comparisons(arms: list[Arm]) -> list[Comparison]:
 
 
 def _holm(found: list[Comparison]) -> list[Comparison]:
-    ranked = sorted((c for c in found if c.p is not None), key=lambda c: c.p)
-    adjusted, running = {}, 0.0
-    for rank, comparison in enumerate(ranked):
-        running = max(running, min(1.0, (len(ranked) - rank) * comparison.p))
-        adjusted[id(comparison)] = running
-    return [Comparison(c.question, c.better, c.worse, adjusted.get(id(c))) for c in found]
+    adjusted = holm([c.test.p for c in found])
+    return [Comparison(c.question, c.better, c.worse, holm_p) for c, holm_p in zip(found, adjusted)]
 
 
 def _rate(arm: Arm, metric: str) -> str:
@@ -275,11 +240,11 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
               "P(run ahead) | difference, robot second (not tested) |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for c in found:
-        p = "–" if c.p is None else f"{c.p:.3f}"
+        p = "–" if c.test.p is None else f"{c.test.p:.3f}"
         holm = "–" if c.holm_p is None else f"{c.holm_p:.3f}"
         lines.append(f"| {c.question} | {GAME_LABELS.get(c.better.game, c.better.game)} | {c.better.label} | {c.worse.label} | "
-                     f"{c.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} | "
-                     f"{interval_text(c.improvement)} | {c.difference_second.text(4)} |")
+                     f"{c.test.difference.text(4)} | {p} | {holm} | {c.power:.2f} | {c.verdict} | "
+                     f"{interval_text(c.test.improvement)} | {c.difference_second.text(4)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -211,11 +211,11 @@ def _order(key: tuple[str, str, str]) -> tuple:
             CELL_ORDER.index(cell) if cell in CELL_ORDER else 99, cell, suite != "fast", suite)
 
 
-def table_rows(groups: dict[tuple[str, str, str], list[dict[str, Any]]]) -> list[Row]:
-    """One row per (suite, game row, agent cell), in table order. An agent without a network (0 frames, e.g. the
-    uniform choice inside the masks) plays the same games at every width, so its second game row of one game
-    (Ultimate 100 and 150) is the same row again and is shown once."""
-    samples = seed_samples(groups)
+def table_rows(groups: dict[tuple[str, str, str], list[dict[str, Any]]],
+               samples: dict[tuple[str, str, str], dict[str, list[float]]]) -> list[Row]:
+    """One row per (suite, game row, agent cell), in table order, from the runs and their `seed_samples`. An agent
+    without a network (0 frames, e.g. the uniform choice inside the masks) plays the same games at every width, so
+    its second game row of one game (Ultimate 100 and 150) is the same row again and is shown once."""
     rows = [Row(*key, frames=tuple(run["frames"] for run in groups[key]),
                 stats={name: _interval(name, values, groups[key]) for name, values in samples[key].items()},
                 widths=tuple(dict.fromkeys(run["hidden"] for run in groups[key] if "hidden" in run)),
@@ -324,7 +324,7 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
     groups = collect_runs(runs_dir)
     seeds_out = out.with_name(f"{out.stem}_seeds.csv")
     samples = seed_samples(groups)
-    rows, claims = table_rows(groups), evaluate_claims(samples)
+    rows, claims = table_rows(groups, samples), evaluate_claims(samples)
     shown = {(row.suite, row.game, row.cell): row.game_label for row in rows}  # an untrained agent's Ultimate once
     scores = pooled_scores({key: values for key, values in samples.items() if key in shown}, shown)
     comparisons = pooled_comparisons(samples)

@@ -30,24 +30,24 @@ def cell(root: Path, values: list[float], length: float = 60.0) -> Path:
 def test_the_numbers_are_scipys(tmp_path: Path) -> None:
     ahead, paper = cell(tmp_path / "ahead", AHEAD), cell(tmp_path / "paper", PAPER_MODE)
     found = compare([str(ahead)], [str(paper)], effect=0.031)
-    t, df, p = found.welch
+    t, df, p = found.test.welch
     reference = ttest_ind(AHEAD, PAPER_MODE, equal_var=False, alternative="greater")
     assert t == pytest.approx(reference.statistic) and p == pytest.approx(reference.pvalue)
-    assert found.rank_p == pytest.approx(mannwhitneyu(AHEAD, PAPER_MODE, alternative="greater").pvalue)
+    assert found.test.rank_p == pytest.approx(mannwhitneyu(AHEAD, PAPER_MODE, alternative="greater").pvalue)
     assert found.difference.mean == pytest.approx(sum(AHEAD) / 6 - sum(PAPER_MODE) / 10)
     assert found.difference.low < found.difference.mean < found.difference.high
-    assert 0.5 < found.improvement[0] <= 1 and found.improvement[1] <= found.improvement[0] <= found.improvement[2]
+    assert 0.5 < found.test.improvement[0] <= 1 and found.test.improvement[1] <= found.test.improvement[0] <= found.test.improvement[2]
     assert 0 < found.power < 1 and found.verdict.startswith("RUN higher at alpha 0.05")
     # the same runs named one by one: the same comparison
     one_by_one = compare([str(p) for p in sorted(ahead.iterdir())], [str(paper)])
-    assert one_by_one.welch == found.welch
+    assert one_by_one.test.welch == found.test.welch
 
 
 def test_power_decides_between_untested_and_not_shown(tmp_path: Path) -> None:
     near = cell(tmp_path / "near", [0.912, 0.905, 0.921])
     paper = cell(tmp_path / "paper", PAPER_MODE)
     weak = compare([str(near)], [str(paper)], effect=0.031)
-    assert weak.welch[2] > 0.05 and weak.power < 0.8 and weak.verdict.startswith("untested: power")
+    assert weak.test.welch[2] > 0.05 and weak.power < 0.8 and weak.verdict.startswith("untested: power")
     strong = compare([str(near)], [str(paper)], effect=0.2)
     assert strong.power > 0.8 and strong.verdict.startswith("not shown")
     behind = compare([str(paper)], [str(cell(tmp_path / "high", [0.97, 0.96, 0.98]))], effect=0.2)
@@ -60,7 +60,7 @@ def test_less_tests_a_metric_where_lower_is_better(tmp_path: Path) -> None:
     found = compare([str(short)], [str(long)], metric="first.avg_length", larger=False)
     shorter = [30.0 + seed for seed in range(6)]
     longer = [60.0 + seed for seed in range(10)]
-    assert found.welch[2] == pytest.approx(ttest_ind(shorter, longer, equal_var=False, alternative="less").pvalue)
+    assert found.test.welch[2] == pytest.approx(ttest_ind(shorter, longer, equal_var=False, alternative="less").pvalue)
     assert found.difference.mean == pytest.approx(sum(shorter) / 6 - sum(longer) / 10)
     assert found.verdict.startswith("RUN lower")
 

@@ -75,16 +75,16 @@ def test_each_question_compares_arms_that_differ_in_one_way_and_matches_scipy(tm
     assert (gru.better.memory, gru.worse.memory, gru.worse.batch_size) == ("gru", "none", 16)
     expected = ttest_ind(ARMS[("gru", "gru", False, 16)], ARMS[("ff16", "none", False, 16)], equal_var=False,
                          alternative="greater").pvalue
-    assert gru.p == pytest.approx(expected)
-    assert gru.verdict == "yes" and gru.difference.low > 0
+    assert gru.test.p == pytest.approx(expected)
+    assert gru.verdict == "yes" and gru.test.difference.low > 0
     two_sided = ttest_ind(ARMS[("gru", "gru", False, 16)], ARMS[("ff16", "none", False, 16)], equal_var=False)
-    assert (gru.difference.low, gru.difference.high) == pytest.approx(tuple(two_sided.confidence_interval(0.95)))
-    assert gru.difference_second.mean == pytest.approx(gru.difference.mean)  # robot second is 0.04 lower in every run
-    assert gru.improvement == (1.0, 1.0, 1.0)  # every GRU seed beats every feed-forward seed
+    assert (gru.test.difference.low, gru.test.difference.high) == pytest.approx(tuple(two_sided.confidence_interval(0.95)))
+    assert gru.difference_second.mean == pytest.approx(gru.test.difference.mean)  # robot second is 0.04 lower in every run
+    assert gru.test.improvement == (1.0, 1.0, 1.0)  # every GRU seed beats every feed-forward seed
     features = found["temporal features help (feed-forward, batch 2)"]  # 15 of 25 pairs ahead, 1 tied
-    assert features.improvement[0] == pytest.approx(0.62) and features.improvement[1] < 0.62 < features.improvement[2]
+    assert features.test.improvement[0] == pytest.approx(0.62) and features.test.improvement[1] < 0.62 < features.test.improvement[2]
     holms = sorted(c.holm_p for c in found.values())
-    assert all(c.holm_p >= c.p for c in found.values()) and holms == sorted(holms) and holms[-1] <= 1.0
+    assert all(c.holm_p >= c.test.p for c in found.values()) and holms == sorted(holms) and holms[-1] <= 1.0
 
 
 def test_the_report_and_the_seeds_csv(tmp_path: Path) -> None:
@@ -174,7 +174,7 @@ def test_a_powered_difference_that_is_not_significant_reads_not_shown_not_no(tmp
     arms = {("ff", "none", False, 2): [0.890, 0.892, 0.889, 0.894, 0.891],
             ("ff", "none", True, 2): [0.920, 0.880, 0.925, 0.890, 0.905]}
     found = comparisons(read_arms(grid_runs(tmp_path, arms, game="ultimate")))
-    assert len(found) == 1 and found[0].power >= 0.8 and 0.05 <= found[0].p
+    assert len(found) == 1 and found[0].power >= 0.8 and 0.05 <= found[0].test.p
     assert found[0].verdict == "not shown (p >= 0.05)"
     flipped = {("ff", "none", False, 2): arms[("ff", "none", True, 2)],
                ("ff", "none", True, 2): arms[("ff", "none", False, 2)]}

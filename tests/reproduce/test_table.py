@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from ncbot.pipelines.reproduce.claims import TOO_FEW, evaluate_claims, welch_greater
+from ncbot.pipelines.reproduce.claims import TOO_FEW, evaluate_claims
+from ncbot.pipelines.reproduce.two_sample import welch_greater
 from ncbot.pipelines.reproduce.table import t_interval, write_report
 from tests.learning_helpers import ncbot
 
