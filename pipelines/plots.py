@@ -183,3 +183,31 @@ def plot_run_profiles(panels: dict[str, dict[str, list[float]]], path: str | os.
     fig.suptitle(title or "run-score distributions (performance profiles)")
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def plot_two_sides(sides: dict[str, tuple[Sequence[float], tuple[float, float, float]]], path: str | os.PathLike,
+                   xlabel: str, title: str = "") -> Path:
+    """Every run of two (or more) sets as a dot, one line a set, with the set's mean and 95 % interval as a bar:
+    what a comparison over seeds rests on, so a reader sees the spread and any outlying seed, not only a p-value.
+    ``sides``: label -> (one value per run, (mean, low, high))."""
+    import numpy as np
+
+    plt = pyplot()
+    labels = list(sides)
+    fig, ax = plt.subplots(figsize=(7.0, 1.2 + 0.9 * len(labels)))
+    rng = np.random.default_rng(0)  # a fixed jitter: the same runs draw the same picture
+    for row, label in enumerate(labels):
+        values, (mean, low, high) = sides[label]
+        y = len(labels) - 1 - row
+        ax.scatter(values, y + rng.uniform(-0.12, 0.12, len(values)), s=28, color=f"C{row}", alpha=0.8,
+                   label=f"{label}: {len(values)} runs", zorder=3)
+        ax.errorbar([mean], [y - 0.3], xerr=[[mean - low], [high - mean]], fmt="D", color=f"C{row}", capsize=4,
+                    zorder=2)
+    ax.set_yticks(range(len(labels)), labels[::-1])
+    ax.set_ylim(-0.7, len(labels) - 0.5)
+    ax.set_xlabel(xlabel)
+    ax.grid(axis="x", alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    ax.set_title(title or "every run (dots), mean with its 95 % interval (bar)", fontsize=10)
+    fig.tight_layout()
+    return save_figure(fig, path)

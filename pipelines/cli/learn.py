@@ -6,6 +6,7 @@ Heavy imports (torch, torchrl) happen inside the commands so `ncbot --help` stay
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Optional
 
 import typer
@@ -252,7 +253,8 @@ def compare_command(
                                            "runs: prints the runs' power to detect it; below 0.8 a result that is "
                                            "not significant reads untested, not refuted."),
     alpha: float = typer.Option(0.05, "--alpha", help="Significance level of the one-sided test."),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Also write the report to this markdown file."),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="Also write the report to this markdown file, "
+                               "and every run drawn beside it (the same name, .png)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of the markdown."),
 ) -> None:
     """Is one set of runs ahead of another over seeds? One-sided Welch's t-test, the difference's interval, power,
@@ -266,8 +268,10 @@ def compare_command(
     if out is not None:
         check_writable_file(out, "--out", (".md",))
     found = compare(runs, against, metric, larger=not less, effect=effect, alpha=alpha)
-    text = found.markdown("ncbot " + shlex.join(sys.argv[1:]))
+    figure = None if out is None else Path(out).with_suffix(".png")
+    text = found.markdown("ncbot " + shlex.join(sys.argv[1:]), figure=None if figure is None else figure.name)
     if out is not None:
+        found.plot(figure)
         atomic_write_text(text, out)
     typer.echo(json.dumps(found.to_dict()) if as_json else text)
 

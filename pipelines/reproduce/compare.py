@@ -135,10 +135,22 @@ class Comparison:
                 "p_run_ahead": list(self.test.improvement), "effect": self.effect, "power": self.power,
                 "verdict": self.verdict}
 
-    def markdown(self, command: str) -> str:
+    def plot(self, path: str | Path) -> Path:
+        """Every run of both sides as a dot, each side's mean and interval as a bar (pipelines/plots.py)."""
+        from ncbot.pipelines.plots import plot_two_sides
+
+        sides = {}
+        for side, runs in (("RUN", self.runs), ("--against", self.others)):
+            interval = self.interval(runs)
+            sides[side] = ([r.value for r in runs], (interval.mean, interval.low, interval.high))
+        return plot_two_sides(sides, path, xlabel=self.metric,
+                              title=f"{self.metric}: every run (dots), mean with its 95 % interval (bar)")
+
+    def markdown(self, command: str, figure: str | None = None) -> str:
         t, df, p = self.test.welch
         op = ">" if self.larger else "<"
-        lines = [f"# {self.metric}: RUN {op} --against", "", f"Made by `{command}`.", "",
+        drawn = f" Every run drawn: [{figure}]({figure})." if figure else ""
+        lines = [f"# {self.metric}: RUN {op} --against", "", f"Made by `{command}`.{drawn}", "",
                  "| side | runs | mean [95 % interval] | s | per run |", "|---|---|---|---|---|"]
         for side, runs in (("RUN", self.runs), ("--against", self.others)):
             spread = math.sqrt(mean_and_variance([r.value for r in runs])[1])

@@ -5,6 +5,7 @@ import json
 import shutil
 from pathlib import Path
 
+from matplotlib.image import imread
 import pytest
 from scipy.stats import mannwhitneyu, ttest_ind
 
@@ -72,6 +73,8 @@ def test_cli_prints_writes_and_speaks_json(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert "| RUN | 6 |" in done.stdout and "| --against | 10 |" in done.stdout
     assert out.read_text() + "\n" == done.stdout  # the file holds what was printed
+    figure = imread(tmp_path / "report.png")  # every run drawn beside it, named in the report
+    assert figure.ndim == 3 and figure.shape[0] > 100 and figure.std() > 0 and "[report.png](report.png)" in done.stdout
     as_json = json.loads(ncbot("compare", str(ahead), "--against", str(paper), "--json").stdout)
     assert as_json["p"] < 0.05 and len(as_json["runs"]) == 6 and len(as_json["against"]) == 10
 
