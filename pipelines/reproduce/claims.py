@@ -18,8 +18,8 @@ import statistics
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
-from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, improvement_interval, interval_text
-from ncbot.pipelines.reproduce.two_sample import ALPHA, POWER, TwoSampleTest, holm, welch_greater
+from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, interval_text
+from ncbot.pipelines.reproduce.two_sample import ALPHA, POWER, TwoSampleTest, holm
 
 MIN_SEEDS = 5
 TOO_FEW = f"too few seeds (need >= {MIN_SEEDS})"
@@ -135,32 +135,32 @@ def evaluate_claims(samples: dict[tuple[str, str, str], dict[str, list[float]]])
         for claim, (statement, comparisons) in CLAIMS.items():
             if any((suite, game, cell) not in samples for _, a, b in comparisons for cell in (a, b)):
                 continue
-            tests, improvements = [], []
+            tests, improvements, two_samples = [], [], []
             for metric, larger, smaller in comparisons:
                 a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
-                t, df, p = welch_greater(a, b)
+                test = TwoSampleTest(tuple(a), tuple(b))
                 tests.append(Welch(metric, larger, smaller, (len(a), len(b)),
-                                   (statistics.fmean(a), statistics.fmean(b)), t, df, p))
-                improvements.append(improvement_interval([a], [b]) if min(len(a), len(b)) >= 2 else None)
+                                   (statistics.fmean(a), statistics.fmean(b)), *test.welch))
+                improvements.append(test.improvement if min(len(a), len(b)) >= 2 else None)
+                two_samples.append(test)
             claims.append(Claim(claim, suite, game, statement, tuple(tests),
-                                power=_power(samples, suite, game, comparisons), improvements=tuple(improvements)))
+                                power=_power(game, comparisons, two_samples), improvements=tuple(improvements)))
     return _with_holm(claims)
 
 
-def _power(samples: dict[tuple[str, str, str], dict[str, list[float]]], suite: str, game: str,
-           comparisons: list[tuple[str, str, str]]) -> float | None:
-    """The smallest power over the claim's comparisons to detect the paper's own difference (its table's two
-    numbers) with our seeds and our pooled spread; None where the paper gives no number or a side has < 2 seeds."""
+def _power(game: str, comparisons: list[tuple[str, str, str]], tests: list[TwoSampleTest]) -> float | None:
+    """The smallest power over the claim's comparisons (``tests``, one each) to detect the paper's own difference
+    (its table's two numbers) with our seeds and our pooled spread; None where the paper gives no number or a side
+    has < 2 seeds."""
     powers = []
-    for metric, larger, smaller in comparisons:
+    for (metric, larger, smaller), test in zip(comparisons, tests):
         column = {"task_success": 1, "avg_length": 2}.get(metric)
         if column is None or (game, larger) not in PAPER or (game, smaller) not in PAPER:
             return None
         difference = PAPER[(game, larger)][column] - PAPER[(game, smaller)][column]
-        a, b = samples[(suite, game, larger)][metric], samples[(suite, game, smaller)][metric]
-        if min(len(a), len(b)) < 2 or difference <= 0:
+        if min(len(test.larger), len(test.smaller)) < 2 or difference <= 0:
             return None
-        powers.append(TwoSampleTest(tuple(a), tuple(b)).power(difference))
+        powers.append(test.power(difference))
     return min(powers) if powers else None
 
 
