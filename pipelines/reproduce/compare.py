@@ -20,8 +20,7 @@ from typing import Any
 from ncbot.pipelines.reproduce.aggregate import interval_text
 from ncbot.pipelines.reproduce.seed_stats import Interval, mean_and_variance, proportion_interval, t_interval
 from ncbot.pipelines.reproduce.table import DEFAULT_GAMES
-from ncbot.pipelines.reproduce.two_sample import (ALPHA, NO, POWER, SHOWN, UNTESTED, TwoSampleTest,
-                                                  welch_difference)
+from ncbot.pipelines.reproduce.two_sample import ALPHA, NO, POWER, SHOWN, UNTESTED, TwoSampleTest
 
 RATES = ("task_success", "win", "draw", "loss", "truncated", "all_negative")  # shares of test games: logit intervals
 
@@ -101,12 +100,15 @@ class Comparison:
             return proportion_interval([r.value for r in runs], min(r.games for r in runs))
         return t_interval([r.value for r in runs])
 
-    @property
+    @cached_property
     def difference(self) -> Interval:
-        """mean(RUN) - mean(--against), two-sided 95 % Welch interval (on the metric's own scale and sign)."""
-        return welch_difference([r.value for r in self.runs], [r.value for r in self.others])
+        """mean(RUN) - mean(--against), the test's two-sided 95 % Welch interval on the metric's own scale and sign."""
+        tested = self.test.difference
+        if self.larger:
+            return tested
+        return Interval(-tested.mean, -tested.high, -tested.low, tested.n)
 
-    @property
+    @cached_property
     def power(self) -> float | None:
         """Power of these runs to detect ``effect`` at the pooled spread (None without an effect)."""
         return None if self.effect is None else self.test.power(self.effect)

@@ -10,6 +10,7 @@ import pytest
 from scipy.stats import mannwhitneyu, ttest_ind
 
 from ncbot.pipelines.reproduce.compare import compare
+from ncbot.pipelines.reproduce.two_sample import welch_difference
 from tests.learning_helpers import ncbot
 
 AHEAD = [0.951, 0.933, 0.947, 0.940, 0.929, 0.956]
@@ -63,6 +64,8 @@ def test_less_tests_a_metric_where_lower_is_better(tmp_path: Path) -> None:
     longer = [60.0 + seed for seed in range(10)]
     assert found.test.welch[2] == pytest.approx(ttest_ind(shorter, longer, equal_var=False, alternative="less").pvalue)
     assert found.difference.mean == pytest.approx(sum(shorter) / 6 - sum(longer) / 10)
+    direct = welch_difference(shorter, longer)  # the interval on the metric's own sign, not the test's negated one
+    assert (found.difference.low, found.difference.high) == pytest.approx((direct.low, direct.high))
     assert found.verdict.startswith("RUN lower")
 
 
