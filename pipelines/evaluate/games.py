@@ -124,8 +124,8 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
                 slot_negative |= counting & all_moves_negative(td.get("action_mask"), td.get("lookahead_reward"), env.cells)
                 td = act(td)
                 td, next_root = env.step_and_maybe_reset(td)
-                if logger is not None:
-                    logger.record_steps(td, env=env, **(log_kwargs or {}))
+                if logger is not None:  # only the counted games: a slot's later games would bias the log's results
+                    logger.record_steps(td, env=env, active=counting.clone(), **(log_kwargs or {}))
                 reward = td.get(("next", "reward")).reshape(batch)
                 done = td.get(("next", "done")).reshape(batch)
                 slot_return += torch.where(counting, reward, torch.zeros_like(reward))

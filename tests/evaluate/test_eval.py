@@ -101,3 +101,22 @@ def test_all_moves_negative_needs_an_offered_move_and_no_other() -> None:
     reward = torch.tensor([[-5.0, 0.0, 5.0, 0.0], [-5.0, 5.0, 0.0, 0.0], [-5.0, -5.0, -5.0, 0.0]])
     # 3 cells + 1 dialogue act: row 0 has a quiet move, row 1 only a -5 move, row 2 no move offered
     assert all_moves_negative(mask, reward, cells=3).tolist() == [False, True, False]
+
+
+def test_the_log_holds_exactly_the_counted_games(checkpoint: Path, tmp_path: Path) -> None:
+    """Slots that finish early start other games while the slowest counted game runs; those are not logged, so the
+    log's outcomes are the report's (a log with extra games would favour the short ones)."""
+    from ncbot.logs import EpisodeLogger
+    from ncbot.logs.reader import read_episodes
+    from ncbot.pipelines.agents import load_agent
+    from ncbot.pipelines.evaluate.games import evaluate_agent
+
+    config, policy = load_agent(checkpoint)
+    config.env.taken_squares = "refused"  # some games repeat a taken square up to the act cap, others end in ~10 acts
+    with EpisodeLogger(tmp_path / "log") as logger:
+        result = evaluate_agent(config, policy, games=60, first="robot", seed=2, logger=logger)
+    logged = [e for e in read_episodes(tmp_path / "log") if e["phase"] == "eval"]
+    assert max(e["length"] for e in logged) >= 4 * min(e["length"] for e in logged)  # slots do finish early
+    assert len(logged) == result.games == 60
+    assert sum(e["outcome"] == "win" for e in logged) / 60 == pytest.approx(result.win)
+    assert sum(e["length"] for e in logged) / 60 == pytest.approx(result.avg_length)
