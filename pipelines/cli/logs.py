@@ -80,6 +80,19 @@ def show_episode(path: Path = typer.Argument(..., help=PATH_HELP),
     typer.echo(format_episode(record, names, max_q=max_q))
 
 
+@logs_app.command("acts")
+def act_mix(path: Path = typer.Argument(..., help=PATH_HELP),
+            phase: Optional[str] = typer.Option("eval", help="train, eval, robot or play; 'all' for every phase"),
+            seat: Optional[str] = typer.Option(None, help="first or second: only games with the robot in this seat"),
+            as_json: bool = typer.Option(False, "--json", help="print one JSON object instead of the table")) -> None:
+    """Where the dialogue length goes: mean robot acts per game by act (game moves, the refused ones among them,
+    each spoken act), for all games and per outcome."""
+    from ncbot.logs.acts import act_table, format_act_table
+
+    table = act_table(path, None if phase == "all" else phase, seat, progress=progress_bar)
+    typer.echo(json.dumps(table, indent=2) if as_json else format_act_table(table))
+
+
 @logs_app.command("curve")
 def learning_curve(path: Path = typer.Argument(..., help=PATH_HELP),
                    output: Path = typer.Option(..., "--out", "-o", help="PNG file to write"),

@@ -2,9 +2,11 @@
 from them independently of the logger, for the logs tests."""
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 import torch
 from tensordict import TensorDict
 
@@ -113,3 +115,20 @@ def expected_episodes(td: TensorDict) -> list[ExpectedEpisode]:
                     sum(s["reward"] for s in pending[b]), bool(arrays["next.truncated"][b, t, 0])))
                 pending[b] = []
     return finished
+
+
+def run_cli(*args: str, capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
+    """Run `ncbot` in-process through the real entry point (`ncbot.pipelines.cli.app.main`)."""
+    from ncbot.pipelines.cli.app import main
+
+    old_argv = sys.argv
+    sys.argv = ["ncbot", *map(str, args)]
+    try:
+        main()
+        code = 0
+    except SystemExit as stop:
+        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    finally:
+        sys.argv = old_argv
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err

@@ -11,26 +11,9 @@ import pytest
 import torch
 
 from ncbot.logs import EpisodeLogger
-from tests.logs.helpers import NamedEnv, fake_batch
+from tests.logs.helpers import NamedEnv, fake_batch, run_cli
 
 torch.set_num_threads(1)
-
-
-def run_cli(*args: str, capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    """Run `ncbot` in-process through the real entry point (`ncbot.pipelines.cli.app.main`)."""
-    from ncbot.pipelines.cli.app import main
-
-    old_argv = sys.argv
-    sys.argv = ["ncbot", *map(str, args)]
-    try:
-        main()
-        code = 0
-    except SystemExit as stop:
-        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
-    finally:
-        sys.argv = old_argv
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 @pytest.fixture(scope="module")
