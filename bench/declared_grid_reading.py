@@ -27,8 +27,7 @@ from ncbot.vision.data import DECLARED_SEED
 from ncbot.vision.data.frames import make_frame
 from ncbot.vision.grid import read_page
 from ncbot.vision.recogniser_eval import evaluate_sequences
-from ncbot.envs.grid_shape import Grid, grid_shape
-from ncbot.vision.sheet import grid_label, parse_grid
+from ncbot.vision.sheet import Grid, grid_label, grid_shape, parse_grid
 from ncbot.vision.strokes import HELDOUT_STYLES
 
 PART_OFFSET = {"clean": 0, "harsh": 3_000, "sequences": 6_000}  # each part has room for 3,000 seeds

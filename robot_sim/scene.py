@@ -20,8 +20,7 @@ from ncbot.robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACK
                                     write_pepper_urdf)
 from ncbot.robot_sim.render_system import new_render_system
 from ncbot.robot_sim.sheet import SheetCanvas
-from ncbot.envs.grid_shape import Grid
-from ncbot.vision.sheet import built_in_like
+from ncbot.vision.sheet import Grid, built_in_like
 
 GAME_GRID = {"standard": 3, "ultimate": 9}
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.

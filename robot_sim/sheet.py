@@ -14,8 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncbot.envs.grid_shape import Grid, grid_shape
-from ncbot.vision.sheet import cell_center, cell_size, draw_sheet
+from ncbot.vision.sheet import Grid, cell_center, cell_size, draw_sheet, grid_shape
 from ncbot.vision.strokes import Stroke, draw_mark, mark_strokes
 
 MARK_OF_PLAYER = {"x": "cross", "o": "nought"}

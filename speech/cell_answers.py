@@ -24,11 +24,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ncbot.envs.grid_shape import Grid, grid_shape
 from ncbot.envs.rules import NUMBER_WORDS
 from ncbot.speech.asr import Recogniser
 from ncbot.speech.hearing import HeardUtterance, say_in_noise_and_hear
 from ncbot.speech.tts import PERSON_VOICE, SpeechCache, Voice
+
+#: 3 (noughts & crosses), 9 (ultimate) or a declared game's (rows, cols), as `ncbot.vision.sheet.Grid`.
+Grid = int | tuple[int, int]
 
 ROWS, COLUMNS = ("top", "middle", "bottom"), ("left", "middle", "right")
 CONFIRM_YES, CONFIRM_NO = "yes, that is right", "no, that is wrong"
@@ -40,6 +42,11 @@ def position_phrase(index: int) -> str:
         raise ValueError(f"a position in a 3x3 square is 0-8; got {index}")
     row, column = divmod(index, 3)
     return "centre" if index == 4 else f"{ROWS[row]} {COLUMNS[column]}"
+
+
+def grid_shape(grid: Grid) -> tuple[int, int]:
+    """(rows, cols) of a grid."""
+    return grid if isinstance(grid, tuple) else (grid, grid)
 
 
 def cell_phrase(cell: int, grid: Grid) -> str:

@@ -24,8 +24,7 @@ from ncbot.vision.data.cells import make_cells
 from ncbot.vision.data.frames import make_frame
 from ncbot.vision.grid import read_page
 from ncbot.vision.labels import LABELS
-from ncbot.envs.grid_shape import Grid
-from ncbot.vision.sheet import grid_label
+from ncbot.vision.sheet import Grid, grid_label
 from ncbot.vision.strokes import TUNING_STYLES
 
 PAPER_TRAIN = TrainConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)

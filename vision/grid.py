@@ -9,7 +9,7 @@ On a 9x9 grid the lines' bow (a wide-angle lens) is then measured and each cell 
 own four grid-line crossings (vision.lattice), straight from the frame at rho pixels per cell, so small
 9x9 cells keep the camera's detail. All cells go through the CNN in one batch.
 
-A grid is 3, 9 or (rows, cols) of a declared game (`ncbot.envs.grid_shape.Grid`); a declared grid is read as
+A grid is 3, 9 or (rows, cols) of a declared game (`ncbot.vision.sheet.Grid`); a declared grid is read as
 the built-in size it is closest to in density (`ncbot.vision.sheet.built_in_like`), each axis with its own
 number of cells.
 """
@@ -26,8 +26,7 @@ from ncbot.vision.illumination import balance_frame, flatten, non_paper
 from ncbot.vision.labels import BOARD_SYMBOL, CELL_SIZE, LABELS
 from ncbot.vision.lattice import lattice, remap_cells
 from ncbot.vision.page import check_frame, locate_balanced_page
-from ncbot.envs.grid_shape import Grid, grid_shape
-from ncbot.vision.sheet import built_in_like, grid_label
+from ncbot.vision.sheet import Grid, built_in_like, grid_label, grid_shape
 
 PAGE_SIDE = {3: 320, 9: 480}   # pixels of the first (whole page) warp
 DEFAULT_RHO = {3: 64, 9: 40}   # pixels per cell of the grid warp (the paper's rho)

@@ -32,7 +32,7 @@ from ncbot.vision.classifier.inference import CellClassifier, load_classifier
 from ncbot.vision.grid import extract_cells, read_page, rim_fraction
 from ncbot.vision.labels import BOARD_SYMBOL, LABELS, NOTHING
 from ncbot.vision.page import check_frame, find_page, warp
-from ncbot.envs.grid_shape import Grid, grid_shape
+from ncbot.vision.sheet import Grid, grid_shape
 
 STATUSES = ("move", "moving", "occluded", "no_page", "waiting")
 EDGE_FRACTION = 0.02   # of the page's rim not paper: a hand or arm reaches over the sheet's edge
@@ -83,7 +83,7 @@ class MoveRecogniser:
 
     def __init__(self, grid: Grid = 3, tau: float = 12.0, rho: int | None = None, window: int = 3,
                  gamma_ms: float = 100.0, classifier: CellClassifier | None = None) -> None:
-        """grid: 3, 9 or a declared game's (rows, cols) (`ncbot.envs.grid_shape.Grid`); tau: motion threshold in
+        """grid: 3, 9 or a declared game's (rows, cols) (`ncbot.vision.sheet.Grid`); tau: motion threshold in
         gray levels (RMS over the blurred 48x48 page, summed over two steps); rho: pixels per cell of the grid
         warp (default 64 for 3x3, 40 for 9x9); window: frames whose probabilities are summed; gamma_ms: pause
         between frames in `recognise`."""

@@ -21,8 +21,7 @@ import numpy as np
 from ncbot.fileio import atomic_path, atomic_write_text
 from ncbot.vision.classifier.inference import CellClassifier, load_classifier
 from ncbot.vision.data import TEST_SEED
-from ncbot.envs.grid_shape import Grid
-from ncbot.vision.sheet import grid_label
+from ncbot.vision.sheet import Grid, grid_label
 
 TUNING_SEED = TEST_SEED + 80_000     # sequences looked at while the hand test was tuned
 # +400_000 was the first held-out set; its failures were then looked at (hands mostly outside the page),

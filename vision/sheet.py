@@ -8,16 +8,38 @@ reader does not rely on this layout: it finds the grid lines itself (`ncbot.visi
 """
 from __future__ import annotations
 
+from typing import Union
+
 import cv2
 import numpy as np
-
-from ncbot.envs.declaration import MAX_SIDE, MIN_SIDE
-from ncbot.envs.grid_shape import Grid, check_grid, grid_shape
 
 GRID_FRACTION = 0.82
 PAPER_BGR = (246, 248, 250)
 GRID_INK_BGR = (35, 35, 35)
+
+
+#: 3 (noughts & crosses), 9 (ultimate) or (rows, cols) of a plain declared grid.
+Grid = Union[int, tuple[int, int]]
+SIDE_RANGE = (3, 9)  # rows and cols of a declared grid, as `ncbot.envs.declaration` allows
 SPARSE_SIDE = 5      # a declared grid with at most this many cells a side is photographed and read like 3x3, else like 9x9
+
+
+def check_grid(grid: int) -> int:
+    """Return grid if it is 3 or 9, else raise the one-line error every 3x3/ultimate-only entry point shares."""
+    if grid not in (3, 9):
+        raise ValueError(f"grid must be 3 (noughts & crosses) or 9 (ultimate); got {grid}")
+    return grid
+
+
+def grid_shape(grid: Grid) -> tuple[int, int]:
+    """(rows, cols) of a grid the reader and the sheet take: 3, 9, or (rows, cols) with 3..9 each."""
+    if isinstance(grid, (int, np.integer)) and not isinstance(grid, bool):
+        return check_grid(int(grid)), int(grid)
+    low, high = SIDE_RANGE
+    if (isinstance(grid, tuple) and len(grid) == 2 and all(isinstance(n, (int, np.integer)) for n in grid)
+            and all(low <= n <= high for n in grid)):
+        return int(grid[0]), int(grid[1])
+    raise ValueError(f"grid must be 3, 9 or (rows, cols) with {low}..{high} each; got {grid!r}")
 
 
 def built_in_like(grid: Grid) -> int:
@@ -31,7 +53,7 @@ def built_in_like(grid: Grid) -> int:
 def parse_grid(text: str) -> Grid:
     """`--grid` as typed: "3" or "9" (the built-in games), or "ROWSxCOLS" (a plain grid; 3x3 and 9x9 read as 3
     and 9, the same cells)."""
-    low, high = MIN_SIDE, MAX_SIDE
+    low, high = SIDE_RANGE
     error = ValueError(f"--grid must be 3, 9 or ROWSxCOLS with {low}..{high} each; got {text}")
     parts = text.strip().lower().split("x")
     if not all(p.isdigit() for p in parts) or len(parts) not in (1, 2):

@@ -61,8 +61,7 @@ def read(images: list[Path] = typer.Argument(..., help="Photos of a game sheet."
          rho: Optional[int] = typer.Option(None, min=8, max=256, help="Pixels per cell of the grid warp (default 64 / 40; 8..256).")) -> None:
     """Read the board on each photo: row-major cells "x" / "o" / "" over the full grid."""
     from ncbot.vision.grid import read_board
-    from ncbot.envs.grid_shape import grid_shape
-    from ncbot.vision.sheet import parse_grid
+    from ncbot.vision.sheet import grid_shape, parse_grid
 
     shape = parse_grid(grid)
     cols = grid_shape(shape)[1]

@@ -17,8 +17,7 @@ import numpy as np
 
 from ncbot.vision.data.cells import random_ink
 from ncbot.vision.data.conditions import Harsh, check_conditions, distort_points, draw_harsh, lens_maps
-from ncbot.envs.grid_shape import Grid, grid_shape
-from ncbot.vision.sheet import built_in_like, draw_sheet, grid_box, grid_layout
+from ncbot.vision.sheet import Grid, built_in_like, draw_sheet, grid_box, grid_layout, grid_shape
 from ncbot.vision.strokes import draw_mark
 
 SYMBOL_KIND = {"x": "cross", "o": "nought"}

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncbot.vision.data.frames import random_board, random_hand, random_scene, render
-from ncbot.envs.grid_shape import Grid
+from ncbot.vision.sheet import Grid
 
 
 @dataclass
