@@ -11,10 +11,12 @@ import typer
 def reproduce_command(
     part: str = typer.Argument("all", help="table | vision | budget | all | games-data (the data each game needed, "
                                 "read from finished run folders: no run starts) | memory (temporal information three "
-                                "ways, read from the runs folders of `ncbot ablate` grids such as memory_question)."),
+                                "ways, read from the runs folders of `ncbot ablate` grids such as memory_question, or from the "
+                                "table_seeds.csv an earlier memory report wrote)."),
     run_dirs: Optional[list[str]] = typer.Argument(None, help="games-data: finished `ncbot train` run folders "
                                                     "(config.yaml, run.json, eval.json), one table row each; memory: "
-                                                    "the runs folders `ncbot ablate` wrote (one report)."),
+                                                    "the runs folders `ncbot ablate` wrote and seeds CSVs of earlier "
+                                                    "memory reports (one report)."),
     budget: Optional[str] = typer.Option(None, "--budget", help="quick (smoke, < 30 min on 2 cores, labelled) | full "
                                          "(the paper's protocol, resumable); every part but games-data."),
     workers: int = typer.Option(2, "--workers", help="Training runs in parallel."),
@@ -47,8 +49,9 @@ def reproduce_command(
         from ncbot.pipelines.reproduce.memory import write_memory_report
 
         if budget is not None or not run_dirs:
-            raise ValueError("memory reads runs folders written by `ncbot ablate` (e.g. ncbot reproduce memory "
-                             "runs/memory_question runs/memory_ultimate --out results/memory); it takes no --budget")
+            raise ValueError("memory reads runs folders written by `ncbot ablate` or an earlier report's seeds CSV "
+                             "(e.g. ncbot reproduce memory results/memory/table_seeds.csv runs/memory_ultimate --out "
+                             "results/memory); it takes no --budget")
         written = write_memory_report(list(run_dirs), out, command)
         typer.echo(json.dumps(written) if as_json else
                    f"{written['runs']} runs in {written['arms']} arms; wrote {', '.join(written['files'])}")

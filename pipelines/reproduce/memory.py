@@ -21,15 +21,15 @@ from typing import Any
 
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, interval_text
+from ncbot.pipelines.reproduce.memory_records import (CURVES_CSV, SEEDS_CSV, THRESHOLDS, curves_csv, games_to,
+                                                      read_records, seeds_csv)
 from ncbot.pipelines.reproduce.seed_stats import Interval, proportion_interval, t_interval
 from ncbot.pipelines.reproduce.table import DEFAULT_GAMES, collect_runs
 from ncbot.pipelines.reproduce.two_sample import (ALPHA, NOT_SHOWN, POWER, SHOWN, UNTESTED, TwoSampleTest, holm,
                                                   welch_difference)
 
 MARKDOWN = "table.md"
-SEEDS_CSV = "table_seeds.csv"
 FIGURE = "curves.png"
-THRESHOLDS = (0.95, 0.99)  # training games until the periodic task success first reached these
 GAME_LABELS = {"standard": "3x3", "ultimate": "Ultimate"}
 #: claim (ii), Proposed + temporal minus Proposed in the paper's table: 3x3, and Ultimate at 100 units (the width of
 #: the memory grids)
@@ -69,9 +69,7 @@ def run_metric(run: dict[str, Any], metric: str) -> float | None:
     if metric == "ms_per_frame":
         return 1000 * run["train_wall_time_s"] / run["frames"] if run["frames"] else None
     if metric.startswith("games_to_"):
-        threshold = float(metric.removeprefix("games_to_"))
-        return next((float(point["episodes"]) for point in run.get("history", [])
-                     if point.get("task_success", 0.0) >= threshold), None)
+        return games_to(run, float(metric.removeprefix("games_to_")))
     if metric == "params":
         return run.get("params")
     seat, _, key = metric.partition(".")
@@ -88,26 +86,45 @@ def _params(checkpoint: Path) -> int | None:
     return sum(tensor.numel() for tensor in state["qnet"].values())
 
 
-def read_arms(runs_dirs: str | Path | list[str | Path]) -> list[Arm]:
-    """Every finished run under the runs folders (the layout `ncbot ablate` writes), grouped by what it was trained
-    with. One arm's seeds may come from several folders, but not the same seed twice (one ValueError naming both)."""
-    groups: dict[tuple[str, str, str, bool, int], list[dict[str, Any]]] = {}
-    where: dict[tuple[tuple[str, str, str, bool, int], int], Path] = {}
-    for runs_dir in map(Path, runs_dirs if isinstance(runs_dirs, list) else [runs_dirs]):
-        for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
-            for run in runs:
-                folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
-                if not {"played", "temporal", "batch_size"} <= run.keys():
-                    raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size "
-                                     "the run was trained with (the arm it belongs to)")
-                key = (run["played"], run.get("reward", "paper"), run["memory"], run["temporal"], run["batch_size"])
-                twin = where.setdefault((key, run["seed"]), folder)
-                if twin != folder:
-                    raise ValueError(f"{twin} and {folder} are the same seed of one arm (game, recipe, memory, "
-                                     "temporal features, batch size): keep one")
-                groups.setdefault(key, []).append({**run, "params": _params(folder / "checkpoint.pt")})
+ArmKey = tuple[str, str, str, bool, int]  # game, recipe (reward), memory, temporal features, batch size
+
+
+def _folder_runs(runs_dir: Path) -> list[tuple[ArmKey, dict[str, Any], str]]:
+    """(arm key, run, where) for every finished run under a runs folder (the layout `ncbot ablate` writes)."""
+    found = []
+    for (suite, game, cell), runs in collect_runs(runs_dir).items():  # refuses copied seed folders
+        for run in runs:
+            folder = runs_dir / suite / game / cell / f"seed{run['seed']}"
+            if not {"played", "temporal", "batch_size"} <= run.keys():
+                raise ValueError(f"{folder}/config.yaml does not say the game, env.temporal and buffer.batch_size "
+                                 "the run was trained with (the arm it belongs to)")
+            key = (run["played"], run.get("reward", "paper"), run["memory"], run["temporal"], run["batch_size"])
+            found.append((key, {**run, "params": _params(folder / "checkpoint.pt")}, str(folder)))
+    return found
+
+
+def read_arms(inputs: str | Path | list[str | Path]) -> list[Arm]:
+    """Every finished run under the runs folders (the layout `ncbot ablate` writes) or in the seeds CSVs an earlier
+    report wrote, grouped by what it was trained with. One arm's seeds may come from several inputs, but not the
+    same seed twice (one ValueError naming both), unless both hold the same run (same run id): then the run folder's
+    copy is kept, since a seeds CSV may lack its curve."""
+    groups: dict[ArmKey, dict[int, dict[str, Any]]] = {}
+    where: dict[tuple[ArmKey, int], str] = {}
+    for source in map(Path, inputs if isinstance(inputs, list) else [inputs]):
+        if source.is_file():
+            found = [(key, run, f"{source} (seed {run['seed']})") for key, run in read_records(source)]
+        else:
+            found = _folder_runs(source)
+        for key, run, place in found:
+            seed = run["seed"]
+            kept = groups.setdefault(key, {}).get(seed)
+            if kept is not None and not (run.get("run_id") and kept.get("run_id") == run["run_id"]):
+                raise ValueError(f"{where[(key, seed)]} and {place} are the same seed of one arm (game, recipe, memory, "
+                                 "temporal features, batch size): keep one")
+            if kept is None or (run.get("history") and not kept.get("history")):
+                groups[key][seed], where[(key, seed)] = run, place
     order = {"none": 0, "gru": 1, "lstm": 2}
-    return [Arm(*key, runs=tuple(sorted(runs, key=lambda run: run["seed"])))
+    return [Arm(*key, runs=tuple(runs[seed] for seed in sorted(runs)))
             for key, runs in sorted(groups.items(), key=lambda item: (item[0][0], item[0][1] != "paper", item[0][1],
                                                                           order.get(item[0][2], 9), item[0][4],
                                                                           item[0][3]))]
@@ -203,9 +220,16 @@ def _spread(arm: Arm, metric: str, digits: int) -> str:
     return text if len(values) == len(arm.runs) else f"{text} ({len(values)} of {len(arm.runs)} seeds)"
 
 
+def _undrawn_seeds(arm: Arm) -> str:
+    missing = [str(run["seed"]) for run in arm.runs if not run.get("history")]
+    return "every seed" if len(missing) == len(arm.runs) else f"seeds {', '.join(missing)}"
+
+
 def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
     lines = ["# Temporal information three ways", "",
-             f"Made by `{command}`; every seed's numbers are in `{SEEDS_CSV}`, the learning curves in `{FIGURE}`.", "",
+             f"Made by `{command}`; every seed's numbers are in `{SEEDS_CSV}`, the learning curves in `{FIGURE}` "
+             f"(their points in `{CURVES_CSV}`). Both CSVs can be given back to `ncbot reproduce memory` in place of "
+             "the run folders.", "",
              "Each cell: mean over seeds [95 % interval of that mean]. Rates over test games (task success, wins) get a "
              "Student t-interval of the per-seed logits, mapped back; dialogue length a Student t-interval. "
              "Robot first is the paper's set-up. **games to 0.95**: training games at the first periodic evaluation "
@@ -222,6 +246,11 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
                      f"{_rate(arm, 'first.task_success')} | {_rate(arm, 'second.task_success')} | "
                      f"{_rate(arm, 'first.win')} | {_plain(arm, 'first.avg_length', 2)} | "
                      f"{_spread(arm, 'games_to_0.95', 0)} | {_spread(arm, 'games_to_0.99', 0)} | {_spread(arm, 'ms_per_frame', 2)} | {params_text} |")
+    undrawn = [arm for arm in arms if not all(run.get("history") for run in arm.runs)]
+    if undrawn:
+        lines += ["", f"Not drawn in `{FIGURE}` (seeds read from a seeds CSV without their periodic evaluations): "
+                  + "; ".join(f"{GAME_LABELS.get(arm.game, arm.game)}, {arm.label} ({_undrawn_seeds(arm)})"
+                              for arm in undrawn) + "."]
     lines += ["", "## The questions", "",
               f"One-sided Welch's t-test over seeds of robot-first task success, H1: the first arm is higher; alpha "
               f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
@@ -248,21 +277,8 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def seeds_csv(arms: list[Arm]) -> str:
-    columns = ("game", "reward", "memory", "temporal", "batch_size", "seed", "run_id", "frames", "train_wall_time_s", "params",
-               "games_to_0.95", "games_to_0.99", "first.task_success", "first.win", "first.draw", "first.loss", "first.truncated",
-               "first.avg_length", "second.task_success", "second.win", "second.loss")
-    rows = [",".join(columns)]
-    for arm in arms:
-        for run in arm.runs:
-            reached = [run_metric(run, f"games_to_{threshold}") for threshold in THRESHOLDS]
-            values = [arm.game, arm.reward, arm.memory, str(arm.temporal).lower(), arm.batch_size, run["seed"],
-                      run.get("run_id", ""),
-                      run["frames"], run["train_wall_time_s"], run.get("params") or "",
-                      *("" if games is None else int(games) for games in reached),
-                      *(run[seat].get(key, "") for seat, key in (s.split(".") for s in columns[12:]))]
-            rows.append(",".join(str(value) for value in values))
-    return "\n".join(rows) + "\n"
+def _keyed_runs(arms: list[Arm]) -> list[tuple[ArmKey, dict[str, Any]]]:
+    return [((arm.game, arm.reward, arm.memory, arm.temporal, arm.batch_size), run) for arm in arms for run in arm.runs]
 
 
 def plot(arms: list[Arm], path: Path) -> Path:
@@ -271,16 +287,20 @@ def plot(arms: list[Arm], path: Path) -> Path:
     from ncbot.pipelines.plots import pyplot, save_figure
 
     plt = pyplot()
-    panels = list(dict.fromkeys((arm.game, arm.reward) for arm in arms))
+    drawn = [arm for arm in arms if any(run.get("history") for run in arm.runs)]
+    panels = list(dict.fromkeys((arm.game, arm.reward) for arm in drawn)) or [(None, None)]
     fig, axes = plt.subplots(1, len(panels), figsize=(8 * len(panels), 4.5), squeeze=False)
     for ax, (game, reward) in zip(axes[0], panels):
-        for arm in (arm for arm in arms if (arm.game, arm.reward) == (game, reward)):
-            length = min(len(run.get("history", [])) for run in arm.runs)
-            if not length:
-                continue
-            played = [sum(run["history"][i]["episodes"] for run in arm.runs) / len(arm.runs) for i in range(length)]
-            success = [[run["history"][i]["task_success"] for run in arm.runs] for i in range(length)]
-            ax.plot(played, [sum(s) / len(s) for s in success], marker=".", label=arm.label)
+        if game is None:
+            ax.text(0.5, 0.5, "no periodic evaluations in the inputs", ha="center", va="center")
+            continue
+        for arm in (arm for arm in drawn if (arm.game, arm.reward) == (game, reward)):
+            runs = [run for run in arm.runs if run.get("history")]
+            length = min(len(run["history"]) for run in runs)
+            played = [sum(run["history"][i]["episodes"] for run in runs) / len(runs) for i in range(length)]
+            success = [[run["history"][i]["task_success"] for run in runs] for i in range(length)]
+            seeds = "" if len(runs) == len(arm.runs) else f" ({len(runs)} of {len(arm.runs)} seeds)"
+            ax.plot(played, [sum(s) / len(s) for s in success], marker=".", label=arm.label + seeds)
             ax.fill_between(played, [min(s) for s in success], [max(s) for s in success], alpha=0.12)
         for threshold in THRESHOLDS:
             ax.axhline(threshold, color="grey", linestyle="--", linewidth=0.8)
@@ -292,14 +312,16 @@ def plot(arms: list[Arm], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def write_memory_report(runs_dirs: str | Path | list[str | Path], out: str | Path, command: str) -> dict[str, Any]:
-    """Write OUT/table.md, OUT/table_seeds.csv and OUT/curves.png from the finished runs under the runs folders."""
-    arms = read_arms(runs_dirs)
+def write_memory_report(inputs: str | Path | list[str | Path], out: str | Path, command: str) -> dict[str, Any]:
+    """Write OUT/table.md, OUT/table_seeds.csv, OUT/table_curves.csv and OUT/curves.png from the finished runs under
+    the runs folders and in the seeds CSVs given (an earlier report's, read before anything is written)."""
+    arms = read_arms(inputs)
     found = comparisons(arms)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(render(arms, found, command), out / MARKDOWN)
-    atomic_write_text(seeds_csv(arms), out / SEEDS_CSV)
+    atomic_write_text(seeds_csv(_keyed_runs(arms)), out / SEEDS_CSV)
+    atomic_write_text(curves_csv(_keyed_runs(arms)), out / CURVES_CSV)
     figure = plot(arms, out / FIGURE)
-    return {"files": [str(out / MARKDOWN), str(out / SEEDS_CSV), str(figure)], "arms": len(arms),
+    return {"files": [str(out / MARKDOWN), str(out / SEEDS_CSV), str(out / CURVES_CSV), str(figure)], "arms": len(arms),
             "runs": sum(len(arm.runs) for arm in arms)}

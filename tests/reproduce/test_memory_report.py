@@ -29,9 +29,9 @@ def _history(success: float) -> list[dict]:
             for games, value in ((400, 0.94), (800, 0.96), (1200, success))]
 
 
-def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard", reward: str | None = None) -> Path:
+def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard", reward: str | None = None, tag: str = "") -> Path:
     """Run folders in the layout `ncbot ablate` writes, each with the config.yaml, eval.json and checkpoint a
-    finished run has (a Q-network of a size that tells the arms apart)."""
+    finished run has (a Q-network of a size that tells the arms apart); ``tag`` makes other run ids."""
     for (suite, memory, temporal, batch), values in arms.items():
         cell = f"proposed-{'temporal' if temporal else 'notemporal'}"
         for seed, success in enumerate(values):
@@ -43,7 +43,7 @@ def grid_runs(root: Path, arms: dict = ARMS, game: str = "standard", reward: str
                 config["loss"] = {"reward": reward}
             (folder / "config.yaml").write_text(yaml.safe_dump(config))
             (folder / "eval.json").write_text(json.dumps({
-                "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{game}{suite}{cell}{seed}",
+                "frames": 30000, "train_wall_time_s": 150.0 + seed, "run_id": f"{tag}{game}{suite}{cell}{seed}",
                 "history": _history(success),
                 "first": {"games": 3000, "task_success": success, "win": success - 0.03, "avg_reward": 0.8,
                           "avg_length": 11.9},
@@ -154,9 +154,11 @@ def test_arms_of_two_recipes_are_told_apart_and_never_compared(tmp_path: Path) -
 
 def test_a_seed_of_one_arm_in_two_folders_is_one_line(tmp_path: Path) -> None:
     feed_forward = {key: values for key, values in ARMS.items() if key[0] == "ff"}
-    first, second = grid_runs(tmp_path / "a", feed_forward), grid_runs(tmp_path / "b", feed_forward)
+    first, second = grid_runs(tmp_path / "a", feed_forward), grid_runs(tmp_path / "b", feed_forward, tag="other")
     with pytest.raises(ValueError, match="are the same seed of one arm"):
         read_arms([first, second])
+    copy = grid_runs(tmp_path / "c", feed_forward)  # the same runs (same run ids) in a second folder: kept once
+    assert [len(arm.runs) for arm in read_arms([first, copy])] == [5, 5]
 
 
 def test_a_wrong_call_is_one_line_and_exit_2(tmp_path: Path) -> None:
@@ -179,3 +181,63 @@ def test_a_powered_difference_that_is_not_significant_reads_not_shown_not_no(tmp
     flipped = {("ff", "none", False, 2): arms[("ff", "none", True, 2)],
                ("ff", "none", True, 2): arms[("ff", "none", False, 2)]}
     assert comparisons(read_arms(grid_runs(tmp_path / "flipped", flipped, game="ultimate")))[0].verdict == "no"
+
+
+def _table_rows(path: Path) -> list[str]:
+    return [line for line in path.read_text().splitlines() if line.startswith("|")]
+
+
+def test_the_seeds_and_curves_csvs_stand_in_for_the_run_folders(tmp_path: Path) -> None:
+    """A report's two CSVs read back give the same arms, numbers, tests and curves as the run folders they came
+    from, so runs measured on another machine can be joined by new ones."""
+    runs = grid_runs(tmp_path / "runs")
+    write_memory_report(runs, tmp_path / "from_runs", "ncbot reproduce memory runs")
+    seeds = tmp_path / "from_runs" / "table_seeds.csv"
+    assert (tmp_path / "from_runs" / "table_curves.csv").read_text().count("\n") == 1 + 30 * 3
+    again = read_arms(seeds)
+    for before, after in zip(read_arms(runs), again, strict=True):
+        assert after.label == before.label
+        for metric in ("first.task_success", "second.task_success", "first.win", "games_to_0.95", "games_to_0.99",
+                       "ms_per_frame", "params"):
+            assert after.values(metric) == pytest.approx(before.values(metric)), metric
+        for new, old in zip(after.runs, before.runs, strict=True):
+            assert [(point["episodes"], point["frames"], point["task_success"]) for point in new["history"]] == \
+                [(point["episodes"], point["frames"], point["task_success"]) for point in old["history"]]
+    write_memory_report(str(seeds), tmp_path / "from_csv", "ncbot reproduce memory runs")
+    assert _table_rows(tmp_path / "from_csv" / "table.md") == _table_rows(tmp_path / "from_runs" / "table.md")
+    assert (tmp_path / "from_csv" / "table_seeds.csv").read_text() == seeds.read_text()
+
+
+def test_a_seeds_csv_joins_new_runs_and_keeps_figures_it_cannot_redraw(tmp_path: Path) -> None:
+    feed_forward = {key: values for key, values in ARMS.items() if key[0] == "ff"}
+    gru = {key: values for key, values in ARMS.items() if key[0] == "gru"}
+    write_memory_report(grid_runs(tmp_path / "old", feed_forward), tmp_path / "report", "ncbot reproduce memory old")
+    (tmp_path / "report" / "table_curves.csv").unlink()  # a seeds CSV alone: no curves to draw
+    seeds = tmp_path / "report" / "table_seeds.csv"
+    arms = read_arms([seeds, grid_runs(tmp_path / "new", gru)])
+    assert [(a.memory, a.temporal, len(a.runs)) for a in arms] == [("none", False, 5), ("none", True, 5),
+                                                                    ("gru", False, 5), ("gru", True, 5)]
+    assert arms[0].values("games_to_0.99")[:2] == [1200.0, 1200.0] and len(arms[0].values("games_to_0.99")) == 4
+    assert "GRU helps (no temporal features, batch 16)" not in {c.question for c in comparisons(arms)}  # batch 2 only
+    assert "GRU instead of the features (batch 16 vs 2)" in {c.question for c in comparisons(arms)}
+    result = ncbot("reproduce", "memory", str(seeds), str(tmp_path / "new"), "--out", str(tmp_path / "report"))
+    assert result.returncode == 0, result.stderr
+    text = (tmp_path / "report" / "table.md").read_text()
+    assert "Not drawn in `curves.png`" in text and "feed-forward, no temporal features, batch 2 (every seed)" in text
+    assert "GRU, no temporal features" not in text.split("Not drawn")[1].split("\n")[0]
+    assert len((tmp_path / "report" / "table_seeds.csv").read_text().splitlines()) == 21
+    with pytest.raises(ValueError, match="are the same seed of one arm"):
+        read_arms([seeds, grid_runs(tmp_path / "rerun", feed_forward, tag="rerun")])
+
+
+def test_a_bad_seeds_csv_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "table_seeds.csv"
+    bad.write_text("game,seed\nstandard,0\n")
+    result = ncbot("reproduce", "memory", str(bad), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and "lacks the columns" in result.stderr and "reward" in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    write_memory_report(grid_runs(tmp_path / "runs"), tmp_path / "report", "ncbot reproduce memory runs")
+    good = (tmp_path / "report" / "table_seeds.csv").read_text().splitlines()
+    bad.write_text("\n".join([good[0], good[1].replace(",0.9", ",high", 1)]) + "\n")
+    result = ncbot("reproduce", "memory", str(bad), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and "line 2" in result.stderr and "expected a number" in result.stderr, result.stderr
