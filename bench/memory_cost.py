@@ -1,11 +1,14 @@
 """CPU cost per training frame with and without `agent.memory` (docs/memory.md), on the run's own parts.
 
-    python bench/memory_cost.py [--config pipelines/configs/default.yaml] [--rounds 3] [--batches 4] [override ...]
+    python bench/memory_cost.py [--config pipelines/configs/default.yaml] [--rounds 3] [--batches 4]
+                                [--memory none gru] [--reference-unroll] [override ...]
 
 For each memory setting the training parts are built as `ncbot train` builds them (`ncbot.pipelines.train.build`), the
 buffer is filled past the burn-in, then each round times, in CPU seconds of this process (`time.process_time`,
 robust to a shared machine), `--batches` collected batches (collect + store) and `optim.updates_per_batch`
 updates after each; the settings take turns and the median round is reported as CPU ms per frame.
+`--reference-unroll` adds, for each recurrent setting, a twin whose loss unrolls its slices through TorchRL's
+recurrent mode (`modules.recurrent.unroll_in_recurrent_mode`, the same numbers) instead of on the tensors.
 """
 from __future__ import annotations
 
@@ -31,6 +34,16 @@ def _parts(config_path: str, overrides: list[str], memory: str):
     return config, parts, iter(collector)
 
 
+def _reference_parts(config_path: str, overrides: list[str], memory: str):
+    """The parts of `memory` with the loss's unroll swapped for TorchRL's recurrent mode (same numbers, tested)."""
+    from ncbot.modules.recurrent import unroll_in_recurrent_mode
+
+    config, parts, batches = _parts(config_path, overrides, memory)
+    loss = parts.learner.loss_module
+    loss._unroll = lambda observations, states: unroll_in_recurrent_mode(loss.value_network, observations, states)
+    return config, parts, batches
+
+
 def _store(config, parts, batch, frames: int) -> None:
     from ncbot.modules.transitions import prepare_transitions
 
@@ -48,12 +61,17 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--batches", type=int, default=4)
     parser.add_argument("--memory", nargs="+", default=["none", "gru"])
+    parser.add_argument("--reference-unroll", action="store_true",
+                        help="also time each recurrent setting with the loss unrolled in TorchRL's recurrent mode")
     parser.add_argument("overrides", nargs="*")
     args = parser.parse_args()
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     torch.set_num_threads(1)
     torch.manual_seed(0)
     runs = {memory: _parts(args.config, args.overrides, memory) for memory in args.memory}
+    if args.reference_unroll:
+        for memory in [memory for memory in args.memory if memory != "none"]:
+            runs[f"{memory}, recurrent-mode unroll"] = _reference_parts(args.config, args.overrides, memory)
     frames = {memory: 0 for memory in runs}
     for memory, (config, parts, batches) in runs.items():  # past the burn-in, with epsilon as early in training
         while len(parts.buffer) < max(config.collector.init_random_frames, 4 * config.buffer.batch_size):

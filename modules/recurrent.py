@@ -202,6 +202,20 @@ class SequenceRows:
         return flat
 
 
+def unroll_in_recurrent_mode(qnet: TensorDictSequential, observations: torch.Tensor,
+                             states: dict[str, torch.Tensor]) -> torch.Tensor:
+    """Q-values (B, T, A) of `qnet` over slices that each start one dialogue from `states` (B, ...), through TorchRL's
+    recurrent mode: the reference `SequenceDQNLoss` unrolls against (tests, bench/memory_cost.py)."""
+    rows, steps = observations.shape[:2]
+    is_init = torch.zeros(rows, steps, 1, dtype=torch.bool)
+    is_init[:, 0] = True
+    sequence = TensorDict({OBSERVATION_KEY: observations, IS_INIT_KEY: is_init}, batch_size=[rows, steps])
+    for key, value in states.items():  # recurrent mode reads the first step's state only
+        sequence.set(key, value.unsqueeze(1).expand(rows, steps, *value.shape[1:]))
+    with set_recurrent_mode(True):
+        return qnet(sequence).get(ACTION_VALUE_KEY).float()
+
+
 def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) -> "SequenceDQNLoss":
     """The loss of a recurrent learner from `ncbot.modules.learner.LearnerSettings` (memory, sequence_length, burn_in,
     loss_function, double_dqn, gamma), reading the transitions' learning reward and bootstrap mask (`LOSS_KEYS`)."""
@@ -216,7 +230,7 @@ def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) ->
 
 class SequenceDQNLoss(LossModule):
     """The competitive DQN loss (`ncbot.modules.loss.CompetitiveDQNLoss`: same keys, same target) on slices of
-    dialogues, unrolling the recurrent network in recurrent mode (see module doc)."""
+    dialogues, unrolling the recurrent network over each slice (see module doc)."""
 
     _AcceptedKeys = CompetitiveDQNLoss._AcceptedKeys
     default_keys = _AcceptedKeys
@@ -248,15 +262,16 @@ class SequenceDQNLoss(LossModule):
         pass
 
     def _unroll(self, observations: torch.Tensor, states: dict[str, torch.Tensor]) -> torch.Tensor:
-        """Q-values (B, T, A) of the network unrolled over `observations` (B, T, F) from `states` (B, ...)."""
-        rows, steps = observations.shape[:2]
-        is_init = torch.zeros(rows, steps, 1, dtype=torch.bool)
-        is_init[:, 0] = True
-        sequence = TensorDict({OBSERVATION_KEY: observations, IS_INIT_KEY: is_init}, batch_size=[rows, steps])
-        for key, value in states.items():  # recurrent mode reads the first step's state only
-            sequence.set(key, value.unsqueeze(1).expand(rows, steps, *value.shape[1:]))
-        with set_recurrent_mode(True):
-            return self.value_network(sequence).get(self.tensor_keys.action_value).float()
+        """Q-values (B, T, A) of the network unrolled over `observations` (B, T, F) from `states` (B, ...).
+
+        On the tensors: the MLP, then the torch RNN inside TorchRL's GRUModule / LSTMModule from the stored state,
+        then the head: the operations `unroll_in_recurrent_mode` runs (tested bit-identical), without TorchRL's
+        TensorDict bookkeeping, which cost as much as the GRU itself at one slice per update."""
+        trunk, memory, head = self.value_network
+        rnn = memory.gru if isinstance(memory, GRUModule) else memory.lstm
+        initial = [states[key].transpose(0, 1).clone(memory_format=torch.contiguous_format) for key in self.state_keys]
+        output, _ = rnn(trunk.module(observations), initial[0] if len(initial) == 1 else tuple(initial))
+        return head.module(output).float()
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         keys, length = self.tensor_keys, self.sequence_length

@@ -18,7 +18,7 @@ from ncbot.modules.prioritized_slices import sequence_priority
 from ncbot.modules.policy import make_policies
 from ncbot.modules.recurrent import (
     EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
-    make_sequence_buffer, memory_env,
+    make_sequence_buffer, memory_env, unroll_in_recurrent_mode,
 )
 from ncbot.modules.transitions import LOSS_KEYS, prepare_transitions
 from ncbot.pipelines.checkpoint import load_checkpoint
@@ -189,6 +189,38 @@ def test_the_loss_unrolls_a_slice_as_the_actor_stepped_it() -> None:
             stepped.append(td.get("action_value")[0].clone())
             td.set("recurrent_state", td.get(("next", "recurrent_state")))
     assert torch.allclose(unrolled, torch.stack(stepped), atol=1e-5)
+
+
+@pytest.mark.parametrize("memory", ["gru", "lstm"])
+def test_the_loss_unroll_is_torchrls_recurrent_mode_bit_for_bit(memory: str) -> None:
+    """The loss unrolls on the tensors (the MLP, the recurrent module's torch RNN, the head) for speed; Q-values and
+    gradients equal TorchRL's recurrent mode over the same slices from the same stored states, bit for bit."""
+    _, qnet = _network(memory)
+    loss = SequenceDQNLoss(qnet, sequence_length=8)
+    generator = torch.Generator().manual_seed(3)
+    rows, steps = 5, 9
+    observations = torch.randn(rows, steps, qnet.module[0].module[0].in_features, generator=generator)
+    states = {key: torch.randn(rows, 1, 8, generator=generator) for key in loss.state_keys}
+
+    def recurrent_mode() -> torch.Tensor:
+        return unroll_in_recurrent_mode(qnet, observations, states)
+
+    gradients = []
+    for unroll in (recurrent_mode, lambda: loss._unroll(observations, states)):
+        qnet.zero_grad()
+        q_values = unroll()
+        (q_values * torch.linspace(-1, 1, q_values.shape[-1])).sum().backward()
+        gradients.append((q_values.detach(), [p.grad.clone() for p in qnet.parameters()]))
+    (reference, reference_grads), (unrolled, unrolled_grads) = gradients
+    assert torch.equal(unrolled, reference)
+    assert all(torch.equal(a, b) for a, b in zip(unrolled_grads, reference_grads, strict=True))
+    with torch.no_grad():
+        for weight in loss.target_value_network_params.values(True, True):
+            weight.add_(0.05)  # a target network that differs from the online one
+        with loss.target_value_network_params.to_module(loss.value_network):
+            target = loss._unroll(observations, states)
+            assert torch.equal(target, recurrent_mode())  # the target's unroll too
+        assert not torch.equal(target, unrolled)
 
 
 def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
