@@ -119,6 +119,8 @@ def eval_command(
     exhaustive: bool = typer.Option(False, "--exhaustive", help="3x3: every game branch of the random user, exact probabilities (ignores --games/--opponent)."),
     dialogue_seeds: int = typer.Option(8, "--dialogue-seeds", help="With --exhaustive: dialogue draws (words, ASR confidences) to enumerate under."),
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show games done, rate and ETA on stderr "
+                                  "(a bar on a terminal, a line every tenth of the games in a pipe)."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
     from ncbot.pipelines.run_env import check_first, robot_seat
@@ -138,7 +140,7 @@ def eval_command(
         return
     register_agent_opponent()  # --opponent agent:CKPT / qmcts:N:CKPT
     result = evaluate_checkpoint(checkpoint, games=games, opponent=opponent, first=first, seed=seed, mcap_dir=out,
-                                 search=search, value=value)
+                                 search=search, value=value, progress=progress)
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
     else:

@@ -95,9 +95,11 @@ def summarise(records: GameRecords) -> EvalResult:
 
 
 @torch.no_grad()
-def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None) -> GameRecords:
+def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[str, Any] | None = None,
+               progress=None) -> GameRecords:
     """Play `games` greedy games on envs from `make_env(batch_size)`, counting each slot's first game. A policy
-    whose network lives on a GPU reads each step there and hands its action back on the CPU (the env's device)."""
+    whose network lives on a GPU reads each step there and hands its action back on the CPU (the env's device).
+    `progress` (a `pipelines.progress.progress_bar`) is advanced by each counted game as it ends."""
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     from ncbot.modules.device import on_device
@@ -134,6 +136,8 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
                 slot_outcome[ended] = td.get(("next", "outcome")).reshape(batch)[ended].long()
                 slot_truncated |= ended & td.get(("next", "truncated")).reshape(batch)
                 counting &= ~done
+                if progress is not None and bool(ended.any()):
+                    progress.update(int(ended.sum()))
                 td = next_root
         env.close()
         if hasattr(policy, "searching"):
@@ -144,7 +148,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
 
 
 def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponent: str | None = None,
-                   logger=None, agent_name: str | None = None) -> EvalResult:
+                   logger=None, agent_name: str | None = None, progress=None) -> EvalResult:
     """Greedy games of a built policy against `opponent`; `first` (robot | human | alternate) says who opens.
 
     `alternate` plays half of the games robot-first, then half human-first; `seats` then holds each half under
@@ -169,7 +173,8 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
             return memory_env(env, policy)  # a recurrent policy's hidden state runs through each game
 
         log_kwargs = {"phase": "eval", "agent": agent_name or config.agent.name, "seed": seed + offset}
-        per_seat["robot_" + robot_seat(opener)] = play_games(make_env, policy, count, logger=logger, log_kwargs=log_kwargs)
+        per_seat["robot_" + robot_seat(opener)] = play_games(make_env, policy, count, logger=logger,
+                                                             log_kwargs=log_kwargs, progress=progress)
     result = summarise(GameRecords.cat(list(per_seat.values())))
     if len(per_seat) > 1:
         result.seats = {name: summarise(records).to_dict() for name, records in per_seat.items()}
@@ -177,11 +182,13 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
 
 
 def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "random", first: str = "alternate",
-                        seed: int = 0, mcap_dir=None, search: int | None = None, value: str | None = None) -> EvalResult:
+                        seed: int = 0, mcap_dir=None, search: int | None = None, value: str | None = None,
+                        progress: bool = False) -> EvalResult:
     """`ncbot eval`: load a checkpoint and play greedy test games (optionally logged to MCAP in `mcap_dir`).
 
     `search` > 0 chooses the robot's game moves by MCTS guided by the Q-network with that many simulations;
-    `value`: a value network file that scores the search's leaves (Ultimate).
+    `value`: a value network file that scores the search's leaves (Ultimate); `progress`: show games done, rate and
+    ETA on stderr (a bar on a terminal, a line every 10 % elsewhere).
     """
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
@@ -191,14 +198,18 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
         config, policy = load_agent(checkpoint_path)  # evaluate_agent carries a recurrent agent's hidden state
-    if mcap_dir is None:
-        result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent)
-    else:
-        from ncbot.logs import EpisodeLogger
+    from ncbot.pipelines.progress import progress_bar
 
-        with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
+    with progress_bar(total=games, desc="eval", unit="game", disable=not progress) as bar:
+        if mcap_dir is None:
             result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,
-                                    logger=logger)
+                                    progress=bar)
+        else:
+            from ncbot.logs import EpisodeLogger
+
+            with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
+                result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,
+                                        logger=logger, progress=bar)
     if search:
         result.search_decisions = policy.decisions
         result.search_cpu_s_per_decision = policy.cpu_seconds / max(policy.decisions, 1)

@@ -120,3 +120,16 @@ def test_the_log_holds_exactly_the_counted_games(checkpoint: Path, tmp_path: Pat
     assert len(logged) == result.games == 60
     assert sum(e["outcome"] == "win" for e in logged) / 60 == pytest.approx(result.win)
     assert sum(e["length"] for e in logged) / 60 == pytest.approx(result.avg_length)
+
+
+def test_progress_goes_to_stderr_as_lines_in_a_pipe_and_off_with_no_progress(checkpoint: Path) -> None:
+    """A long evaluation shows games done, rate and ETA; in a pipe as plain lines on stderr (stdout keeps the
+    results, or the JSON, alone), and nothing with --no-progress. Same results either way."""
+    shown = ncbot("eval", str(checkpoint), "--games", "60", "--seed", "2", "--json")
+    assert shown.returncode == 0, shown.stderr
+    lines = [line for line in shown.stderr.splitlines() if line.startswith("eval")]
+    assert len(lines) >= 2 and "60/60" in lines[-1] and "game" in lines[-1], shown.stderr
+    assert "\r" not in shown.stderr
+    quiet = ncbot("eval", str(checkpoint), "--games", "60", "--seed", "2", "--json", "--no-progress")
+    assert quiet.returncode == 0 and not any(line.startswith("eval") for line in quiet.stderr.splitlines()), quiet.stderr
+    assert json.loads(quiet.stdout) == json.loads(shown.stdout)
