@@ -136,8 +136,8 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
                 slot_outcome[ended] = td.get(("next", "outcome")).reshape(batch)[ended].long()
                 slot_truncated |= ended & td.get(("next", "truncated")).reshape(batch)
                 counting &= ~done
-                if progress is not None and bool(ended.any()):
-                    progress.update(int(ended.sum()))
+                if progress is not None and (finished := int(ended.sum())):
+                    progress.update(finished)
                 td = next_root
         env.close()
         if hasattr(policy, "searching"):
@@ -198,18 +198,19 @@ def evaluate_checkpoint(checkpoint_path, *, games: int = 3000, opponent: str = "
         config, policy = load_guided_agent(checkpoint_path, search, seed, value=value)
     else:
         config, policy = load_agent(checkpoint_path)  # evaluate_agent carries a recurrent agent's hidden state
+    from contextlib import nullcontext
+
     from ncbot.pipelines.progress import progress_bar
 
-    with progress_bar(total=games, desc="eval", unit="game", disable=not progress) as bar:
-        if mcap_dir is None:
-            result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,
-                                    progress=bar)
-        else:
-            from ncbot.logs import EpisodeLogger
+    if mcap_dir is None:
+        episode_log = nullcontext()
+    else:
+        from ncbot.logs import EpisodeLogger
 
-            with EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)}) as logger:
-                result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent,
-                                        logger=logger, progress=bar)
+        episode_log = EpisodeLogger(mcap_dir, run_info={"command": "eval", "checkpoint": str(checkpoint_path)})
+    with progress_bar(total=games, desc="eval", unit="game", disable=not progress) as bar, episode_log as logger:
+        result = evaluate_agent(config, policy, games=games, first=first, seed=seed, opponent=opponent, logger=logger,
+                                progress=bar)
     if search:
         result.search_decisions = policy.decisions
         result.search_cpu_s_per_decision = policy.cpu_seconds / max(policy.decisions, 1)

@@ -21,8 +21,8 @@ from typing import Any
 
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.reproduce.aggregate import BOOTSTRAP_REPS, interval_text
-from ncbot.pipelines.reproduce.memory_records import (CURVES_CSV, SEEDS_CSV, THRESHOLDS, curves_csv, games_to,
-                                                      read_records, seeds_csv)
+from ncbot.pipelines.reproduce.memory_records import (CURVES_CSV, SEEDS_CSV, THRESHOLDS, ArmKey, curves_csv,
+                                                      games_to, read_records, seeds_csv)
 from ncbot.pipelines.reproduce.seed_stats import Interval, proportion_interval, t_interval
 from ncbot.pipelines.reproduce.table import DEFAULT_GAMES, collect_runs
 from ncbot.pipelines.reproduce.two_sample import (ALPHA, NOT_SHOWN, POWER, SHOWN, UNTESTED, TwoSampleTest, holm,
@@ -48,6 +48,10 @@ class Arm:
     temporal: bool
     batch_size: int
     runs: tuple[dict[str, Any], ...]  # eval.json contents with "seed", "params" and "config" added
+
+    @property
+    def key(self) -> ArmKey:
+        return self.game, self.reward, self.memory, self.temporal, self.batch_size
 
     @property
     def label(self) -> str:
@@ -84,9 +88,6 @@ def _params(checkpoint: Path) -> int | None:
         return None
     state = torch.load(checkpoint, map_location="cpu", weights_only=True)
     return sum(tensor.numel() for tensor in state["qnet"].values())
-
-
-ArmKey = tuple[str, str, str, bool, int]  # game, recipe (reward), memory, temporal features, batch size
 
 
 def _folder_runs(runs_dir: Path) -> list[tuple[ArmKey, dict[str, Any], str]]:
@@ -172,7 +173,7 @@ def comparisons(arms: list[Arm]) -> list[Comparison]:
     """The questions the grid can answer, each between two arms of the same game and recipe that differ in one thing
     (or, for "memory instead of the features", in the way the move order is given); Holm-adjusted over the family."""
     found = []
-    by_key = {(arm.game, arm.reward, arm.memory, arm.temporal, arm.batch_size): arm for arm in arms}
+    by_key = {arm.key: arm for arm in arms}
     for (game, reward, memory, temporal, batch), arm in by_key.items():
         recipe = recipe_suffix(reward)
         network = "feed-forward" if memory == "none" else memory.upper()
@@ -278,7 +279,7 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
 
 
 def _keyed_runs(arms: list[Arm]) -> list[tuple[ArmKey, dict[str, Any]]]:
-    return [((arm.game, arm.reward, arm.memory, arm.temporal, arm.batch_size), run) for arm in arms for run in arm.runs]
+    return [(arm.key, run) for arm in arms for run in arm.runs]
 
 
 def plot(arms: list[Arm], path: Path) -> Path:
@@ -320,8 +321,9 @@ def write_memory_report(inputs: str | Path | list[str | Path], out: str | Path, 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(render(arms, found, command), out / MARKDOWN)
-    atomic_write_text(seeds_csv(_keyed_runs(arms)), out / SEEDS_CSV)
-    atomic_write_text(curves_csv(_keyed_runs(arms)), out / CURVES_CSV)
+    keyed = _keyed_runs(arms)
+    atomic_write_text(seeds_csv(keyed), out / SEEDS_CSV)
+    atomic_write_text(curves_csv(keyed), out / CURVES_CSV)
     figure = plot(arms, out / FIGURE)
     return {"files": [str(out / MARKDOWN), str(out / SEEDS_CSV), str(out / CURVES_CSV), str(figure)], "arms": len(arms),
             "runs": sum(len(arm.runs) for arm in arms)}

@@ -22,6 +22,7 @@ SEAT_COLUMNS = ("first.task_success", "first.win", "first.draw", "first.loss", "
 SEEDS_COLUMNS = (*KEY_COLUMNS, "frames", "train_wall_time_s", "params", *(f"games_to_{t}" for t in THRESHOLDS),
                  *SEAT_COLUMNS)
 CURVES_COLUMNS = (*KEY_COLUMNS, "episodes", "frames", "task_success")
+ArmKey = tuple[str, str, str, bool, int]  # game, recipe (reward), memory, temporal features, batch size
 
 
 def games_to(run: dict[str, Any], threshold: float) -> float | None:
@@ -37,7 +38,7 @@ def _key(game: str, reward: str, memory: str, temporal: bool, batch_size: int, r
     return [game, reward, memory, str(temporal).lower(), batch_size, run["seed"], run.get("run_id", "")]
 
 
-def seeds_csv(runs: Iterable[tuple[tuple[str, str, str, bool, int], dict[str, Any]]]) -> str:
+def seeds_csv(runs: Iterable[tuple[ArmKey, dict[str, Any]]]) -> str:
     """One row per (arm key, run): the rows `read_records` reads back."""
     rows = [",".join(SEEDS_COLUMNS)]
     for key, run in runs:
@@ -49,7 +50,7 @@ def seeds_csv(runs: Iterable[tuple[tuple[str, str, str, bool, int], dict[str, An
     return "\n".join(rows) + "\n"
 
 
-def curves_csv(runs: Iterable[tuple[tuple[str, str, str, bool, int], dict[str, Any]]]) -> str:
+def curves_csv(runs: Iterable[tuple[ArmKey, dict[str, Any]]]) -> str:
     """One row per periodic evaluation of every run that has them."""
     rows = [",".join(CURVES_COLUMNS)]
     for key, run in runs:
@@ -67,7 +68,8 @@ def _rows(path: Path, columns: tuple[str, ...]) -> list[dict[str, str]]:
         raise ValueError(f"{path} cannot be read as CSV ({error}); expected a {path.name} the memory report wrote") from None
     missing = [column for column in columns if column not in (reader.fieldnames or [])]
     if missing:
-        raise ValueError(f"{path} lacks the columns {', '.join(missing)}; expected a {SEEDS_CSV} the memory report "
+        expected = CURVES_CSV if columns == CURVES_COLUMNS else SEEDS_CSV
+        raise ValueError(f"{path} lacks the columns {', '.join(missing)}; expected a {expected} the memory report "
                          "wrote (ncbot reproduce memory ... --out FOLDER)")
     return rows
 
@@ -82,7 +84,7 @@ def _number(row: dict[str, str], column: str, path: Path, line: int, kind: type 
         raise ValueError(f"{path} line {line}: {column} is {text!r}, expected a number") from None
 
 
-def read_records(path: str | Path) -> list[tuple[tuple[str, str, str, bool, int], dict[str, Any]]]:
+def read_records(path: str | Path) -> list[tuple[ArmKey, dict[str, Any]]]:
     """(arm key, run) for every row of a seeds CSV, each run shaped like a run folder's eval.json with its settings,
     the periodic evaluations attached from the `table_curves.csv` beside it when that file holds them."""
     path = Path(path)
@@ -111,8 +113,8 @@ def read_records(path: str | Path) -> list[tuple[tuple[str, str, str, bool, int]
     if curves.is_file():
         histories: dict[tuple[Any, ...], list[dict[str, float]]] = {}
         for line, row in enumerate(_rows(curves, CURVES_COLUMNS), start=2):
-            point = {"episodes": _number(row, "episodes", curves, line),
-                     "frames": _number(row, "frames", curves, line),
+            point = {"episodes": _number(row, "episodes", curves, line, int),
+                     "frames": _number(row, "frames", curves, line, int),
                      "task_success": _number(row, "task_success", curves, line)}
             histories.setdefault(tuple(row[column] for column in KEY_COLUMNS), []).append(point)
         for key, run in records:

@@ -206,6 +206,8 @@ def test_the_seeds_and_curves_csvs_stand_in_for_the_run_folders(tmp_path: Path) 
     write_memory_report(str(seeds), tmp_path / "from_csv", "ncbot reproduce memory runs")
     assert _table_rows(tmp_path / "from_csv" / "table.md") == _table_rows(tmp_path / "from_runs" / "table.md")
     assert (tmp_path / "from_csv" / "table_seeds.csv").read_text() == seeds.read_text()
+    assert (tmp_path / "from_csv" / "table_curves.csv").read_text() == \
+        (tmp_path / "from_runs" / "table_curves.csv").read_text()
 
 
 def test_a_seeds_csv_joins_new_runs_and_keeps_figures_it_cannot_redraw(tmp_path: Path) -> None:
@@ -241,3 +243,7 @@ def test_a_bad_seeds_csv_is_one_line_and_exit_2(tmp_path: Path) -> None:
     bad.write_text("\n".join([good[0], good[1].replace(",0.9", ",high", 1)]) + "\n")
     result = ncbot("reproduce", "memory", str(bad), "--out", str(tmp_path / "out"))
     assert result.returncode == 2 and "line 2" in result.stderr and "expected a number" in result.stderr, result.stderr
+    (tmp_path / "report" / "table_curves.csv").write_text("game,seed\nstandard,0\n")  # a curves file beside it
+    result = ncbot("reproduce", "memory", str(tmp_path / "report" / "table_seeds.csv"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and "table_curves.csv lacks the columns" in result.stderr, result.stderr
+    assert "expected a table_curves.csv" in result.stderr and len(result.stderr.strip().splitlines()) == 1
