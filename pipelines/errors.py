@@ -43,6 +43,22 @@ class Terminated(BaseException):
     """Raised in the main thread on SIGTERM so writers clean up their temp files like on Ctrl-C."""
 
 
+_termination_requested = False
+
+
+def request_termination() -> None:
+    """Note a SIGTERM (the CLI's handler, before it raises `Terminated`), for `raise_if_terminated`."""
+    global _termination_requested
+    _termination_requested = True
+
+
+def raise_if_terminated() -> None:
+    """Raise `Terminated` again if a SIGTERM came: a handler's exception raised inside a finaliser or a library's
+    catch-all is printed or dropped, not propagated, and a long loop must still stop at its next step."""
+    if _termination_requested:
+        raise Terminated()
+
+
 def squeeze(text: str) -> str:
     """A message as one line: its first non-empty line, capped (torch and cv2 messages run over many)."""
     lines = [line.strip() for line in str(text).splitlines() if line.strip()]

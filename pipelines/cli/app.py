@@ -22,7 +22,7 @@ import ncbot.pipelines.cli.play as cli_play
 import ncbot.pipelines.cli.reproduce as cli_reproduce
 import ncbot.pipelines.cli.robot as cli_robot
 import ncbot.pipelines.cli.vision as cli_vision
-from ncbot.pipelines.errors import Terminated, one_line, squeeze  # light: no torch
+from ncbot.pipelines.errors import Terminated, one_line, request_termination, squeeze  # light: no torch
 
 app = typer.Typer(
     name="ncbot",
@@ -72,6 +72,7 @@ for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play, cli_
 
 
 def _on_sigterm(_signum: int, _frame: object) -> None:
+    request_termination()
     raise Terminated()
 
 

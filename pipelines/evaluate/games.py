@@ -103,6 +103,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     from ncbot.modules.device import on_device
+    from ncbot.pipelines.errors import raise_if_terminated
 
     if games <= 0:
         raise ValueError(f"games must be a positive number of test games, got {games}")
@@ -121,6 +122,7 @@ def play_games(make_env, policy, games: int, *, logger=None, log_kwargs: dict[st
         td = env.reset()
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             while counting.any():
+                raise_if_terminated()
                 if hasattr(policy, "searching"):  # a searching policy spends no search on uncounted games
                     policy.searching = counting
                 slot_negative |= counting & all_moves_negative(td.get("action_mask"), td.get("lookahead_reward"), env.cells)

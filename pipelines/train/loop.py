@@ -13,6 +13,7 @@ import torch
 
 from ncbot.pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
 from ncbot.pipelines.config import RunConfig
+from ncbot.pipelines.errors import raise_if_terminated
 from ncbot.pipelines.run_folder import MCAP_KEY
 from ncbot.pipelines.train.build import TrainingParts, training_state
 
@@ -146,6 +147,7 @@ class TrainingLoop:
         batch_started = time.monotonic()
         last_eval = self.parts.history[-1] if self.parts.history else None
         for batch in collector if collector is not None else ():  # bool(collector) calls len(): inf when open-ended
+            raise_if_terminated()  # a SIGTERM whose exception a finaliser swallowed still stops the run here
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended

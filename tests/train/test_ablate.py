@@ -84,7 +84,8 @@ def test_sigterm_stops_the_grid_and_its_running_training(tmp_path: Path) -> None
     os.kill(grid_run.pid, signal.SIGTERM)
     _, err = grid_run.communicate(timeout=90)
     assert grid_run.returncode == 143, err
-    assert "terminated (SIGTERM)" in (first / "train.log").read_text()  # the child was stopped, not orphaned
+    log = (first / "train.log").read_text()
+    assert "terminated (SIGTERM)" in log, log[-3000:]  # the child was stopped, not orphaned
     assert not (first.parent / "seed1").exists()  # the queued run never started
 
 

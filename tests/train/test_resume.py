@@ -85,3 +85,17 @@ def test_every_run_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -
     assert all(path.exists() for path in stray)
     assert sorted(remove_stray_temp_files(run)) == sorted(stray)
     assert not any(path.exists() for path in stray) and keep.exists()
+
+
+def test_a_sigterm_whose_exception_went_nowhere_still_stops_the_run(tmp_path: Path, monkeypatch) -> None:
+    """The CLI's SIGTERM handler raises in whatever Python code runs; inside a finaliser that exception is only
+    printed. The request it noted stops the training at its next batch, before the run would finish."""
+    from ncbot.pipelines import errors
+    from ncbot.pipelines.config import load_config
+    from ncbot.pipelines.train.run import train
+
+    config = load_config(write_tiny_config(tmp_path, collector={"total_frames": 2048}), [])
+    monkeypatch.setattr(errors, "_termination_requested", True)  # the handler ran; its exception went nowhere
+    with pytest.raises(errors.Terminated):
+        train(config, tmp_path / "run")
+    assert not (tmp_path / "run" / "eval.json").exists()
