@@ -51,9 +51,10 @@ def train_command(
         typer.echo(f"no learning: a uniform choice inside the {report['lookahead']} masks "
                    f"({report['eval_wall_time_s']:.1f} s of test games)")
         return
-    reached = report["time_to_0995_s"]
+    reached, cpu = report["time_to_0995_s"], report.get("train_cpu_time_s")
     typer.echo(f"frames {report['frames']}, updates {report['updates']}, games {report['episodes']}, "
-               f"train wall time {report['train_wall_time_s']:.1f} s, " + (
+               f"train wall time {report['train_wall_time_s']:.1f} s"
+               f"{f' (CPU {cpu:.1f} s)' if cpu is not None else ''}, " + (
                    f"periodic task success first reached 0.995 at {reached:.1f} s" if reached is not None
                    else "periodic task success never reached 0.995"))
 

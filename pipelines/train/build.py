@@ -30,7 +30,7 @@ class TrainingParts:
     sequence_rows: Any = None  # agent.memory: modules.recurrent.SequenceRows (dialogue id, step, hidden state)
     device: torch.device = torch.device("cpu")  # of the networks, loss, optimiser and replay storage (train.device)
     counters: dict[str, Any] = field(default_factory=lambda: {"frames": 0, "updates": 0, "episodes": 0,
-                                                              "wall_offset": 0.0})
+                                                              "wall_offset": 0.0, "cpu_offset": 0.0})
     history: list[dict[str, Any]] = field(default_factory=list)
 
 
@@ -161,6 +161,7 @@ def restore(parts: TrainingParts, state: dict[str, Any], state_path: Any) -> Non
                          f"({str(error).splitlines()[0][:160]})") from None
     parts.counters.update({k: state[k] for k in ("frames", "updates", "episodes")})
     parts.counters["wall_offset"] = state["wall_time"]
+    parts.counters["cpu_offset"] = state.get("cpu_time")  # None: a checkpoint written before CPU time was kept
     parts.history = list(state["history"])
 
 
@@ -172,7 +173,8 @@ def _storage_to(buffer: Any, device: torch.device) -> None:
         storage._storage = storage._storage.to(device)
 
 
-def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_time: float) -> dict[str, Any]:
+def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_time: float,
+                   cpu_time: float | None = None) -> dict[str, Any]:
     """What a periodic checkpoint holds: everything `restore` loads back, every tensor on the CPU (a GPU run's
     checkpoint loads on any machine)."""
     from ncbot.modules.device import to_cpu
@@ -187,7 +189,7 @@ def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_ti
         "teacher": teacher.state_dict(keep_labels=config.checkpoint.save_buffer) if teacher is not None else None,
         "rng": torch.get_rng_state(), "history": parts.history, "run_id": run_id,
         "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
-        "wall_time": wall_time, **cuda_rng,
+        "wall_time": wall_time, "cpu_time": cpu_time, **cuda_rng,
     })
 
 

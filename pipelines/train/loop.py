@@ -34,6 +34,18 @@ def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_TH
     return None
 
 
+def run_cpu_time(offset: float | None, started: float) -> float | None:
+    """CPU seconds of this process (every thread) since `started`, plus those of the run's earlier parts
+    (`offset`, from its checkpoint): unlike the wall time it leaves out time the process waited or was stopped, so
+    it compares runs on a shared machine. None when the run resumed from a checkpoint that did not keep it: a
+    partial sum would understate the run's cost."""
+    return None if offset is None else offset + time.process_time() - started
+
+
+def _rounded(seconds: float | None) -> float | None:
+    return None if seconds is None else round(seconds, 2)
+
+
 def anneal_epsilon(egreedy: Any, frames: int) -> None:
     """TorchRL's `EGreedyModule.step(frames)`, skipped once annealing down has reached eps_end: from there a step
     leaves eps as it is (max(eps_end, eps_end - delta) = eps_end), and it runs a loop of tensor ops per frame."""
@@ -46,15 +58,20 @@ class TrainingLoop:
     """One run's loop over its Collector (`run`), then its final checkpoint and evaluation (`finish`)."""
 
     def __init__(self, config: RunConfig, parts: TrainingParts, *, seed: int, run_id: str, out_dir: Path,
-                 started: float, scalar_log: Any = None, mcap_logger: Any = None) -> None:
+                 started: float, cpu_started: float | None = None, scalar_log: Any = None,
+                 mcap_logger: Any = None) -> None:
         self.config, self.parts, self.seed, self.run_id, self.out_dir = config, parts, seed, run_id, out_dir
         self.started, self.scalar_log, self.mcap_logger = started, scalar_log, mcap_logger
+        self.cpu_started = time.process_time() if cpu_started is None else cpu_started
         self.counters = parts.counters
         self.stop_on_episodes = config.train.episodes is not None
         self.losses: list[float] = []  # mean loss of each learning batch since the last evaluation
 
     def wall_time(self) -> float:
         return self.counters["wall_offset"] + time.monotonic() - self.started
+
+    def cpu_time(self) -> float | None:
+        return run_cpu_time(self.counters.get("cpu_offset", 0.0), self.cpu_started)
 
     def recent_loss(self) -> float:
         return float(np.mean(self.losses)) if self.losses else float("nan")
@@ -129,7 +146,7 @@ class TrainingLoop:
     def checkpoint(self) -> None:
         """A periodic checkpoint; the log rolls here: its finished files hold exactly the episodes it counts."""
         log_next = self.mcap_logger.roll() if self.mcap_logger is not None else None
-        state = training_state(self.config, self.parts, self.run_id, self.wall_time())
+        state = training_state(self.config, self.parts, self.run_id, self.wall_time(), self.cpu_time())
         save_periodic({**state, MCAP_KEY: log_next}, self.out_dir, self.counters["frames"],
                       self.config.checkpoint.keep)
 
@@ -191,7 +208,8 @@ class TrainingLoop:
         report: dict[str, Any] = {
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
             "seed": self.seed, "run_id": self.run_id,
-            "train_wall_time_s": round(self.wall_time(), 2), "time_to_0995_s": time_to_success(history),
+            "train_wall_time_s": round(self.wall_time(), 2), "train_cpu_time_s": _rounded(self.cpu_time()),
+            "time_to_0995_s": time_to_success(history),
         }
         for first in ("robot", "human"):
             result = evaluate_agent(config, parts.agent.greedy, games=config.eval.games, first=first,

@@ -77,7 +77,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     from ncbot.pipelines.scalars import open_scalar_log
 
     logging.getLogger("torchrl").setLevel(logging.WARNING)
-    started = time.monotonic()
+    started, cpu_started = time.monotonic(), time.process_time()
     out_dir, state = run.path, run.state
     scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
     atomic_write_text(dump_config(config), out_dir / "config.yaml")
@@ -104,7 +104,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
 
     mcap_logger = _open_mcap(config, out_dir)
     loop = TrainingLoop(config, parts, seed=seed, run_id=run.run_id, out_dir=out_dir, started=started,
-                        scalar_log=scalar_log, mcap_logger=mcap_logger)
+                        cpu_started=cpu_started, scalar_log=scalar_log, mcap_logger=mcap_logger)
     with mcap_logger or nullcontext():
         loop.run(collector)
         report = loop.finish()

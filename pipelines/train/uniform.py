@@ -33,6 +33,7 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
                                 agent_name="uniform")
         report[robot_seat(first)] = result.to_dict()
     report["train_wall_time_s"] = 0.0  # nothing is trained
+    report["train_cpu_time_s"] = 0.0
     report["eval_wall_time_s"] = round(time.monotonic() - started, 2)
     report["history"] = []
     atomic_write_text(json.dumps(report, indent=2) + "\n", run.path / "eval.json")

@@ -46,6 +46,7 @@ def test_resume_after_sigkill_finishes_the_run(tmp_path: Path) -> None:
     report = json.loads((run / "eval.json").read_text())
     assert report["frames"] == 2048
     assert report["updates"] > killed_at["updates"]
+    assert report["train_cpu_time_s"] > killed_at["cpu_time"] > 0  # CPU time carries over the kill, like wall time
     assert load_checkpoint(run / "checkpoint.pt")["frames"] == 2048
     assert len(periodic_checkpoints(run)) <= 2
     assert not list(run.rglob("*.tmp"))

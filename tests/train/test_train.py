@@ -18,7 +18,7 @@ torch.set_num_threads(1)
 
 def _numbers(report: dict) -> dict:
     """Everything in eval.json except wall-clock times and the run's identity."""
-    drop = {"wall_time", "train_wall_time_s", "time_to_0995_s", "run_id"}
+    drop = {"wall_time", "train_wall_time_s", "train_cpu_time_s", "time_to_0995_s", "run_id"}
     clean = {k: v for k, v in report.items() if k not in drop and k != "history"}
     clean["history"] = [{k: v for k, v in h.items() if k not in drop} for h in report["history"]]
     return clean
@@ -41,6 +41,7 @@ def test_tiny_run_writes_every_artefact(tmp_path: Path) -> None:
         assert abs(saved[seat]["win"] + saved[seat]["draw"] + saved[seat]["loss"] - 1.0) < 1e-9
     assert [h["frames"] for h in saved["history"]] == [256, 512]
     assert all(h["wall_time"] > 0 for h in saved["history"])  # the wall time of each periodic evaluation
+    assert 0 < saved["train_cpu_time_s"]  # the process's CPU seconds: a cost that a shared machine's load spares
 
     final = load_checkpoint(run / "checkpoint.pt")
     assert final["n_features"] == 73 and final["n_actions"] == 18
@@ -125,3 +126,14 @@ def test_learning_curve_shows_both_seats_and_a_readable_loss_axis(tmp_path: Path
     assert 0 < len(labels) <= 7  # whole decades only: labels that cannot overlap
     for fig in (within, across):
         pyplot().close(fig)
+
+
+
+def test_cpu_time_is_unknown_after_resuming_from_a_checkpoint_that_did_not_keep_it() -> None:
+    import time
+
+    from ncbot.pipelines.train.loop import run_cpu_time
+
+    started = time.process_time()
+    assert run_cpu_time(None, started) is None
+    assert run_cpu_time(12.5, started) >= 12.5
