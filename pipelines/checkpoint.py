@@ -207,6 +207,8 @@ def check_training_state(state: dict[str, Any], path: Path, config: Any) -> None
     """A periodic checkpoint can be resumed under `config`: training keys present, Q-network shapes match."""
     expected = "a periodic checkpoint of ncbot train (network, learner, counters, history)"
     _require(state, {**AGENT_KEYS, **TRAINING_KEYS}, path, expected)
+    if state.get("cpu_time") is not None:  # absent or None in a checkpoint written before CPU time was kept
+        _require(state, {"cpu_time": (int, float)}, path, expected)
     check_qnet(state, config, path)
 
 

@@ -174,7 +174,7 @@ def _storage_to(buffer: Any, device: torch.device) -> None:
 
 
 def training_state(config: RunConfig, parts: TrainingParts, run_id: str, wall_time: float,
-                   cpu_time: float | None = None) -> dict[str, Any]:
+                   cpu_time: float | None) -> dict[str, Any]:
     """What a periodic checkpoint holds: everything `restore` loads back, every tensor on the CPU (a GPU run's
     checkpoint loads on any machine)."""
     from ncbot.modules.device import to_cpu

@@ -58,11 +58,10 @@ class TrainingLoop:
     """One run's loop over its Collector (`run`), then its final checkpoint and evaluation (`finish`)."""
 
     def __init__(self, config: RunConfig, parts: TrainingParts, *, seed: int, run_id: str, out_dir: Path,
-                 started: float, cpu_started: float | None = None, scalar_log: Any = None,
-                 mcap_logger: Any = None) -> None:
+                 started: float, cpu_started: float, scalar_log: Any = None, mcap_logger: Any = None) -> None:
         self.config, self.parts, self.seed, self.run_id, self.out_dir = config, parts, seed, run_id, out_dir
-        self.started, self.scalar_log, self.mcap_logger = started, scalar_log, mcap_logger
-        self.cpu_started = time.process_time() if cpu_started is None else cpu_started
+        self.started, self.cpu_started = started, cpu_started
+        self.scalar_log, self.mcap_logger = scalar_log, mcap_logger
         self.counters = parts.counters
         self.stop_on_episodes = config.train.episodes is not None
         self.losses: list[float] = []  # mean loss of each learning batch since the last evaluation
@@ -71,7 +70,7 @@ class TrainingLoop:
         return self.counters["wall_offset"] + time.monotonic() - self.started
 
     def cpu_time(self) -> float | None:
-        return run_cpu_time(self.counters.get("cpu_offset", 0.0), self.cpu_started)
+        return run_cpu_time(self.counters["cpu_offset"], self.cpu_started)
 
     def recent_loss(self) -> float:
         return float(np.mean(self.losses)) if self.losses else float("nan")

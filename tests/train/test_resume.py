@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from ncbot.pipelines.checkpoint import FORMAT, atomic_save, latest_training_state, load_checkpoint, periodic_checkpoints
+from ncbot.pipelines.checkpoint import (FORMAT, atomic_save, check_training_state, latest_training_state, load_checkpoint,
+                                        periodic_checkpoints)
 from ncbot.pipelines.run_folder import remove_stray_temp_files
 from ncbot.pipelines.train.run import resolve_run
 from tests.learning_helpers import ncbot, write_tiny_config
@@ -72,6 +73,13 @@ def test_missing_or_corrupt_checkpoint_is_one_line_exit_2(tmp_path: Path) -> Non
     result = ncbot("train", "--resume", str(run))  # the CLI turns it into one line and exit code 2
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
     assert "corrupt" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_checkpoint_whose_cpu_time_is_not_a_number_is_refused_in_one_line() -> None:
+    state = {"config": {}, "n_features": 73, "n_actions": 18, "qnet": {}, "learner": {}, "egreedy": {}, "history": [],
+             "frames": 64, "updates": 1, "episodes": 1, "wall_time": 1.0, "cpu_time": "1.0"}
+    with pytest.raises(ValueError, match="'cpu_time' is a str; expected a periodic checkpoint"):
+        check_training_state(state, Path("step-000000064.pt"), config=None)
 
 
 def test_every_run_removes_temp_files_left_by_a_kill_mid_write(tmp_path: Path) -> None:

@@ -128,7 +128,6 @@ def test_learning_curve_shows_both_seats_and_a_readable_loss_axis(tmp_path: Path
         pyplot().close(fig)
 
 
-
 def test_cpu_time_is_unknown_after_resuming_from_a_checkpoint_that_did_not_keep_it() -> None:
     import time
 
