@@ -201,6 +201,7 @@ def main() -> None:
         for workers in (1, 2):
             grid = run_grid(rows, runs / f"workers{workers}", workers, chaos=False)
             result["grids"].append(grid)
+            (out / "grid_cluster.json").write_text(json.dumps(result, indent=1) + "\n")  # kept as it goes
             print(f"{workers} worker(s): {grid['wall_s']:.0f} s wall, {grid['cpu_s']:.0f} CPU s, load {grid['load_avg']}",
                   flush=True)
             undisturbed = grid
