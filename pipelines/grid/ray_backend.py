@@ -12,7 +12,8 @@ and be where the head reads the results. Copying folders back after each run wou
 its checkpoints) and move gigabytes of replay buffers. So every node must see the head's runs folder at the same
 absolute path (NFS or similar; a local instance trivially does): before any run starts, one probe task per alive
 node looks for a file the head just wrote there and checks that it can import ncbot's package (`ncbot.pipelines`,
-the installed name: a wheel install has no top-level `pipelines`); any node that cannot is one clear error naming it. Ray is an optional extra (`pip install 'ncbot[ray]'`); importing this module does not need it.
+the installed name: a wheel install has no top-level `pipelines`); any node that cannot is one clear error naming it.
+Ray is an optional extra (`pip install 'ncbot[ray]'`); importing this module does not need it.
 
 What a task asks for is what its run uses (`task_resources`): `num_cpus` = the run's `train.num_threads`, and a GPU
 (`gpus_per_run`, 1 by default, a fraction to share one) when its `train.device` is cuda / cuda:N, or auto on a
@@ -175,7 +176,8 @@ def run_on_ray(todo: Sequence[Any], ledger: Any) -> None:
             try:
                 outcome = ray.get(ready[0])
             except ray.exceptions.RayTaskError as error:  # ncbot's code raised on the node: the same on a retry
-                outcome = Outcome(run.name, "failed", f"error on the Ray node: {str(error).strip().splitlines()[-1][:200]}")
+                last = str(error).strip().splitlines()[-1][:200]
+                outcome = Outcome(run.name, "failed", f"error on the Ray node: {last}")
             except ray.exceptions.RayError as error:
                 outcome = Outcome(run.name, "died", lost_why(error))
             if ledger.settle(run, outcome):

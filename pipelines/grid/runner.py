@@ -177,7 +177,8 @@ class Ledger:
         return {"done": len(self.finished), "held": len(self.held), "failed": len(self.failed),
                 "failed_runs": sorted(self.failed), "failures": dict(sorted(self.failed.items())),
                 "held_runs": sorted(self.held),
-                "retried": [{"run": name, "tries": len(whys) + 1, "why": whys} for name, whys in sorted(retried.items())],
+                "retried": [{"run": name, "tries": len(whys) + 1, "why": whys}
+                            for name, whys in sorted(retried.items())],
                 "runs_dir": str(self.runs_dir)}
 
 

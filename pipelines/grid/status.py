@@ -184,7 +184,8 @@ def status_lines(statuses: list[RunStatus], left: TimeLeft, record: dict[str, An
     lines = []
     for status in statuses:
         tried = f" [try {status.tries}; died before: {'; '.join(status.died)}]" if status.died else ""
-        lines.append(f"{status.name:<{width}}  {status.state}" + (f": {status.detail}" if status.detail else "") + tried)
+        detail = f": {status.detail}" if status.detail else ""
+        lines.append(f"{status.name:<{width}}  {status.state}{detail}{tried}")
     counts = Counter(status.state for status in statuses)
     retried = [status for status in statuses if status.died]
     lines.append(f"{len(statuses)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()) +
