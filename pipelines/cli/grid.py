@@ -65,7 +65,8 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     lines = [f"{summary['done']} runs finished, {summary.get('skipped', 0)} skipped (already done){held}, "
              f"{summary['failed']} failed, {len(summary['retried'])} retried"]
     for entry in summary["retried"]:
-        lines.append(f"retried {entry['run']}: {len(entry['why'])} tries died ({'; '.join(entry['why'])})")
+        died = len(entry["why"])
+        lines.append(f"retried {entry['run']}: {died} {'try' if died == 1 else 'tries'} died ({'; '.join(entry['why'])})")
     for name, why in summary["failures"].items():
         lines.append(f"failed {name}: {why}")
     return lines

@@ -170,14 +170,16 @@ class Ledger:
         """The grid's counts and the runs that failed or were retried, with why (a Slurm requeue, done by Slurm and
         submitit inside the job, is read back from the run's tries)."""
         retried = {name: list(whys) for name, whys in self.retried.items()}
+        tries = dict(self.tries)
         for run in self.todo:
             for entry in attempts.read_attempts(run.run_dir):
                 if entry.get("outcome") == "requeued" and (entry.get("ended") or 0) >= self._started:
                     retried.setdefault(run.name, []).append(str(entry.get("why", "")))
+                    tries[run.name] = tries.get(run.name, 1) + 1
         return {"done": len(self.finished), "held": len(self.held), "failed": len(self.failed),
                 "failed_runs": sorted(self.failed), "failures": dict(sorted(self.failed.items())),
                 "held_runs": sorted(self.held),
-                "retried": [{"run": name, "tries": len(whys) + 1, "why": whys}
+                "retried": [{"run": name, "tries": tries.get(name, 1), "why": whys}
                             for name, whys in sorted(retried.items())],
                 "runs_dir": str(self.runs_dir)}
 

@@ -188,8 +188,9 @@ def status_lines(statuses: list[RunStatus], left: TimeLeft, record: dict[str, An
         lines.append(f"{status.name:<{width}}  {status.state}{detail}{tried}")
     counts = Counter(status.state for status in statuses)
     retried = [status for status in statuses if status.died]
+    died = sum(len(status.died) for status in retried)
     lines.append(f"{len(statuses)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()) +
-                 (f"; {len(retried)} retried ({sum(len(s.died) for s in retried)} tries died)" if retried else ""))
+                 (f"; {len(retried)} retried ({died} {'try' if died == 1 else 'tries'} died)" if retried else ""))
     if record is not None:
         state = (f"running, seen {record['seen_s_ago']:.0f} s ago" if record["alive"] else
                  "ended" if record.get("ended") else f"silent for {record['seen_s_ago']:.0f} s (its process is gone)")

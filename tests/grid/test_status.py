@@ -39,7 +39,7 @@ def test_status_names_tries_failures_queued_runs_and_the_driver(tmp_path: Path) 
     assert record["alive"] and record["backend"] == "ray"
     lines = status_lines(statuses, left, record, workers=4)
     assert lines[0].endswith("[try 1; died before: its Ray node was lost (NodeDiedError)]")
-    assert lines[2] == "2 runs: 1 finished, 1 failed; 1 retried (1 tries died)"
+    assert lines[2] == "2 runs: 1 finished, 1 failed; 1 retried (1 try died)"
     assert lines[3].startswith("grid driver: pid 812 on head-1, backend ray, 4 workers, --retries 3: running")
 
     (failed.run_dir / attempts.ATTEMPTS_NAME).unlink()  # no failed try: waiting its turn while the driver lives
