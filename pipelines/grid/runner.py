@@ -88,6 +88,7 @@ class Ledger:
         from ncbot.pipelines.progress import progress_bar
 
         self._lock = threading.Lock()
+        self._started = time.time()
         self.bar = progress_bar(total=len(self.todo), unit="run", desc=self.desc)
         self._stop_beat = threading.Event()
         self._beat = threading.Thread(target=self._beat_driver, daemon=True)
@@ -154,8 +155,7 @@ class Ledger:
 
         record = {"host": socket.gethostname(), "pid": os.getpid(), "backend": self.cluster.backend,
                   "workers": self.cluster.workers, "retries": self.cluster.retries, "runs": len(self.todo),
-                  "started": getattr(self, "_started", None) or time.time(), "ended": ended}
-        self._started = record["started"]
+                  "started": self._started, "ended": ended}
         try:
             self.runs_dir.mkdir(parents=True, exist_ok=True)
             atomic_write_text(json.dumps(record) + "\n", self.runs_dir / DRIVER_NAME)

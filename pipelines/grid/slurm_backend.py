@@ -24,8 +24,9 @@ from typing import Any
 from ncbot.pipelines.grid import attempts
 from ncbot.pipelines.grid.attempt import Children, Outcome, run_attempt
 
-# a job's wall-time limit without --time: twice the longest paper-protocol run measured (Ultimate (100), about 39 min
-# with two runs sharing two cores, docs/reproduction.md), within most partitions' limits; a run past it is requeued
+# a job's wall-time limit without --time: about three times the longest paper-protocol run measured (Ultimate (100):
+# 2,320 s of training with two runs sharing two cores, docs/reproduction.md), within most partitions' limits; a run
+# past it is requeued and resumes from its checkpoint
 DEFAULT_TIME = "2:00:00"
 STOP_GRACE_S = 45.0  # within submitit's signal delay (90 s before the limit) for `ncbot train` to exit resumable
 POLL_S = 2.0
