@@ -104,12 +104,20 @@ def run_grid(rows: tuple[str, ...], runs_dir: Path, workers: int, chaos: bool) -
     events: list[str] = []
     try:
         with CpuSampler(runs_dir) as sampler:
-            if chaos:
-                threading.Thread(target=_half_way_node_loss, args=(nodes, second, planned, events),
-                                 daemon=True).start()
+            done: dict[str, Any] = {}
+
+            def drive() -> None:  # the grid in a thread: Ray adds nodes only from the main thread (signal handlers)
+                done["summary"] = run_ablation(grid, seeds=seeds, cluster=Cluster("ray", workers=workers),
+                                               out=runs_dir)
+
             started = time.monotonic()
-            summary = run_ablation(grid, seeds=seeds, cluster=Cluster("ray", workers=workers), out=runs_dir)
+            driver = threading.Thread(target=drive, daemon=True)
+            driver.start()
+            if chaos:
+                _half_way_node_loss(nodes, second, planned, events)
+            driver.join()
             wall = time.monotonic() - started
+            summary = done["summary"]
     finally:
         ray.shutdown()
         nodes.shutdown()
