@@ -128,8 +128,8 @@ def run_grid(rows: tuple[str, ...], runs_dir: Path, workers: int, chaos: bool) -
 
 
 def _half_way_node_loss(nodes: Any, second: Any, planned: list[Path], events: list[str]) -> None:
-    """When half the grid's runs finished: remove the second node (waiting up to 90 s for a moment its run has a
-    checkpoint to resume from), then add a fresh node."""
+    """When half the grid's runs finished: remove the second node (waiting up to 180 s for a moment its run has its
+    first checkpoint, so it has one to resume from and most of its training left), then add a fresh node."""
     from ncbot.pipelines.grid.attempts import read_attempts
 
     def finished() -> int:
@@ -137,11 +137,11 @@ def _half_way_node_loss(nodes: Any, second: Any, planned: list[Path], events: li
 
     while finished() * 2 < len(planned):
         time.sleep(1.0)
-    node, deadline = second.node_id[:12], time.monotonic() + 90
+    node, deadline = second.node_id[:12], time.monotonic() + 180
     while time.monotonic() < deadline:
         there = [run for run in planned if (read_attempts(run) or [{}])[-1].get("node") == node
                  and (read_attempts(run) or [{}])[-1].get("outcome") == "running"]
-        if there and any((run / "checkpoints").glob("step-*.pt") for run in there):
+        if there and any(len(list((run / "checkpoints").glob("step-*.pt"))) == 1 for run in there):
             break
         time.sleep(0.5)
     events.append(f"{time.strftime('%H:%M:%S')}: removed node {node} with {finished()} of {len(planned)} runs "
@@ -198,6 +198,8 @@ def main() -> None:
     parser.add_argument("--runs", default="/tmp/grid_cluster")
     parser.add_argument("--rows", nargs="+", default=["standard"])
     parser.add_argument("--parts", nargs="+", default=["speedup", "chaos"], choices=["speedup", "chaos"])
+    parser.add_argument("--reference", help="the JSON of an earlier speedup part: its 2-worker grid is the "
+                        "undisturbed run the chaos run is compared with")
     args = parser.parse_args()
     out, runs = Path(args.out), Path(args.runs).resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -205,6 +207,9 @@ def main() -> None:
     result: dict[str, Any] = {"date": time.strftime("%Y-%m-%d"), "rows": rows, "command": " ".join(sys.argv),
                               "cpus": os.cpu_count(), "grids": []}
     undisturbed = None
+    if args.reference:
+        undisturbed = [g for g in json.loads(Path(args.reference).read_text())["grids"]
+                       if g["workers"] == 2 and not g["chaos"]][0]
     if "speedup" in args.parts:
         for workers in (1, 2):
             grid = run_grid(rows, runs / f"workers{workers}", workers, chaos=False)
