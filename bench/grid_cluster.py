@@ -175,6 +175,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
               for g in grids]
     walls.bar(labels, [g["wall_s"] / 60 for g in grids], color=["#888", "#3a7", "#d63"][:len(grids)])
     walls.set_ylabel("wall time (min)")
+    walls.set_ylim(0, 1.25 * max(g["wall_s"] for g in grids) / 60)
     walls.set_title(f"grid of {len(grids[0]['per_seed'])} runs, two-node local Ray cluster")
     for index, grid in enumerate(grids):
         walls.text(index, grid["wall_s"] / 60, f"{grid['cpu_s']:.0f} CPU s\nload {grid['load_avg']}",
