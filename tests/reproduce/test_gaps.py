@@ -10,6 +10,8 @@ import pytest
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.reproduce import gaps
 from ncbot.pipelines.reproduce.gaps_plan import ActsEval, CheckpointEval, GapRun, plan
+from ncbot.pipelines.reproduce import gaps_report
+from ncbot.pipelines.reproduce.gaps_report import write_gaps_report
 
 PUBLISHED_SEEDS = set(range(12))  # results/ holds seeds 0-11 (the 3x3 temporal question's 12 the most)
 
@@ -42,6 +44,7 @@ def test_the_queue_trains_evaluates_skips_and_reports(tmp_path: Path, monkeypatc
     tiny = GapRun("offered", "standard", "dqn_original-notemporal", 60, TINY + ("env.taken_squares=offered",),
                   (CheckpointEval(), ActsEval()))
     monkeypatch.setattr(gaps, "plan", lambda: [tiny])
+    monkeypatch.setattr(gaps_report, "plan", lambda: [tiny])
     monkeypatch.setattr(gaps, "CHECKPOINT_GAMES", 30)
     monkeypatch.setattr(gaps, "ACTS_GAMES", 10)
     assert gaps.queue_status(tmp_path) == [f"{tiny.name}: not started; evaluations 0/1"]
@@ -56,6 +59,52 @@ def test_the_queue_trains_evaluates_skips_and_reports(tmp_path: Path, monkeypatc
     assert json.loads((folder / "acts" / "metrics.json").read_text())["games"] == 10
     assert list((folder / "acts").glob("episodes-*.mcap"))
     assert gaps.queue_status(tmp_path) == [f"{tiny.name}: trained; evaluations 3/3"]
+    written = write_gaps_report(tmp_path, tmp_path / "results")  # the tiny run logged: (b) and (c) read it
+    report = written[0].read_text()
+    assert f"| {tiny.name} | 10 |" in report and "no question's runs are all finished" in report
     stamps = {path: path.stat().st_mtime_ns for path in folder.rglob("*.json")}
     assert gaps.run_queue(tmp_path) == 0  # everything done: nothing runs again
     assert stamps == {path: path.stat().st_mtime_ns for path in folder.rglob("*.json")}
+
+
+def _write_eval(folder: Path, success: float, reward: float = 0.5, length: float = 14.0) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    seat = {"task_success": success, "avg_reward": reward, "avg_length": length, "truncated": 0.0, "games": 3000}
+    (folder / "eval.json").write_text(json.dumps({"first": seat, "second": seat, "frames": 1}))
+
+
+def test_the_report_runs_the_tests_fixed_in_the_plan(tmp_path: Path) -> None:
+    """Every A/D/E run finished with known numbers: the verdicts are the plan's Welch tests against the shipped CSVs."""
+    from scipy.stats import ttest_ind
+
+    from ncbot.pipelines.reproduce.gaps_report import LATE_CHECKPOINTS, family, published, Runs
+
+    values = {}
+    for index, run in enumerate(plan()):
+        if run.question in ("steps800k", "offered") or run.row == "ultimate150":
+            base = {"steps800k": 0.95, "offered": 0.85}.get(run.question, 0.90)
+            values[run.name] = base + 0.004 * (index % 5) - (0.02 if run.cell == "proposed-notemporal" else 0.0)
+            _write_eval(run.folder(tmp_path), values[run.name])
+            evals = run.folder(tmp_path) / "checkpoint_evals"
+            evals.mkdir()
+            for frames in (*LATE_CHECKPOINTS, 400_000):
+                (evals / f"step-{frames:09d}-first.json").write_text(json.dumps({"task_success": values[run.name] - 0.01}))
+    tests, notes = family(Runs(tmp_path))
+    assert [test["test"][:2] for test in tests] == ["A1", "D1", "E1", "E2"]
+    long = [values[f"steps800k/ultimate100/proposed-temporal/seed{seed}"] for seed in range(20, 26)]
+    expected = ttest_ind(long, published("ultimate100", "proposed-temporal"), equal_var=False, alternative="greater")
+    assert tests[0]["p"] == pytest.approx(expected.pvalue) and tests[0]["verdict"] == "shown"
+    assert tests[1]["verdict"] == "shown" and tests[1]["means"][1] == pytest.approx(0.858)  # offered below 0.9681
+    assert tests[2]["n"] == (10, 10) and tests[2]["alpha"] == 0.0304
+    assert all(test["holm_p"] >= test["p"] for test in tests)
+    assert notes["A: paired 800K - 400K, same seeds"] == pytest.approx([0.01] * 6)
+    assert notes["D: the paper's 0.8258 inside one new run"][1] in ("yes", "no")
+    assert notes["E3: mean within-run SD of the late checkpoints"] == 0.0  # every late checkpoint the same here
+
+
+def test_an_unfinished_question_is_not_read(tmp_path: Path) -> None:
+    from ncbot.pipelines.reproduce.gaps_report import Runs, family
+
+    first = next(run for run in plan() if run.question == "offered")
+    _write_eval(first.folder(tmp_path), 0.5)  # one of five runs
+    assert family(Runs(tmp_path)) == ([], {})
