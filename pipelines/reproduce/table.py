@@ -344,8 +344,8 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
     scores = pooled_scores({key: values for key, values in samples.items() if key in shown}, shown)
     comparisons = pooled_comparisons(samples)
     report = Report(command, rows, claims, render_table(rows, command, claims_out.name, seeds_out.name),
-                    "\n".join([render_claims(claims, command), render_reward_order(samples),
-                               render_pooled(scores, comparisons)]), pooled_dict(scores, comparisons))
+                    render_claims(claims, command) + "\n" + render_reward_order(samples) + render_pooled(scores, comparisons),
+                    pooled_dict(scores, comparisons))
     for path, text in ((out, report.table), (claims_out, report.claims_text), (seeds_out, seeds_csv(groups))):
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(text, path)
