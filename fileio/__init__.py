@@ -2,6 +2,6 @@
 
 The bottom package: it imports no other ncbot package, and every ncbot package may import it.
 """
-from ncbot.fileio.atomic import TEMP_GLOB, atomic_path, atomic_write_bytes, atomic_write_text, fsync_folder
+from ncbot.fileio.atomic import TEMP_GLOB, atomic_path, atomic_write_bytes, atomic_write_text, fsync_folder, move_aside
 
-__all__ = ["TEMP_GLOB", "atomic_path", "atomic_write_bytes", "atomic_write_text", "fsync_folder"]
+__all__ = ["TEMP_GLOB", "atomic_path", "atomic_write_bytes", "atomic_write_text", "fsync_folder", "move_aside"]

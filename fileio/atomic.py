@@ -84,3 +84,15 @@ def atomic_write_bytes(data: bytes, path: str | os.PathLike) -> Path:
 def atomic_write_text(text: str, path: str | os.PathLike, encoding: str = "utf-8") -> Path:
     """Write `text` to `path` atomically; returns the path."""
     return atomic_write_bytes(text.encode(encoding), path)
+
+
+def move_aside(path: str | os.PathLike, aside: str | os.PathLike) -> Path:
+    """Rename `path` to `aside` in one step and make the rename durable; returns `aside`.
+
+    Why here: a file moved out of the way (a stale lock) must never exist under both names or neither
+    after a crash, which is the same rename-and-fsync an atomic write ends with.
+    """
+    aside = Path(aside)
+    os.replace(path, aside)
+    fsync_folder(aside.parent)
+    return aside

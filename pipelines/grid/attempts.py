@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ncbot.fileio import atomic_write_text
+from ncbot.fileio import atomic_write_text, move_aside
 
 ATTEMPTS_NAME = "grid-attempts.json"
 HEARTBEAT_S = 10.0
@@ -121,6 +121,4 @@ def break_lock(run_dir: Path) -> Path:
     """Rename a stale RUN/.lock aside; the next `ncbot train` creates and takes a fresh one."""
     from ncbot.pipelines.run_folder import LOCK_NAME
 
-    aside = Path(run_dir) / f"{LOCK_NAME}.stale-{int(time.time())}"
-    os.replace(Path(run_dir) / LOCK_NAME, aside)
-    return aside
+    return move_aside(Path(run_dir) / LOCK_NAME, Path(run_dir) / f"{LOCK_NAME}.stale-{int(time.time())}")
