@@ -117,7 +117,7 @@ class Session:
         self._thread: threading.Thread | None = None
         self._runner = None
         self._voice = None
-        from ncbot.envs.rules import make_game
+        from ncbot.envs.games import make_game
 
         self.rules = make_game(config.game)  # the cells' names and, with gravity, which square a column click takes
 
