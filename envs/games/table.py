@@ -6,11 +6,15 @@ seat codes, its outcome, and for each cell and seat the position a move leads to
 of the paper's rewards is read off per (position, cell, seat), with these meanings, all from the rules:
 
 - win / draw / lose: the move ends the game with the mover winning, drawn, losing (+5, +1, -5);
-- about to lose (-5): the other side then has a move that wins it the game at once;
+- about to lose (-5): the other side then has a move that wins it the game at once, or a reply after which every
+  move of the mover loses at once (misère's trap: the mover is left only squares that complete its own line);
 - about to draw (+1): after the move nobody can win any more (no sequence of legal moves ends in a win), where
   someone still could before;
 - about to win (+5): the other side has a reply after which the mover wins at once, or every reply of the other side
   ends the game in the mover's win; with ``about_to="created"`` only when the mover had no winning move before.
+
+On the 3x3 rules these read as the 3x3 engine's events wherever both definitions say the same (win, draw, about to
+lose always; the others on most positions: ``tests/envs/test_game_table.py``).
 
 Priority as the built-in engines: win, draw, lose / about to lose, about to draw, about to win. ``tests/envs/
 test_game_table.py`` checks each against a replay of the rules.
@@ -97,13 +101,14 @@ class GameTable:
         result = self.outcome[after]
         on = valid & (result == 0)
         win_now_any = {s: self._wins_now(s).any(1) for s in (p, q)}
+        squeezed = {s: self._squeezed(s) for s in (p, q)}  # every move of that seat, to move, loses at once
         reply, reply_valid = self._after(q)  # (S, cells): q's replies from each position
         reply_on = reply_valid & (self.outcome[reply] == 0)
         threat = (reply_on & win_now_any[p][reply]).any(1)  # (S,) q to move: a reply leaves p a winning move
-        squeeze = reply_valid.any(1) & np.where(reply_valid, self.outcome[reply] == p, True).all(1)
-        about_to_win = on & (threat | squeeze)[after]
+        trapped = (reply_on & squeezed[p][reply]).any(1)  # (S,) q to move: a reply leaves p only losing moves
+        about_to_win = on & (threat | squeezed[q])[after]
         win = valid & (result == p)
-        about_to_lose = on & win_now_any[q][after]
+        about_to_lose = on & (win_now_any[q] | trapped)[after]
         about_to_draw = on & ~can_win[after] & can_win[:, None]
         lose = valid & (result == q)
         draw = valid & (result == DRAWN)
@@ -113,6 +118,12 @@ class GameTable:
             rewards[reading] = prioritise(*tensors, torch.from_numpy(np.ascontiguousarray(events))).numpy()
         self.__dict__.setdefault("_created", {})[p] = rewards["created"]
         return win, rewards["standing"]
+
+    def _squeezed(self, player: int) -> np.ndarray:
+        """(S,) bool: ``player``, to move, has moves and every one of them loses the game at once."""
+        after, valid = self._after(player)
+        loses = valid & (self.outcome[after] == 3 - player)
+        return valid.any(1) & (loses | ~valid).all(1)
 
     def reward_rows(self, player: int, about_to: str) -> np.ndarray:
         """(S, cells) float32 the one-step rewards of ``player`` under the reading ``about_to``."""

@@ -51,13 +51,18 @@ def _brute_reward(game, state, x_seat: int, cell: int, about_to: str) -> float:
         outcome = game.outcome(s)
         return outcome in ("x", "o") or (outcome is None and any(can_win(game.play(s, c)) for c in game.legal(s)))
 
+    def squeezed(s, seat) -> bool:  # every move of ``seat`` (to move) loses at once
+        moves = game.legal(s)
+        return bool(moves) and all(_result(game, game.play(s, c), seat, x_seat) == "loss" for c in moves)
+
     replies = [game.play(after, c) for c in game.legal(after)]
-    if any(_result(game, r, 3 - mover, x_seat) == "win" for r in replies):
+    if any(_result(game, r, 3 - mover, x_seat) == "win" or (game.outcome(r) is None and squeezed(r, mover))
+           for r in replies):
         return -5.0
     if not can_win(after) and can_win(state):
         return 1.0
     threat = any(game.outcome(r) is None and wins_now(r, mover) for r in replies)
-    squeeze = bool(replies) and all(_result(game, r, mover, x_seat) == "win" for r in replies)
+    squeeze = squeezed(after, 3 - mover)
     if (threat or squeeze) and not (about_to == "created" and wins_now(state, mover)):
         return 5.0
     return 0.0
