@@ -171,8 +171,8 @@ class GuidedMCTS:
         # rules decided without searching); the search teacher reads it (modules/search_targets.py)
         self.root_values: dict[int, float] = {}
         if value_net is not None and rules.id != VALUE_GAME:
-            raise ValueError(f"value networks score {VALUE_GAME} positions; this agent plays {rules.name} "
-                             f"(--value needs an agent of {VALUE_GAME})")
+            raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
+                             "(--value needs an Ultimate agent)")
         if value_net is None:  # the Q-guided leaf value needs the Q read of the expansion: expand at the leaf
             self.policy, self.evaluator = PUCT(self.engine, self.c_puct), QGuidedEvaluator(self)
         else:

@@ -201,7 +201,7 @@ def check_teacher_value(config: RunConfig) -> None:
     from ncbot.modules.value_net import VALUE_GAME, load_value_net
 
     if config.env.game != VALUE_GAME:
-        raise ValueError(f"config key 'search_targets.value' scores {VALUE_GAME} positions; this run plays "
+        raise ValueError(f"config key 'search_targets.value' scores Ultimate positions; this run plays "
                          f"{config.env.game} (leave it null)")
 
     with torch.random.fork_rng():
