@@ -104,15 +104,14 @@ class DialogueGameEnv(EnvBase):
         self.user = SimulatedUser(model, self.tables, self.engine, *resolve_opponent(opponent, self.game, free_move, seed),
                                   check_hearing(hearing), self._rng, rules.subgrids)
         self.boards = self.engine.new(batch)
-        self.believed = BelievedBoard(self.engine, self.tables, self.boards, readings.misread_rate, self._rng) \
-            if readings.misread else None
+        self.believed = BelievedBoard(self.engine, self.tables, self.boards, readings.misread_rate, self._rng,
+                                      readings.offered) if readings.misread else None
         # taken_squares="misread": the robot's knowledge of the board (what it observes); else the board itself
         self.belief = self.boards if self.believed is None else self.believed.belief
         self._all_games = torch.arange(batch)
         self._init_state(batch)
         self.set_seed(int(seed))
 
-    # ------------------------------------------------------------------ construction helpers
     def _init_state(self, batch: int) -> None:
         self.d = DialogueState()
         self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
@@ -154,8 +153,8 @@ class DialogueGameEnv(EnvBase):
     feature_names = property(lambda self: list(self.description.feature_names))
     n_actions = property(lambda self: self.description.n_actions)
     n_features = property(lambda self: self.description.n_features)
-    opponent = property(lambda self: self.user.opponent, doc="the simulated user's move policy (None: uniform)")
-    hearing = property(lambda self: self.user.hearing, doc="the simulated user's ears (None: uniform ASR)")
+    opponent = property(lambda self: self.user.opponent)  # the simulated user's move policy (None: uniform)
+    hearing = property(lambda self: self.user.hearing)  # its ears (None: uniform ASR)
 
     # ------------------------------------------------------------------ metadata helpers
     def user_utterance(self, utterance_id: int) -> str:
@@ -245,6 +244,8 @@ class DialogueGameEnv(EnvBase):
         if reset_rows is None:
             # a taken square offered (taken_squares="refused") never wins; "misread": the believed board's
             legal = self.d.mask if self.believed is not None else self.d.legal
+            if self.readings.offered:  # "offered": a square known taken is offered, never winning
+                legal = torch.cat([legal[:, :self.cells] & (self.belief.board == 0), legal[:, self.cells:]], dim=1)
             code_wins = self.tables.code_wins
             if code_wins is not None:  # the moves worth +5 (or that win: win_set) are one row per board code
                 winning = legal & code_wins.index_select(0, self.belief.codes[:, 0])

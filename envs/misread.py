@@ -1,5 +1,6 @@
 """``taken_squares="misread"``: the robot's knowledge of the board can be wrong (the paper's "not taken yet (to the
-robot's knowledge)"), as a believed board kept beside the true one.
+robot's knowledge)"), as a believed board kept beside the true one; ``"offered"``: the same, and every square the robot
+knows is taken is offered too (refused at -5 with a re-read).
 
 Why a part of its own: the reading is one option of ``ncbot.envs.dialogue_env.DialogueGameEnv``, used only by the
 paper configs; its four steps (offer from the belief, play the robot's accepted moves on it, read the user's moves
@@ -24,8 +25,9 @@ class BelievedBoard:
     """The robot's believed board (``belief``) beside the true one (``boards``); see the module docstring."""
 
     def __init__(self, engine: Any, tables: StepTables, boards: Boards, misread_rate: float,
-                 generator: torch.Generator) -> None:
+                 generator: torch.Generator, offer_taken: bool = False) -> None:
         self.engine, self.tables, self.boards, self.misread_rate = engine, tables, boards, misread_rate
+        self.offer_taken = offer_taken  # "offered": the squares known taken are offered too
         self.generator = generator
         self.belief = engine.new(boards.board.shape[0])
         self.cells = engine.cells
@@ -50,7 +52,7 @@ class BelievedBoard:
             mask = dialogue_mask & tables.code_empty.index_select(0, believed_code)
             mask[:, :cells] &= (boards.outcome == 0).unsqueeze(1)
             lookahead = torch.where(mask, tables.code_rewards.index_select(0, believed_code), REWARD_ILLEGAL)
-            return legal, mask, lookahead, true_lookahead, None
+            return legal, self._offered(mask, dialogue_mask), lookahead, true_lookahead, None
         moves = dialogue_mask[:, 0]
         can_move = moves & (boards.outcome == 0)
         talk = dialogue_mask[:, cells:]
@@ -65,7 +67,16 @@ class BelievedBoard:
         if bool((differs & can_move).any()):
             true_lookahead = torch.where(differs.unsqueeze(1), tables.act_lookahead.index_select(0, context), lookahead)
             self.engine.write_move_rewards(true_lookahead, boards, ROBOT, can_move & differs)
-        return legal, mask, lookahead, true_lookahead, winning
+        return legal, self._offered(mask, dialogue_mask), lookahead, true_lookahead, winning
+
+    def _offered(self, mask: torch.Tensor, dialogue_mask: torch.Tensor) -> torch.Tensor:
+        """``offered``: the squares known taken too, on the robot's turn (their look-ahead is -5)."""
+        if not self.offer_taken:
+            return mask
+        cells = self.cells
+        mask = mask.clone()
+        mask[:, :cells] |= (self.belief.board != 0) & dialogue_mask[:, :cells] & (self.boards.outcome == 0).unsqueeze(1)
+        return mask
 
     def believe_robot_moves(self, action: torch.Tensor, robot_moves: torch.Tensor) -> torch.Tensor:
         """The robot's accepted moves on its believed board too; (B,) bool the games to re-read (the square

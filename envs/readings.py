@@ -15,8 +15,10 @@ from typing import Any
 #   subset of those not taken yet (to the robot's knowledge)", yet the rewards price "a repeated (already taken)
 #   action" at -5. never: only untaken squares are offered; refused: taken squares are offered too, refused at -5
 #   with nothing changed; misread: the robot's knowledge of the board can be wrong (a misread user move), a square
-#   really taken is refused at -5 and the refusal corrects the robot's knowledge.
-TAKEN_SQUARES_CHOICES = ("never", "refused", "misread")
+#   really taken is refused at -5 and the refusal corrects the robot's knowledge; offered: misread, and every
+#   square the robot knows is taken is offered too (the -5 payable to an agent without look-ahead masks).
+TAKEN_SQUARES_CHOICES = ("never", "refused", "misread", "offered")
+BELIEF_READINGS = ("misread", "offered")  # the readings that keep a believed board beside the true one
 # win_set: what ``winning_actions`` (Algorithm 2's set A when non-empty) holds. wins_and_threats: every +5 move
 #   (wins and "about to win" threats); wins: "action(s) leading to win (legally) the game", the moves that win now.
 WIN_SET_CHOICES = ("wins_and_threats", "wins")
@@ -40,8 +42,8 @@ def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
 class Readings:
     """One reading of each ambiguous passage of the paper; the defaults are this project's first readings.
 
-    ``misread_rate``: the chance that the robot misreads a user move, required with ``taken_squares="misread"`` and
-    refused otherwise. ``dialogue_subset``: None (every example dialogue of the set) or (k, seed), the act filter
+    ``misread_rate``: the chance that the robot misreads a user move, required with ``taken_squares`` misread or offered
+    and refused otherwise. ``dialogue_subset``: None (every example dialogue of the set) or (k, seed), the act filter
     and the simulated user learnt from a seeded subset of k dialogues (the data-budget curve)."""
 
     taken_squares: str = "never"
@@ -66,8 +68,13 @@ class Readings:
 
     @property
     def misread(self) -> bool:
-        """The robot's knowledge of the board can be wrong (a believed board beside the true one)."""
-        return self.taken_squares == "misread"
+        """The robot's knowledge of the board can be wrong (a believed board beside the true one): misread, offered."""
+        return self.taken_squares in BELIEF_READINGS
+
+    @property
+    def offered(self) -> bool:
+        """Misread, and the squares the robot knows are taken are offered too (refused at -5 with a re-read)."""
+        return self.taken_squares == "offered"
 
     @classmethod
     def of(cls, readings: Readings | None = None, **fields: Any) -> Readings:
@@ -80,14 +87,14 @@ class Readings:
 
 
 def _misread_rate(taken_squares: str, misread_rate: Any) -> float | None:
-    """A float in (0, 1), required with ``misread`` and refused with the other readings."""
-    if taken_squares != "misread":
+    """A float in (0, 1), required with ``misread`` and ``offered`` and refused with the other readings."""
+    if taken_squares not in BELIEF_READINGS:
         if misread_rate is not None:
-            raise ValueError(f"misread_rate is only used with taken_squares=misread (got taken_squares={taken_squares!r}, "
-                             f"misread_rate={misread_rate!r}): leave it unset")
+            raise ValueError(f"misread_rate is only used with taken_squares=misread or offered (got taken_squares="
+                             f"{taken_squares!r}, misread_rate={misread_rate!r}): leave it unset")
         return None
     if isinstance(misread_rate, bool) or not isinstance(misread_rate, (int, float)) or not 0.0 < misread_rate < 1.0:
-        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares=misread, got {misread_rate!r}")
+        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares={taken_squares}, got {misread_rate!r}")
     return float(misread_rate)
 
 
