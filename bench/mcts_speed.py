@@ -19,7 +19,8 @@ import torch
 
 from ncbot.envs.opponents import make_opponent
 from ncbot.envs.opponents.arena import play_match
-from ncbot.envs.opponents.bitboards import DRAW, ONGOING, make_bits
+from ncbot.envs.games import make_game
+from ncbot.envs.opponents.bitboards import DRAW, ONGOING
 from ncbot.envs.opponents.mcts import uct_search
 
 SETTINGS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "open_subgrids")]
@@ -27,7 +28,7 @@ SETTINGS = [("standard", "anywhere"), ("ultimate", "anywhere"), ("ultimate", "op
 
 def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, seed: int) -> tuple[int, int, float, float]:
     """One game MCTS vs uniform random on the bitboards: (MCTS points 2/1/0, decisions, wall s, CPU s)."""
-    engine = make_bits(game, free_move)
+    engine = make_game(game, free_move).search_engine()
     rng = random.Random(seed)
     pos = engine.from_board([0] * engine.n_cells, 1)
     decisions = 0
@@ -48,7 +49,7 @@ def engine_game(game: str, free_move: str, simulations: int, mcts_side: int, see
 
 def simulations_per_second(game: str, free_move: str, simulations: int = 2000, seed: int = 0) -> tuple[float, float]:
     """UCT iterations per wall second and per CPU second from the empty board (the longest playouts)."""
-    engine = make_bits(game, free_move)
+    engine = make_game(game, free_move).search_engine()
     pos = engine.from_board([0] * engine.n_cells, 1)
     began, began_cpu = time.perf_counter(), time.process_time()
     uct_search(engine, pos, engine.moves(pos), simulations, random.Random(seed))
@@ -57,8 +58,6 @@ def simulations_per_second(game: str, free_move: str, simulations: int = 2000, s
 
 def batched_select_ms(game: str, free_move: str, name: str, batch: int = 1024, repeats: int = 20) -> float:
     """Milliseconds per ``select`` call on ``batch`` random unfinished positions (the env's per-step cost)."""
-    from ncbot.envs.rules import make_game
-
     rules = make_game(game, free_move)
     rng = random.Random(0)
     states = []

@@ -11,10 +11,8 @@ the opponent to the subgrid with that number.
 """
 from __future__ import annotations
 
-GAME_CHOICES = ("standard", "ultimate")
 FREE_MOVE_CHOICES = ("anywhere", "open_subgrids")
-CELLS_OF_GAME = {"standard": 9, "ultimate": 81}
-COLUMN_LETTERS = "abcdefghi"
+COLUMN_LETTERS = "abcdefghijklmnopqrstuvwxyz"  # cell names: a column letter, then the row number
 
 # Mark codes on a board. In the rules x / o (x moves first); in the env and the opponents the seats.
 EMPTY, X, O = 0, 1, 2
@@ -23,21 +21,7 @@ USER = HUMAN  # the dialogue env's simulated user sits in the human seat
 SEATS = {ROBOT: "robot", HUMAN: "human"}
 DRAWN = 3  # a drawn subgrid (Ultimate owner grid), and a drawn game in the outcome codes below
 
-# The paper's ambiguous readings, each a named option (first value = the default; docs/env.md "Readings").
-# taken_squares: can the robot choose a square that is taken? Section 3: "all game moves were allowed from the
-#   subset of those not taken yet (to the robot's knowledge)", yet the rewards price "a repeated (already taken)
-#   action" at -5. never: only untaken squares are offered; refused: taken squares are offered too, refused at -5
-#   with nothing changed; misread: the robot's knowledge of the board can be wrong (a misread user move), a square
-#   really taken is refused at -5 and the refusal corrects the robot's knowledge; offered: misread, and every
-#   square the robot knows is taken is offered too (the -5 payable to an agent without look-ahead masks).
-TAKEN_SQUARES_CHOICES = ("never", "refused", "misread", "offered")
-BELIEF_READINGS = ("misread", "offered")  # the readings that keep a believed board beside the true one
-# win_set: what ``winning_actions`` (Algorithm 2's set A when non-empty) holds. wins_and_threats: every +5 move
-#   (wins and "about to win" threats); wins: "action(s) leading to win (legally) the game", the moves that win now.
-WIN_SET_CHOICES = ("wins_and_threats", "wins")
-# about_to: when "+5 ... about to win" is paid. standing: on every move after which the robot has a winning
-#   square; created: only on the move that creates it (the robot had no winning square before its move).
-ABOUT_TO_CHOICES = ("standing", "created")
+# The paper's ambiguous readings (taken_squares, win_set, about_to, ...) are ``ncbot.envs.readings``.
 
 # Who opens a dialogue's game: the one name ``first`` (env option, config key, CLI option).
 FIRST_CHOICES = ("robot", "human", "alternate", "random")
@@ -68,32 +52,6 @@ SUBGRID_CELLS: tuple[tuple[int, ...], ...] = tuple(subgrid_cells(k) for k in ran
 # cell -> the subgrid it lies in, and cell -> its position inside that subgrid = the subgrid it sends the opponent to.
 SUBGRID_OF_CELL: tuple[int, ...] = tuple((cell // 27) * 3 + (cell % 9) // 3 for cell in range(81))
 TARGET_OF_CELL: tuple[int, ...] = tuple(((cell // 9) % 3) * 3 + (cell % 9) % 3 for cell in range(81))
-
-
-def check_game(game: str) -> str:
-    """``game`` if it is one of GAME_CHOICES; else the id of a declared game (a shipped name, or a YAML file's
-    absolute path: ``ncbot.envs.declaration``); one-line ValueError naming the choices otherwise."""
-    if game in GAME_CHOICES:
-        return game
-    from ncbot.envs.declaration import declared_game
-
-    return declared_game(game).game
-
-
-def cells_of_game(game: str) -> int:
-    """The number of squares of ``game`` (built-in or declared)."""
-    if game in CELLS_OF_GAME:
-        return CELLS_OF_GAME[game]
-    from ncbot.envs.declaration import declared_game
-
-    return declared_game(game).cells
-
-
-def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
-    """``value`` if it is one of ``choices``; one-line ValueError naming the option ``name`` and the choices."""
-    if not isinstance(value, str) or value not in choices:
-        raise ValueError(f"{name} must be one of {', '.join(choices)}; got {value!r}")
-    return value
 
 
 def check_free_move(free_move: str) -> str:

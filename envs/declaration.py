@@ -3,9 +3,10 @@
 Why a declaration: the paper claims its approach "can be easily extended to new games". Everything that depends on
 the board -- exact rules, the batched engine, the dialogue env's features and actions, the example dialogues, the
 opponents, the grid reader and the robot's drawing positions -- is derived from these five fields, so a new game is
-a new file, not new code. 3x3 ("standard") and Ultimate stay built-ins.
+a new file, not new code. 3x3 ("standard") and Ultimate stay built-ins; the game object of a declaration is
+``ncbot.envs.games.declared.DeclaredGame``, resolved by the registry (``ncbot.envs.games``).
 
-Plain Python (no torch) and no import of ``ncbot.envs.core`` (core's ``check_game`` imports this module).
+Plain Python (no torch).
 """
 from __future__ import annotations
 
@@ -73,7 +74,8 @@ def shipped_games() -> tuple[str, ...]:
 
 
 def game_choices_text() -> str:
-    return f"{', '.join(BUILT_IN + shipped_games())} or a game YAML file"
+    """Every way to name a game, as error messages list them (``ncbot.envs.games``)."""
+    return f"{', '.join(BUILT_IN + shipped_games())}, a game YAML file or an import path MODULE:CLASS / FILE.py:CLASS"
 
 
 def _int_field(data: dict, field: str, low: int, high: int, where: str) -> int:
@@ -131,8 +133,3 @@ def declared_game(game: object) -> Declaration:
 @lru_cache(maxsize=64)
 def _load_cached(path: str, game: str) -> Declaration:
     return load_declaration(path, game)
-
-
-def is_declared(game: object) -> bool:
-    """True when ``game`` names a declared (not built-in) game; no validation beyond the name's form."""
-    return isinstance(game, (str, Path)) and str(game) not in BUILT_IN

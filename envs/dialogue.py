@@ -16,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import yaml
+
+from ncbot.envs.games import make_game
+from ncbot.envs.readings import DIALOGUE_CHOICES
 
 DATA_FILE = Path(__file__).with_name("data") / "example_dialogues.yaml"
 PAPER_DATA_FILE = Path(__file__).with_name("data") / "example_dialogues_paper.yaml"
@@ -98,7 +100,6 @@ DIALOGUE_SETS = {
     # the paper's shape: "your turn" before every user move, the opening in full ("Nice. Let me start.")
     "paper": DialogueSet("paper", PAPER_DATA_FILE, PAPER_TEMPLATES, (REQUEST_USER_MOVE,), PAPER_EXTRA_FILE),
 }
-DIALOGUE_CHOICES = tuple(DIALOGUE_SETS)
 
 
 def dialogue_set(name: str) -> DialogueSet:
@@ -165,33 +166,9 @@ class DialogueModel:
 
 
 def load_dialogues(game: str, path: Path = DATA_FILE) -> list[dict]:
-    """The example dialogues of ``game`` from the data file (FileNotFoundError / ValueError if unusable); a declared
-    game's are generated from its declaration with the same skeletons and utterances (``declared_dialogues``)."""
-    if game not in ("standard", "ultimate"):
-        return declared_dialogues(game, path.name)
-    if not path.is_file():
-        raise FileNotFoundError(f"example dialogue file {path} not found: expected the YAML shipped in envs/data")
-    data = yaml.safe_load(path.read_text())
-    if not isinstance(data, dict) or not isinstance(data.get("dialogues"), list):
-        raise ValueError(f"{path}: expected a mapping with a 'dialogues' list")
-    chosen = [d for d in data["dialogues"] if d.get("game") == game]
-    if not chosen:
-        raise ValueError(f"{path}: no dialogues for game {game!r}")
-    return chosen
-
-
-@lru_cache(maxsize=16)
-def _declared_dialogue_text(game: str, file_name: str) -> str:
-    from ncbot.envs.data.make_example_dialogues import declared_dialogue_text
-    from ncbot.envs.rules import make_game
-
-    return declared_dialogue_text(make_game(game), file_name)
-
-
-def declared_dialogues(game: str, file_name: str) -> list[dict]:
-    """The example dialogues of the declared ``game`` for the set whose built-in file is ``file_name``: data made
-    from the declaration (``ncbot.envs.data.make_example_dialogues.declared_dialogue_text``), never per-game code."""
-    return yaml.safe_load(_declared_dialogue_text(game, file_name))["dialogues"]
+    """The example dialogues of ``game`` in the set read from ``path``'s file: the game's own
+    (``Game.example_dialogues``: the built-ins' hand-made files, the other games' made from their rules)."""
+    return make_game(game).example_dialogues(path.name)
 
 
 def _parse_system(act: str, cells: int, where: str) -> tuple[int, int]:
@@ -278,8 +255,6 @@ def fit_dialogue_model(game: str, dialogues: list[dict], chosen: DialogueSet,
     """The model learnt from ``dialogues`` (replayed and checked) under the set ``chosen``'s templates and shape;
     any subset of a set's examples works (the data-budget curve of ``ncbot reproduce budget``). ``vocabulary``:
     use these words (ValueError if a dialogue says another) instead of the ones the dialogues give."""
-    from ncbot.envs.rules import make_game
-
     contexts: list[tuple[int, int, int]] = []
     labels: list[int] = []
     replies: dict[tuple[int, int], list[int]] = {}

@@ -11,17 +11,19 @@ when the user starts, the robot first says "your turn" (Request(userGameMove)). 
 dialogues) and the legal squares form ``action_mask``; an act outside it is refused: -5, nothing changes
 except the action count. See docs/env.md for rewards, features and every key.
 
-This module is the TorchRL adapter and the step; what it reads is built elsewhere: the step tables, metadata and
-specs in ``ncbot.envs.dialogue_tables``, the option checks in ``ncbot.envs.env_options``, the exact TorchRL shortcuts in
-``ncbot.envs.env_speed``, the simulated user's half of a step in ``ncbot.envs.user_turn``. Who opens is the option
-``first`` (``env.first``).
+This module is the TorchRL adapter and the step; it is composed of parts, each built here with explicit arguments:
+the game (``ncbot.envs.games``: its rules and its batched engine), the paper's readings (``ncbot.envs.readings``),
+the step tables and metadata (``ncbot.envs.dialogue_tables``), the simulated user (``ncbot.envs.user_turn``), the
+believed board of ``taken_squares="misread"`` (``ncbot.envs.misread``) and the exact TorchRL shortcuts
+(``ncbot.envs.env_speed``). Who opens is the option ``first`` (``env.first``).
 
-The paper's ambiguous readings are options (defaults = this project's first reading; the paper configs set the
-readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
-``misread_rate``) decides whether and why the robot can choose a taken square, ``win_set`` what
-``winning_actions`` holds, ``about_to`` when "about to win" pays, and ``dialogues="paper"`` learns the act filter, the vocabulary and the user from the paper-shaped example
-dialogues ("your turn" before every user move). ``dialogue_subset=(k, seed)`` learns them from a seeded subset of
-k example dialogues (the data-budget curve), with the whole set's vocabulary so the features keep their size.
+The paper's ambiguous readings are one ``Readings`` object (defaults = this project's first reading; the paper configs
+set the readings closest to the text; docs/env.md "Readings"): ``taken_squares`` (never | refused | misread, with
+``misread_rate``) decides whether and why the robot can choose a taken square, ``win_set`` what ``winning_actions``
+holds, ``about_to`` when "about to win" pays, ``dialogues="paper"`` learns the act filter, the vocabulary and the user
+from the paper-shaped example dialogues ("your turn" before every user move), and ``dialogue_subset=(k, seed)`` learns
+them from a seeded subset of k example dialogues (the data-budget curve), with the whole set's vocabulary so the
+features keep their size.
 """
 from __future__ import annotations
 
@@ -32,104 +34,85 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 import ncbot.envs.dialogue as dlg
-from ncbot.envs.core import (
-    BELIEF_READINGS, FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, USER,  # noqa: F401
-    check_free_move, check_game,
-)
-from ncbot.envs.threat_features import threat_planes
-from ncbot.envs.dialogue_tables import (  # noqa: F401  (flags re-exported for tests and tools)
-    AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, step_tables,
-)
-from ncbot.envs.engine import make_engine, uniform_choice  # noqa: F401 (uniform_choice: re-exported)
-from ncbot.envs.engine.tables import uniform_choice_by_rows
-from ncbot.envs.env_options import (
-    check_batch, check_confidence, check_hearing, check_subset, check_taken_squares, first_of, resolve_opponent,
-)
-from ncbot.envs.env_speed import DialogueState, FastProcHooks, paste_rows
-from ncbot.envs.misread import MisreadBoard
-from ncbot.envs.user_turn import SimulatedUserTurn
+from ncbot.envs.core import REWARD_ILLEGAL, ROBOT, USER
+from ncbot.envs.dialogue_tables import AGREED, CLOSED, N_STAGES, N_USER, ROBOT_FIRST, describe, make_specs, step_tables  # noqa: F401
+from ncbot.envs.engine.tables import uniform_choice, uniform_choice_by_rows  # noqa: F401 (uniform_choice: re-exported)
+from ncbot.envs.env_options import check_batch, check_confidence, check_hearing, first_of, resolve_opponent
+from ncbot.envs.env_speed import DialogueState, merge_reset, paste_rows
+from ncbot.envs.games import make_game
+from ncbot.envs.misread import BelievedBoard
+from ncbot.envs.readings import Readings
+from ncbot.envs.user_turn import SimulatedUser
 
 ILLEGAL_ACT_REWARD = REWARD_ILLEGAL  # the paper's penalty for a repeated move, applied to every refused act (ours)
 
 
-class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
-    """Batched Noughts & Crosses dialogue env (3x3, Ultimate or a declared game); build it with ``ncbot.envs.make_env``.
+class DialogueGameEnv(EnvBase):
+    """Batched dialogue env of any game (``ncbot.envs.games``); build it with ``ncbot.envs.make_env``.
 
     Metadata: ``action_names``, ``templates``, ``robot_commands`` (per action), ``feature_names``,
-    ``user_act_names``, ``words``, ``n_actions``, ``n_features``, ``game``, ``cells``; ``user_utterance(id)``
-    gives the text of a ``user_utterance`` id and ``describe_action(a)`` the robot's line for an action.
+    ``user_act_names``, ``words``, ``n_actions``, ``n_features`` (``description``), ``game`` (the game's id), ``rules``
+    (the game object), ``readings``, ``cells``; ``user_utterance(id)`` gives the text of a ``user_utterance`` id and
+    ``describe_action(a)`` the robot's line for an action.
     """
 
     batch_locked = True
 
     def __init__(
         self,
-        game: str = "standard",
+        game: Any = "standard",
         batch_size: int | tuple[int, ...] | torch.Size = (1,),
+        *,
+        readings: Readings = Readings(),
         temporal: bool = True,
         free_move: str = "anywhere",
         seed: int = 0,
         first: str = "robot",
         opponent: Any = "random",
+        hearing: Any = None,
         asr_confidence: tuple[float, float] = (0.0, 1.0),
         max_actions: int = 100,
-        taken_squares: str = "never",
-        misread_rate: float | None = None,
-        win_set: str = "wins_and_threats",
-        about_to: str = "standing",
-        dialogues: str = "compact",
-        hearing: Any = None,
-        dialogue_subset: tuple[int, int] | None = None,
         threat_features: bool = False,
     ) -> None:
         batch = check_batch(batch_size)
-        game = check_game(game)
-        check_free_move(free_move)
+        rules = make_game(game, free_move)
         first = first_of(first)
         low, high = check_confidence(asr_confidence)
         if not isinstance(max_actions, int) or max_actions < 1:
             raise ValueError(f"max_actions must be a positive int, got {max_actions!r}")
-        taken_squares, misread_rate = check_taken_squares(taken_squares, misread_rate)
+        if not isinstance(readings, Readings):
+            raise ValueError(f"readings must be an ncbot.envs.readings.Readings, got {readings!r}")
         if not isinstance(threat_features, bool):
             raise ValueError(f"threat_features must be true or false, got {threat_features!r}")
-        if threat_features and game not in GAME_CHOICES:
-            raise ValueError(f"threat_features exist for the games {', '.join(GAME_CHOICES)} only; got game {game!r}")
-        self.threat_features = threat_features  # beyond the paper: envs/threat_features.py
+        threat_names = rules.threat_names() if threat_features else None  # beyond the paper: the game's own planes
         super().__init__(batch_size=torch.Size([batch]), device="cpu")
-        self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
+        self.rules, self.readings = rules, readings
+        self.game, self.free_move, self.temporal, self.first = rules.id, free_move, bool(temporal), first
+        self.threat_features = threat_features
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
-        self.taken_squares, self.misread_rate = taken_squares, misread_rate
-        self._refused, self._misread = taken_squares == "refused", taken_squares in BELIEF_READINGS
-        self._offer_taken = taken_squares == "offered"  # misread, and the squares known taken offered too
-        self.dialogues = dlg.dialogue_set(dialogues).name
-        self.dialogue_subset = check_subset(dialogue_subset)
-        self.engine = make_engine(game, free_move, win_set=win_set, about_to=about_to)
-        self.win_set, self.about_to = win_set, about_to
+        self._refused, self._offers_taken = readings.refused, readings.taken_squares != "never"
+        self.engine = rules.engine(readings)
         self.cells = self.engine.cells
-        self.model = dlg.build_dialogue_model(game, self.dialogues, self.dialogue_subset)
-        self.opponent, self._opponent_params = resolve_opponent(opponent, game, free_move, seed)
-        self.hearing = check_hearing(hearing)
-        for name, value in describe(self.model, self.cells, self.temporal, threat_features).items():
-            setattr(self, name, value)
-        for name, spec in make_specs(batch, self.cells, self.n_actions, self.n_features, len(self.model.utterance_texts)).items():
-            setattr(self, name, spec)
+        model = dlg.build_dialogue_model(self.game, readings.dialogues, readings.dialogue_subset)
+        self.description = describe(model, self.cells, self.temporal, threat_names)
+        specs = make_specs(batch, self.cells, self.n_actions, self.n_features, len(model.utterance_texts))
+        self.observation_spec, self.action_spec = specs.observation, specs.action
+        self.reward_spec, self.done_spec = specs.reward, specs.done
         self._rng = torch.Generator().manual_seed(int(seed))
         self._action_rng = torch.Generator().manual_seed(int(seed) + 1)
-        for name, table in step_tables(self.model, self.engine, self.n_actions, (low, high)).items():
-            setattr(self, name, table)
-        if self._misread and self._code_legal is not None:  # 3x3: the believed board's empty squares, by its code
-            empty = self.engine.empty_rows_by_code()
-            self._code_empty = torch.cat([empty, torch.ones(len(empty), self.n_actions - self.cells, dtype=torch.bool)], dim=1)
-        self._reply_key: tuple | None = None  # what _reply_tables last derived its tables from
+        self.tables = step_tables(model, self.engine, self.n_actions, (low, high), readings)
+        self.user = SimulatedUser(model, self.tables, self.engine, *resolve_opponent(opponent, self.game, free_move, seed),
+                                  check_hearing(hearing), self._rng, rules.subgrids)
+        self.boards = self.engine.new(batch)
+        self.believed = BelievedBoard(self.engine, self.tables, self.boards, readings.misread_rate, self._rng,
+                                      readings.offered) if readings.misread else None
+        # taken_squares="misread": the robot's knowledge of the board (what it observes); else the board itself
+        self.belief = self.boards if self.believed is None else self.believed.belief
         self._all_games = torch.arange(batch)
         self._init_state(batch)
         self.set_seed(int(seed))
 
-    # ------------------------------------------------------------------ construction helpers
     def _init_state(self, batch: int) -> None:
-        self.boards = self.engine.new(batch)
-        # taken_squares="misread": the robot's knowledge of the board (what it observes); else the board itself
-        self.belief = self.engine.new(batch) if self._misread else self.boards
         self.d = DialogueState()
         self.d.flags = torch.full((batch,), ROBOT_FIRST, dtype=torch.int64)
         self.d.talk = torch.zeros(batch, dtype=torch.int64)
@@ -140,15 +123,38 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         self.d.user_act = torch.full((batch, 1), -1, dtype=torch.int64)
         self.d.user_move = torch.full((batch, 1), -1, dtype=torch.int64)
         self.d.user_utterance = torch.full((batch, 1), -1, dtype=torch.int64)
-        self.d.words = torch.zeros(batch, self._said_features.shape[1])
+        self.d.words = torch.zeros(batch, self.tables.said_features.shape[1])
         self._refresh()
         # every new dialogue starts in the same context: keep its mask rows to paste on resets
+        writes_wins = self.tables.act_lookahead is not None
         self._fresh_rows = (self.d.mask[0].clone(), self.d.dialogue_mask[0].clone(), self.d.lookahead[0].clone(),
-                            self.d.legal[0].clone(), None if self._act_lookahead is None else self.d.winning_moves[0].clone())
-        if self._misread:
+                            self.d.legal[0].clone(), self.d.winning_moves[0].clone() if writes_wins else None)
+        if self.believed is not None:
             self.d.misread = torch.zeros(batch, dtype=torch.bool)
         fresh = self._output()  # also fills d.observation / d.winning_actions, which partial resets reuse
         self._fresh_features = (fresh["observation"][0].clone(), fresh["winning_actions"][0].clone())
+
+    # ------------------------------------------------------------------ the parts' metadata
+    @property
+    def model(self) -> dlg.DialogueModel:
+        """What the env learnt from the example dialogues (the simulated user's; ``ncbot play`` may replace it)."""
+        return self.user.model
+
+    @model.setter
+    def model(self, model: dlg.DialogueModel) -> None:
+        self.user.model = model
+
+    # the tables ``describe`` made (``ncbot env describe`` prints them; logs copy them), as lists
+    action_names = property(lambda self: list(self.description.action_names))
+    templates = property(lambda self: list(self.description.templates))
+    robot_commands = property(lambda self: list(self.description.robot_commands))
+    user_act_names = property(lambda self: list(self.description.user_act_names))
+    words = property(lambda self: list(self.description.words))
+    feature_names = property(lambda self: list(self.description.feature_names))
+    n_actions = property(lambda self: self.description.n_actions)
+    n_features = property(lambda self: self.description.n_features)
+    opponent = property(lambda self: self.user.opponent)  # the simulated user's move policy (None: uniform)
+    hearing = property(lambda self: self.user.hearing)  # its ears (None: uniform ASR)
 
     # ------------------------------------------------------------------ metadata helpers
     def user_utterance(self, utterance_id: int) -> str:
@@ -163,12 +169,10 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
     def describe_action(self, action: int) -> str:
         """The robot's template utterance with its bracketed command, e.g. "I take this one. [who=rob, what=draw, where=b2]"."""
         action = self._check_action_index(int(action))
+        templates = self.description.templates
         if action < self.cells:
-            from ncbot.envs.rules import make_game
-
-            where = make_game(self.game, self.free_move).cell_name(action)
-            return f"{self.templates[action]} [who=rob, what=draw, where={where}]"
-        return f"{self.templates[action]} [who=rob, what={self.robot_commands[action]}]"
+            return f"{templates[action]} [who=rob, what=draw, where={self.rules.cell_name(action)}]"
+        return f"{templates[action]} [who=rob, what={self.description.robot_commands[action]}]"
 
     def _check_action_index(self, action: int) -> int:
         if not 0 <= action < self.n_actions:
@@ -177,7 +181,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
 
     # ------------------------------------------------------------------ dynamics
     def _stage(self, flags: torch.Tensor) -> torch.Tensor:
-        """(B,) the stage (board status + dialogue ``flags``): ``_stage_phase`` gives the game phase."""
+        """(B,) the stage (board status + dialogue ``flags``): ``tables.stage_phase`` gives the game phase."""
         return self.engine.status(self.boards) + flags
 
     def _refresh(self) -> None:
@@ -185,23 +189,26 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
 
         ``d.legal`` is what the step accepts; ``d.mask`` (``action_mask``) is what is offered: the same tensor
         unless ``taken_squares`` is ``refused``, which adds the taken squares on the robot's turn (look-ahead -5),
-        or ``misread`` (``_refresh_misread``), which offers the squares legal on the robot's believed board.
+        or ``misread`` (``BelievedBoard.refresh``), which offers the squares legal on the robot's believed board.
         """
-        if self._misread:
-            self._refresh_misread()
-            return
-        cells = self.cells
+        tables, cells = self.tables, self.cells
         context = self.d.talk * N_STAGES + self._stage(self.d.flags)
-        dialogue_mask = self._filter_table.index_select(0, context)  # (B, A): moves = "GameMove allowed"
-        if self._code_legal is not None:
+        dialogue_mask = tables.filter_table.index_select(0, context)  # (B, A): moves = "GameMove allowed"
+        if self.believed is not None:
+            legal, mask, lookahead, self.d.true_lookahead, winning = self.believed.refresh(context, dialogue_mask)
+            if winning is not None:
+                self.d.winning_moves = winning
+            self.d.legal, self.d.dialogue_mask, self.d.lookahead, self.d.mask = legal, dialogue_mask, lookahead, mask
+            return
+        if tables.code_legal is not None:  # legal squares and look-ahead: one row per board code
             code = self.boards.codes[:, 0]
-            mask = dialogue_mask & self._code_legal.index_select(0, code)
-            lookahead = torch.where(mask, self._code_rewards.index_select(0, code), REWARD_ILLEGAL)
-        else:  # Ultimate: the look-ahead is written straight into the row of every act's reward
+            mask = dialogue_mask & tables.code_legal.index_select(0, code)
+            lookahead = torch.where(mask, tables.code_rewards.index_select(0, code), REWARD_ILLEGAL)
+        else:  # the look-ahead is written straight into the row of every act's reward
             moves = dialogue_mask[:, 0]  # the filter allows GameMove on every square or on none
             legal = self.engine.legal(self.boards, moves)
             mask = torch.cat([legal, dialogue_mask[:, cells:]], dim=1)
-            lookahead = self._act_lookahead.index_select(0, context)  # allowed acts 0, the rest and every square -5
+            lookahead = tables.act_lookahead.index_select(0, context)  # allowed acts 0, the rest and every square -5
             winning = torch.zeros_like(mask)
             can_move = moves & (self.boards.outcome == 0)  # == legal.any(1): an unfinished game has a legal square
             if bool(can_move.any()):
@@ -223,7 +230,7 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         if self.temporal:
             parts.append(torch.div(boards.move_order, boards.n_marks.clamp(min=1).unsqueeze(1)))
         if self.threat_features:
-            parts.append(threat_planes(boards.board, boards.owners if self.game == "ultimate" else None))
+            parts.append(self.rules.threat_planes(boards.board, boards.owners if self.rules.subgrids else None))
         return torch.cat(parts, dim=1)
 
     def _output(self, reward: torch.Tensor | None = None, reset_rows: torch.Tensor | None = None) -> TensorDict:
@@ -236,12 +243,13 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         mask = self.d.mask
         if reset_rows is None:
             # a taken square offered (taken_squares="refused") never wins; "misread": the believed board's
-            legal = self.d.mask if self._misread else self.d.legal
-            if self._offer_taken:  # "offered": a square known taken is offered, never winning
+            legal = self.d.mask if self.believed is not None else self.d.legal
+            if self.readings.offered:  # "offered": a square known taken is offered, never winning
                 legal = torch.cat([legal[:, :self.cells] & (self.belief.board == 0), legal[:, self.cells:]], dim=1)
-            if self._code_wins is not None:  # 3x3: the moves worth +5 (or that win: win_set) are one row per board code
-                winning = legal & self._code_wins.index_select(0, self.belief.codes[:, 0])
-            else:  # Ultimate: written with the look-ahead (_refresh)
+            code_wins = self.tables.code_wins
+            if code_wins is not None:  # the moves worth +5 (or that win: win_set) are one row per board code
+                winning = legal & code_wins.index_select(0, self.belief.codes[:, 0])
+            else:  # written with the look-ahead (_refresh)
                 winning = self.d.winning_moves
             observation = self._observation()
             terminated = (self.d.flags >= CLOSED).unsqueeze(1)  # CLOSED is the highest flag
@@ -302,9 +310,9 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         """
         boards = self.boards
         # in place: the engine's tensors never leave the env (outputs copy them), so nobody else holds them
-        for boards in ((self.boards, self.belief) if self._misread else (boards,)):
+        for boards in ((boards,) if self.believed is None else (self.boards, self.belief)):
             grids = [boards.board, boards.codes, boards.move_order, boards.n_marks, boards.outcome]
-            if self.game == "ultimate":  # a 3x3 board has no subgrid owners (the column stays 0)
+            if self.rules.subgrids:  # a one-board game has no subgrid owners (the column stays 0)
                 grids.append(boards.owners)
             for grid in grids:
                 grid.index_fill_(0, index, 0)
@@ -333,82 +341,81 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         self.d.mask = paste_rows(self.d.mask, index, mask)
         self.d.dialogue_mask = paste_rows(self.d.dialogue_mask, index, dialogue_mask)
         self.d.lookahead = paste_rows(self.d.lookahead, index, lookahead)
-        self.d.legal = paste_rows(self.d.legal, index, legal) if self.taken_squares != "never" else self.d.mask
-        if self._misread:  # a new dialogue: belief == truth, one look-ahead
+        self.d.legal = paste_rows(self.d.legal, index, legal) if self._offers_taken else self.d.mask
+        if self.believed is not None:  # a new dialogue: belief == truth, one look-ahead
             self.d.true_lookahead = paste_rows(self.d.true_lookahead, index, lookahead)
             self.d.misread = self.d.misread.index_fill(0, index, False)
-        if winning is not None:  # Ultimate: the winning moves are written with the look-ahead
+        if winning is not None:  # the winning moves are written with the look-ahead
             self.d.winning_moves = paste_rows(self.d.winning_moves, index, winning)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDict:
         action = tensordict.get("action").reshape(-1).long()
         if action.shape[0] != self.batch_size[0]:
             raise ValueError(f"action must hold {self.batch_size[0]} entries (one per game), got shape {tuple(tensordict.get('action').shape)}")
+        tables, believed, user = self.tables, self.believed, self.user
         try:  # the table read doubles as the range check (index_select refuses indices outside the table)
-            act_type = self._act_type.index_select(0, action)
+            act_type = tables.act_type.index_select(0, action)
         except IndexError:
             out_of_range = (action < 0) | (action >= self.n_actions)
             self._check_action_index(int(action[out_of_range][0]))
             raise
         index = action.unsqueeze(1)
         accepted = self.d.legal.gather(1, index).squeeze(1)  # an offered taken square is refused
-        reward = (self.d.true_lookahead if self._misread else self.d.lookahead).gather(1, index)
+        reward = (self.d.lookahead if believed is None else self.d.true_lookahead).gather(1, index)
         said = (act_type + 1) * accepted  # the accepted act's type + 1, 0 if refused: the new "last system act"
         reread = None  # taken_squares="misread": the games whose believed board becomes the true one this step
 
         robot_moves = said == dlg.MOVE + 1
         if bool(robot_moves.any()):
             self.engine.play(self.boards, action, ROBOT, robot_moves)
-            if self._misread:
-                reread = self._believe_robot_moves(action, robot_moves)
-        flags = self.d.flags | self._said_flags.index_select(0, said)
+            if believed is not None:
+                reread = believed.believe_robot_moves(action, robot_moves)
+        flags = self.d.flags | tables.said_flags.index_select(0, said)
 
         # The simulated user's reply: an utterance learnt for (act type, phase), and its move on its turn.
-        silence = self._silence
-        phase = self._stage_phase.index_select(0, self._stage(flags))
-        counts, replies = self._reply_tables()
+        phase = tables.stage_phase.index_select(0, self._stage(flags))
+        counts, replies = user.reply_tables()
         context = act_type * len(dlg.PHASES) + phase
         count = counts.index_select(0, context)
-        pick = (torch.rand(count.shape, generator=self._rng) * count).long()  # < count (see _reply_tables)
-        utterance = replies.index_select(0, context * (self.model.reply_options.shape[-1] + 1) + pick)
-        utterance = torch.where(accepted, utterance, silence)
-        user_moves = accepted & self._user_turn.index_select(0, context)
+        pick = (torch.rand(count.shape, generator=self._rng) * count).long()  # < count (see reply_tables)
+        utterance = replies.index_select(0, context * (user.model.reply_options.shape[-1] + 1) + pick)
+        utterance = torch.where(accepted, utterance, tables.silence)
+        user_moves = accepted & tables.user_turn.index_select(0, context)
         if bool(user_moves.any()):
-            cells_taken = self._user_cells(user_moves)
+            cells_taken = user.cells(self.boards, user_moves)
             self.engine.play(self.boards, cells_taken, USER, user_moves)
-            if self._misread:  # the robot reads the user's mark off the sheet, sometimes wrongly
-                cells_taken, conflict = self._read_user_moves(cells_taken, user_moves)
+            if believed is not None:  # the robot reads the user's mark off the sheet, sometimes wrongly
+                cells_taken, conflict, self.d.misread = believed.read_user_moves(cells_taken, user_moves)
                 reread = conflict if reread is None else reread | conflict
             user_move = torch.where(user_moves, cells_taken, -1)
         else:
             user_move = torch.full_like(action, -1)
-        if self._misread:
+        if believed is not None:
             if not bool(user_moves.any()):
                 self.d.misread = torch.zeros_like(user_moves)
             # a refused game move: the robot chose a square it believed free; the sheet is read again
             refused_move = ~accepted & (act_type == dlg.MOVE)
-            reread = refused_move if reread is None else reread | refused_move
-            self._reread(reread)
-        if self.hearing is None:  # uniform ASR: the robot hears the words said, at uniform random confidences
-            user_act = self._utterance_acts.index_select(0, utterance)
-            columns = self._utterance_word_columns.index_select(0, utterance)
+            believed.reread(refused_move if reread is None else reread | refused_move)
+        if user.hearing is None:  # uniform ASR: the robot hears the words said, at uniform random confidences
+            user_act = tables.utterance_acts.index_select(0, utterance)
+            columns = tables.utterance_word_columns.index_select(0, utterance)
             confidence = torch.rand(columns.shape, generator=self._rng)
-            if self._asr_scaled:
+            if tables.asr_scaled:
                 confidence = confidence * (self.asr_high - self.asr_low) + self.asr_low
         else:  # the hearing's words; the utterance it understood drives the dialogue, the one said the board
-            user_act, columns, confidence = self._heard(utterance)
+            user_act, columns, confidence = user.heard(utterance)
         talk = said * N_USER + (user_act + 1)  # 0 for a refused act (silence)
-        flags = flags | self._talk_flags.index_select(0, talk)
+        flags = flags | tables.talk_flags.index_select(0, talk)
 
         # the commands and words of the robot's act, with the user's words at their ASR confidence (the larger
         # of the two where both said a word); refused acts leave the last ones (rare with a masked policy)
-        words = self._said_features.index_select(0, said).scatter_reduce_(1, columns, confidence, "amax")
+        words = tables.said_features.index_select(0, said).scatter_reduce_(1, columns, confidence, "amax")
         if not bool(accepted.all()):
             words = torch.where(accepted.unsqueeze(1), words, self.d.words)
             talk = torch.where(accepted, talk, self.d.talk)
         self.d.words, self.d.talk, self.d.flags = words, talk, flags
         self.d.user_act, self.d.user_move = user_act.unsqueeze(1), user_move.unsqueeze(1)
-        self.d.user_utterance = self._utterance_out.index_select(0, utterance).unsqueeze(1)
+        self.d.user_utterance = tables.utterance_out.index_select(0, utterance).unsqueeze(1)
         self.d.turn = self.d.turn + 1
         self._refresh()
 
@@ -429,3 +436,15 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         seed = 0 if seed is None else int(seed)
         self._rng.manual_seed(seed)
         self._action_rng.manual_seed(seed + 1)
+
+    # ------------------------------------------------------------------ TorchRL's generic passes, skipped exactly
+    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        """Skip TorchRL's per-key completion of the step output: ``_step`` always emits ``reward`` (B, 1) and the three
+        done keys in their spec shapes, so the generic pass has nothing to do; only the optional type checks
+        (``run_type_checks``) go through it. ``tests/envs/test_env_speed.py`` compares both."""
+        if self.run_type_checks:
+            return super()._step_proc_data(next_tensordict)
+        return next_tensordict
+
+    def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        return merge_reset(tensordict, tensordict_reset, self.batch_size)

@@ -7,6 +7,7 @@ per env from the dialogue model (``ncbot.envs.dialogue``) and the engine; ``ncbo
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import torch
@@ -14,6 +15,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 
 import ncbot.envs.dialogue as dlg
 from ncbot.envs.core import REWARD_ILLEGAL, REWARD_WIN, ROBOT
+from ncbot.envs.readings import Readings
 
 # Dialogue flags, kept multiplied by 8 so that ``engine.status`` (outcome * 2 + marks % 2, 0..7) + flags is the
 # game's "stage" (0..63): all the phase depends on, one integer per game, and the index of the phase table.
@@ -22,19 +24,43 @@ N_STAGES = 64
 N_USER = 1 + len(dlg.USER_ACTS)  # values of the last user act: 0 none, else user act + 1
 
 
-def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tuple[float, float]) -> dict[str, Any]:
-    """The env's step tables by attribute name (the env sets each as ``self.<name>``).
+@dataclass(frozen=True)
+class StepTables:
+    """The env's flat step tables, each keyed by small integers (see the module doc); built once per env.
 
-    Utterance id ``U`` (one past the last) stands for silence inside the step; it is reported as -1.
-    """
+    Utterance id ``silence`` (one past the last) stands for silence inside the step; it is reported as -1. The
+    ``code_*`` tables exist for an engine whose board code indexes a table of its legal squares and look-ahead
+    (``engine.rows_by_code``): one row gather per question. ``act_lookahead`` exists for the others, whose move
+    rewards are written into it every step (``engine.write_move_rewards``)."""
+
+    silence: int
+    act_type: torch.Tensor  # (A,) the act type of every action (0: a move)
+    asks_move: torch.Tensor  # (types,) bool: the acts the user answers with its move (the set's shape)
+    utterance_acts: torch.Tensor  # (U + 1,) the user act of each utterance (silence: -1)
+    utterance_word_columns: torch.Tensor  # (U + 1, W) the feature columns of each utterance's words (padded)
+    said_features: torch.Tensor  # (1 + types, C + V + 1) the commands + words of each said act type
+    utterance_out: torch.Tensor  # (U + 1,) the utterance id reported (silence: -1)
+    utterance_is_move: torch.Tensor  # (U + 1,) bool
+    asr_scaled: bool  # ASR confidences are not the uniforms themselves
+    stage_phase: torch.Tensor  # (N_STAGES,) the dialogue phase of every stage
+    filter_table: torch.Tensor  # (talks * N_STAGES, A) bool: the act filter by talk * N_STAGES + stage
+    said_flags: torch.Tensor  # (1 + types,) flags an accepted act sets
+    talk_flags: torch.Tensor  # (talks,) flags a (system act, user reply) pair sets
+    user_turn: torch.Tensor  # (types * phases,) bool: the user moves after (act type, phase)
+    code_legal: torch.Tensor | None  # (codes, A) bool: legal acts by board code (dialogue acts all legal)
+    code_rewards: torch.Tensor | None  # (codes, A) float32: the robot's one-step reward by board code
+    code_wins: torch.Tensor | None  # (codes, A) bool: set A (win_set) by board code
+    code_empty: torch.Tensor | None  # (codes, A) bool: taken_squares="misread": a believed board's empty squares
+    act_lookahead: torch.Tensor | None  # (talks * N_STAGES, A) the look-ahead row before the moves' rewards
+
+
+def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tuple[float, float],
+                readings: Readings) -> StepTables:
+    """The env's step tables for ``model``, ``engine`` and the ``readings`` (``win_set``, ``taken_squares``)."""
     cells = engine.cells
     n_utt = len(model.utterance_texts)
-    t: dict[str, Any] = {"_silence": n_utt}
-    t["_act_type"] = torch.cat([torch.zeros(cells, dtype=torch.int64), torch.arange(1, len(dlg.SYSTEM_TYPES))])
     asks_move = torch.zeros(len(dlg.SYSTEM_TYPES), dtype=torch.bool)
     asks_move[list(model.user_moves_after)] = True  # the acts the user answers with its move (the set's shape)
-    t["_asks_move"] = asks_move
-    t["_utterance_acts"] = torch.cat([model.utterance_acts, torch.tensor([-1])])
     # the words of each utterance as column indices (padded with V, a spare column): ASR confidences are
     # drawn for these few words only (torch.rand costs ~10 ns per number, (B, V) draws dominated the step)
     words = torch.cat([model.utterance_words, torch.zeros(1, len(model.words))]) > 0
@@ -44,13 +70,8 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
     # user words live in columns C.. of a (B, C + V) block whose first C (command) columns stay 0, so one
     # maximum with the robot's last act's commands + words row gives the whole tail of the observation
     n_commands = model.template_commands.shape[1]
-    t["_utterance_word_columns"] = torch.where(present, order + n_commands, n_commands + len(model.words))
     # the commands + words of each said act type (row 0: nothing said), plus the spare column the padding hits
     system_features = torch.cat([model.template_commands, model.template_words], dim=1)
-    t["_said_features"] = torch.cat([system_features, torch.zeros(len(system_features), 1)], dim=1)
-    t["_utterance_out"] = torch.cat([torch.arange(n_utt), torch.tensor([-1])])  # silence is reported as -1
-    t["_utterance_is_move"] = torch.cat([model.utterance_acts == dlg.USER_MOVE, torch.tensor([False])])
-    t["_asr_scaled"] = tuple(asr) != (0.0, 1.0)  # else confidences are the uniforms themselves
     # phase of every stage (see ROBOT_FIRST); the filter by (talk = last system act * N_USER + last user act,
     # stage): one row gather per step instead of ~12 ops that build the phase and the context
     stage = torch.arange(N_STAGES)
@@ -58,38 +79,59 @@ def step_tables(model: dlg.DialogueModel, engine: Any, n_actions: int, asr: tupl
         dlg.phase_of(bool(flags & AGREED), bool(flags & CLOSED), status // 2, (status % 2 == 0) == bool(flags & ROBOT_FIRST))
         for status, flags in zip((stage % 8).tolist(), (stage // 8 * 8).tolist())
     ])
-    t["_stage_phase"] = stage_phase
     allowed = model.filter_allowed.flatten(0, 2)  # (contexts, types) -> (contexts, actions)
     by_phase = torch.cat([allowed[:, :1].expand(-1, cells), allowed[:, 1:]], dim=1)
     n_talk = (1 + len(dlg.SYSTEM_TYPES)) * N_USER
     rows = (torch.arange(n_talk).unsqueeze(1) * len(dlg.PHASES) + stage_phase.unsqueeze(0)).reshape(-1)
-    t["_filter_table"] = by_phase.index_select(0, rows).contiguous()  # row talk * N_STAGES + stage
+    filter_table = by_phase.index_select(0, rows).contiguous()  # row talk * N_STAGES + stage
     # flags an accepted act sets (by act type + 1), and those a (system act, user reply) pair sets (by talk)
     said_flags = torch.zeros(1 + len(dlg.SYSTEM_TYPES), dtype=torch.int64)
     said_flags[dlg.REPLY_YES + 1], said_flags[dlg.CLOSING + 1] = AGREED, CLOSED
-    t["_said_flags"] = said_flags
     talk_flags = torch.zeros(n_talk, dtype=torch.int64)
     talk_flags[(dlg.REQUEST_PLAY + 1) * N_USER + dlg.USER_YES + 1] = AGREED
-    t["_talk_flags"] = talk_flags
-    # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
-    t["_user_turn"] = (asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1)
-    t["_code_legal"] = t["_code_rewards"] = t["_code_wins"] = t["_act_lookahead"] = None
-    if engine.game == "standard":  # 3x3: legal squares and look-ahead rewards are one row per board code
-        legal, rewards = engine.rows_by_code(ROBOT)
-        talk_acts = n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
-        t["_code_legal"] = torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous()
-        code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
-        t["_code_rewards"] = code_rewards
-        if engine.win_set == "wins_and_threats":
-            t["_code_wins"] = (code_rewards == REWARD_WIN).contiguous()  # winning_actions = mask & this row
-        else:  # win_set="wins": only the squares that win the game now
-            wins = engine.winning_rows_by_code(ROBOT)
-            t["_code_wins"] = torch.cat([wins, torch.zeros(len(wins), talk_acts, dtype=torch.bool)], dim=1).contiguous()
-    else:  # Ultimate: the look-ahead row before the moves' rewards are written in: allowed acts 0, else -5
-        acts = torch.where(t["_filter_table"], 0.0, REWARD_ILLEGAL)
+    return StepTables(
+        silence=n_utt,
+        act_type=torch.cat([torch.zeros(cells, dtype=torch.int64), torch.arange(1, len(dlg.SYSTEM_TYPES))]),
+        asks_move=asks_move,
+        utterance_acts=torch.cat([model.utterance_acts, torch.tensor([-1])]),
+        utterance_word_columns=torch.where(present, order + n_commands, n_commands + len(model.words)),
+        said_features=torch.cat([system_features, torch.zeros(len(system_features), 1)], dim=1),
+        utterance_out=torch.cat([torch.arange(n_utt), torch.tensor([-1])]),  # silence is reported as -1
+        utterance_is_move=torch.cat([model.utterance_acts == dlg.USER_MOVE, torch.tensor([False])]),
+        asr_scaled=tuple(asr) != (0.0, 1.0),  # else confidences are the uniforms themselves
+        stage_phase=stage_phase,
+        filter_table=filter_table,
+        said_flags=said_flags,
+        talk_flags=talk_flags,
+        # the user moves after (act type, phase) = a move or "your turn" while it is the user's turn
+        user_turn=(asks_move.unsqueeze(1) & (torch.arange(len(dlg.PHASES)) == dlg.USER_TO_MOVE)).reshape(-1),
+        **_lookahead_tables(engine, n_actions, filter_table, readings),
+    )
+
+
+def _lookahead_tables(engine: Any, n_actions: int, filter_table: torch.Tensor, readings: Readings) -> dict[str, Any]:
+    """The look-ahead's tables: by board code where the engine tabulates its codes (``rows_by_code``), else the row
+    the moves' rewards are written into (allowed dialogue acts 0, the rest and every square -5)."""
+    cells = engine.cells
+    if not hasattr(engine, "rows_by_code"):
+        acts = torch.where(filter_table, 0.0, REWARD_ILLEGAL)
         acts[:, :cells] = REWARD_ILLEGAL
-        t["_act_lookahead"] = acts.contiguous()
-    return t
+        return {"code_legal": None, "code_rewards": None, "code_wins": None, "code_empty": None,
+                "act_lookahead": acts.contiguous()}
+    legal, rewards = engine.rows_by_code(ROBOT)
+    talk_acts = n_actions - cells  # padded to all actions: dialogue acts legal, their reward 0
+    code_rewards = torch.cat([rewards, torch.zeros(len(rewards), talk_acts)], dim=1).contiguous()
+    if readings.win_set == "wins_and_threats":
+        code_wins = (code_rewards == REWARD_WIN).contiguous()  # winning_actions = mask & this row
+    else:  # win_set="wins": only the squares that win the game now
+        wins = engine.winning_rows_by_code(ROBOT)
+        code_wins = torch.cat([wins, torch.zeros(len(wins), talk_acts, dtype=torch.bool)], dim=1).contiguous()
+    code_empty = None
+    if readings.misread:  # the believed board's empty squares, by its code (a believed line does not stop the game)
+        empty = engine.empty_rows_by_code()
+        code_empty = torch.cat([empty, torch.ones(len(empty), talk_acts, dtype=torch.bool)], dim=1)
+    return {"code_legal": torch.cat([legal, torch.ones(len(legal), talk_acts, dtype=torch.bool)], dim=1).contiguous(),
+            "code_rewards": code_rewards, "code_wins": code_wins, "code_empty": code_empty, "act_lookahead": None}
 
 
 def reply_tables(model: dlg.DialogueModel, silence: int, utterance_is_move: torch.Tensor,
@@ -112,8 +154,30 @@ def reply_tables(model: dlg.DialogueModel, silence: int, utterance_is_move: torc
     return counts.reshape(-1).clone(), replies.reshape(-1).contiguous()
 
 
-def describe(model: dlg.DialogueModel, cells: int, temporal: bool, threat_features: bool = False) -> dict[str, Any]:
-    """The env's metadata attributes: action names, templates, robot commands, user acts, words, feature names."""
+@dataclass(frozen=True)
+class EnvDescription:
+    """What the env's actions and features are: the tables ``ncbot env describe`` prints and the logs name."""
+
+    action_names: tuple[str, ...]
+    templates: tuple[str, ...]  # the robot's line of each action
+    robot_commands: tuple[str, ...]  # the bracketed command of each action
+    user_act_names: tuple[str, ...]
+    words: tuple[str, ...]
+    feature_names: tuple[str, ...]
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.action_names)
+
+    @property
+    def n_features(self) -> int:
+        return len(self.feature_names)
+
+
+def describe(model: dlg.DialogueModel, cells: int, temporal: bool, threat_names: list[str] | None = None) -> EnvDescription:
+    """The env's actions and features: moves first, then the dialogue acts; the mark features, commands, words,
+    the temporal features (``temporal``) and the game's threat planes (``threat_names``, env option
+    ``threat_features``)."""
     action_names = dlg.action_names(cells)
     width = len(str(cells - 1))
     names = [f"robot_move[{c:0{width}d}]" for c in range(cells)]
@@ -122,24 +186,29 @@ def describe(model: dlg.DialogueModel, cells: int, temporal: bool, threat_featur
     names += [f"word[{w}]" for w in model.words]
     if temporal:
         names += [f"time[{c:0{width}d}]" for c in range(cells)]
-    if threat_features:
-        from ncbot.envs.threat_features import threat_names
-
-        names += threat_names(cells)
-    return {
-        "action_names": action_names,
-        "n_actions": len(action_names),
-        "templates": [model.templates[0]] * cells + list(model.templates[1:]),
-        "robot_commands": [dlg.TYPE_COMMANDS[0]] * cells + list(dlg.TYPE_COMMANDS[1:]),
-        "user_act_names": list(dlg.USER_ACTS),
-        "words": list(model.words),
-        "feature_names": names,
-        "n_features": len(names),
-    }
+    names += threat_names or []
+    return EnvDescription(
+        action_names=tuple(action_names),
+        templates=(model.templates[0],) * cells + tuple(model.templates[1:]),
+        robot_commands=(dlg.TYPE_COMMANDS[0],) * cells + tuple(dlg.TYPE_COMMANDS[1:]),
+        user_act_names=tuple(dlg.USER_ACTS),
+        words=tuple(model.words),
+        feature_names=tuple(names),
+    )
 
 
-def make_specs(batch: int, cells: int, n_actions: int, n_features: int, n_utterances: int) -> dict[str, Any]:
-    """The env's observation, action, reward and done specs (by spec attribute name)."""
+@dataclass(frozen=True)
+class EnvSpecs:
+    """The env's TorchRL specs."""
+
+    observation: Composite
+    action: Categorical
+    reward: Unbounded
+    done: Composite
+
+
+def make_specs(batch: int, cells: int, n_actions: int, n_features: int, n_utterances: int) -> EnvSpecs:
+    """The env's observation, action, reward and done specs."""
     shape = torch.Size([batch])
 
     def flag(width: int) -> Categorical:
@@ -163,9 +232,6 @@ def make_specs(batch: int, cells: int, n_actions: int, n_features: int, n_uttera
         user_utterance=ints(-1, n_utterances - 1),
         shape=shape,
     )
-    return {
-        "observation_spec": observation,
-        "action_spec": Categorical(n_actions, shape=shape, dtype=torch.int64),
-        "reward_spec": Unbounded(shape=(batch, 1), dtype=torch.float32),
-        "done_spec": Composite(done=flag(1), terminated=flag(1), truncated=flag(1), shape=shape),
-    }
+    return EnvSpecs(observation=observation, action=Categorical(n_actions, shape=shape, dtype=torch.int64),
+                    reward=Unbounded(shape=(batch, 1), dtype=torch.float32),
+                    done=Composite(done=flag(1), terminated=flag(1), truncated=flag(1), shape=shape))

@@ -4,34 +4,21 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from ncbot.envs.core import BELIEF_READINGS, FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
+from ncbot.envs.core import FIRST_CHOICES
+from ncbot.envs.readings import FIELDS as READING_NAMES
 
-# taken_squares (with misread_rate), win_set, about_to and dialogues: the
-# paper's readings (envs.core, docs/env.md "Readings", docs/reproduction.md)
-OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "taken_squares", "misread_rate",
-                "win_set", "about_to", "dialogues", "hearing", "dialogue_subset", "threat_features")
-
-
-def check_taken_squares(taken_squares: Any, misread_rate: Any) -> tuple[str, float | None]:
-    """``taken_squares`` (``ncbot.envs.core.TAKEN_SQUARES_CHOICES``) and its ``misread_rate``: a float in (0, 1), required
-    with ``misread`` and ``offered`` (the chance that the robot misreads a user move), refused with the other readings."""
-    check_choice("taken_squares", taken_squares, TAKEN_SQUARES_CHOICES)
-    if taken_squares not in BELIEF_READINGS:
-        if misread_rate is not None:
-            raise ValueError(f"misread_rate is only used with taken_squares=misread or offered (got taken_squares="
-                             f"{taken_squares!r}, misread_rate={misread_rate!r}): leave it unset")
-        return taken_squares, None
-    if isinstance(misread_rate, bool) or not isinstance(misread_rate, (int, float)) or not 0.0 < misread_rate < 1.0:
-        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares={taken_squares}, got {misread_rate!r}")
-    return taken_squares, float(misread_rate)
+# make_env's options: the env's own, then the paper's readings, by keyword or as one ``readings`` object
+# (``ncbot.envs.readings``, docs/env.md "Readings")
+ENV_OPTIONS = ("first", "opponent", "asr_confidence", "max_actions", "hearing", "threat_features", "readings")
+OPTION_NAMES = ENV_OPTIONS + READING_NAMES
 
 
 def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tuple[Any, set[str]]:
     """None for the inline uniform-random user; else an object with ``select`` (by name or given).
 
-    Also returns which optional keywords its ``select`` takes: ``owners`` (Ultimate subgrid owners) and
-    ``rows`` (the batch indices of the games that move, for opponents that hold per-game input such as
-    ``ncbot.envs.external_opponent.ExternalOpponent``).
+    Also returns which optional keywords its ``select`` takes: ``owners`` (subgrid owners of a game that tracks them)
+    and ``rows`` (the batch indices of the games that move, for opponents that hold per-game input, such as moves a
+    caller queued from outside).
     """
     if isinstance(opponent, str):
         if opponent == "random":
@@ -82,19 +69,3 @@ def check_hearing(hearing: Any) -> Any:
     if hearing is not None and not callable(getattr(hearing, "hear", None)):
         raise ValueError(f"hearing must be None or an object with a hear(utterances, generator) method, got {hearing!r}")
     return hearing
-
-
-def check_subset(subset: Any) -> tuple[int, int] | None:
-    """None (every example dialogue of the set) or (k, seed): learn from a seeded subset of k dialogues.
-
-    The upper bound of k depends on the set and the game; ``ncbot.envs.dialogue.subset_examples`` checks it.
-    """
-    if subset is None:
-        return None
-    try:
-        k, seed = subset
-    except (TypeError, ValueError):
-        raise ValueError(f"dialogue_subset must be None or (k, seed), two integers, got {subset!r}") from None
-    if any(not isinstance(v, int) or isinstance(v, bool) for v in (k, seed)) or k < 1 or seed < 0:
-        raise ValueError(f"dialogue_subset must be (k, seed) with an integer k >= 1 and seed >= 0, got {subset!r}")
-    return int(k), int(seed)

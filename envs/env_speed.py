@@ -1,7 +1,7 @@
-"""TorchRL speed hooks of the dialogue env: exact shortcuts past EnvBase's generic per-key passes.
+"""What keeps the dialogue env fast: its per-game state object and exact shortcuts past EnvBase's generic passes.
 
-Why separate: these overrides change no number (``tests/envs/test_env_speed.py`` compares them with TorchRL's own
-path); they only skip work that EnvBase does for any env and that ours never needs. Keeping them apart leaves
+Why separate: these change no number (``tests/envs/test_env_speed.py`` compares them with TorchRL's own path); they
+only skip work that EnvBase does for any env and that ours never needs. Keeping them apart leaves
 ``ncbot.envs.dialogue_env`` about the game itself.
 """
 from __future__ import annotations
@@ -12,52 +12,39 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 
-class FastProcHooks:
-    """Mixin for an ``EnvBase`` whose ``_step`` / ``_reset`` emit every key in its spec shapes (see each method)."""
+def merge_reset(tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase, batch_size: torch.Size) -> TensorDictBase:
+    """The dialogue env's ``_reset_proc_data``: merge the reset output into the input TensorDict with one update
+    instead of TorchRL's per-key ``where``.
 
-    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
-        """Skip TorchRL's per-key completion of the step output when it has nothing to do.
-
-        Why exact: ``_step`` always emits ``reward`` (B, 1) and the three done keys in their spec shapes, so
-        the generic pass (reshape the reward to its spec, add missing done keys) changes nothing; only the
-        optional type checks (``run_type_checks``) go through it. ``tests/envs/test_env_speed.py`` compares both.
-        """
-        if self.run_type_checks:
-            return super()._step_proc_data(next_tensordict)
-        return next_tensordict
-
-    def _reset_proc_data(self, tensordict: TensorDictBase | None, tensordict_reset: TensorDictBase) -> TensorDictBase:
-        """Merge the reset output into the input TensorDict with one update instead of a per-key ``where``.
-
-        Why this is exact: the env is stateful and ``_reset`` returns every game's current state, so for the
-        games not reset its values equal the input's (the previous step's output); TorchRL's generic path
-        (``where(~_reset, input, reset_output)`` over every key, ~2 ms at batch 1024 with our 16 keys) would
-        pick the same numbers. Keys the env does not emit (e.g. a policy's outputs) are padded with 0 on the
-        reset rows exactly as TorchRL does. ``_reset`` never leaves a reset game done, so the done check is
-        skipped too.
-        """
-        if tensordict is None:
-            return tensordict_reset
-        reset = tensordict.pop("_reset", None)
-        emitted = set(tensordict_reset.keys())
-        others = [key for key in tensordict.keys() if key not in emitted]  # e.g. "action", a policy's outputs
-        padded: dict[str, Any] = {}
-        if others and reset is not None and not bool(reset.all()):
-            keep = ~reset.reshape(self.batch_size)
-            for key in others:
-                value = tensordict.get(key)
-                if isinstance(value, torch.Tensor):
-                    condition = keep.reshape(keep.shape + (1,) * (value.ndim - keep.ndim))
-                    padded[key] = torch.where(condition, value, torch.zeros((), dtype=value.dtype))
-                else:  # a nested TensorDict: TorchRL's own padding
-                    padded[key] = value.where(keep, value.empty(), pad=0)
-        if type(tensordict) is TensorDict and not tensordict.is_locked and tensordict.batch_size == self.batch_size:
-            # a plain dict update: every value was built by the env with this batch size and device, so the
-            # per-key validation of TensorDict.update (~40 µs a key) has nothing to find
-            tensordict._tensordict.update(tensordict_reset._tensordict)
-            tensordict._tensordict.update(padded)
-            return tensordict
-        return tensordict.update(tensordict_reset).update(padded)
+    Why this is exact: the env is stateful and ``_reset`` returns every game's current state, so for the
+    games not reset its values equal the input's (the previous step's output); TorchRL's generic path
+    (``where(~_reset, input, reset_output)`` over every key, ~2 ms at batch 1024 with our 16 keys) would
+    pick the same numbers. Keys the env does not emit (e.g. a policy's outputs) are padded with 0 on the
+    reset rows exactly as TorchRL does. ``_reset`` never leaves a reset game done, so the done check is
+    skipped too. ``tests/envs/test_env_speed.py`` compares both paths.
+    """
+    if tensordict is None:
+        return tensordict_reset
+    reset = tensordict.pop("_reset", None)
+    emitted = set(tensordict_reset.keys())
+    others = [key for key in tensordict.keys() if key not in emitted]  # e.g. "action", a policy's outputs
+    padded: dict[str, Any] = {}
+    if others and reset is not None and not bool(reset.all()):
+        keep = ~reset.reshape(batch_size)
+        for key in others:
+            value = tensordict.get(key)
+            if isinstance(value, torch.Tensor):
+                condition = keep.reshape(keep.shape + (1,) * (value.ndim - keep.ndim))
+                padded[key] = torch.where(condition, value, torch.zeros((), dtype=value.dtype))
+            else:  # a nested TensorDict: TorchRL's own padding
+                padded[key] = value.where(keep, value.empty(), pad=0)
+    if type(tensordict) is TensorDict and not tensordict.is_locked and tensordict.batch_size == batch_size:
+        # a plain dict update: every value was built by the env with this batch size and device, so the
+        # per-key validation of TensorDict.update (~40 µs a key) has nothing to find
+        tensordict._tensordict.update(tensordict_reset._tensordict)
+        tensordict._tensordict.update(padded)
+        return tensordict
+    return tensordict.update(tensordict_reset).update(padded)
 
 
 class DialogueState:

@@ -78,12 +78,10 @@ class NoughtsCrossesGymEnv(gym.Env):
     def render(self) -> str | None:
         if self.render_mode != "ansi" or self._last is None:
             return None
-        from ncbot.envs.rules import make_game
-
-        rules = make_game(self.env.game, self.env.free_move)
+        rules = self.env.rules
         board = self._last["board"][0].tolist()
         symbol = {0: ".", 1: "R", 2: "H"}
-        rows = [" ".join(symbol[board[r * rules.size + c]] for c in range(rules.size)) for r in range(rules.size)]
+        rows = [" ".join(symbol[board[r * rules.cols + c]] for c in range(rules.cols)) for r in range(rules.rows)]
         said = "" if self._last_action is None else f"robot: {self.env.describe_action(self._last_action)}\n"
         heard = self.env.user_utterance(int(self._last["user_utterance"][0, 0]))
         return said + (f"user: {heard}\n" if heard else "") + "\n".join(rows)

@@ -1,11 +1,13 @@
-"""Exact rules of Noughts & Crosses (3x3) and Ultimate Noughts & Crosses (9x9), one state at a time.
+"""Exact rules of board games of marks, one state at a time: the shared machinery (``BoardRules``), Noughts & Crosses
+(3x3) and Ultimate Noughts & Crosses (9x9).
 
 This is the small, slow, obviously-correct reference every faster engine (the batched tensor engine of the
 env, the MCTS bitboards of the opponents) is checked against. States are immutable and hashable so they can
 key tables (minimax) and be shared between search branches without copying.
 
-Cells are numbered ``row * size + col`` on the full grid (size 3 or 9). Marks on the board are the ints
-``EMPTY = 0``, ``X = 1``, ``O = 2``; x always moves first. In Ultimate the nine subgrids are numbered the
+Cells are numbered ``row * cols + col`` on the full grid. Marks on the board are the ints
+``EMPTY = 0``, ``X = 1``, ``O = 2``; x always moves first. A game with views the rest of the stack derives
+(engine, opponents, dialogue, sheet) is a ``ncbot.envs.games.BoardGame``; this module is only the rules. In Ultimate the nine subgrids are numbered the
 same way (``subgrid = (row // 3) * 3 + col // 3``), and a move in cell position ``(row % 3, col % 3)`` of
 its subgrid sends the opponent to subgrid ``(row % 3) * 3 + col % 3``.
 
@@ -27,24 +29,18 @@ from typing import Literal
 
 from ncbot.envs.core import (  # noqa: F401  (re-exported: the rules' public vocabulary)
     COLUMN_LETTERS, DRAWN, EMPTY, FREE_MOVE_CHOICES, LINES_3X3, O, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, X,
-    check_free_move, check_game, subgrid_cells,
+    check_free_move, subgrid_cells,
 )
-from ncbot.envs.declaration import Declaration, declared_game
 
 MARK_NAMES = {X: "x", O: "o"}
 RESULT_NAMES = {0: None, X: "x", O: "o", DRAWN: "draw"}
+_CELL = re.compile(r"([a-z])([1-9][0-9]?)")  # a column letter, a row number from 1
+NUMBER_WORDS = ("one", "two", "three", "four", "five", "six", "seven", "eight", "nine")  # spoken rows and columns
 
 
 def _has_line(marks: tuple[int, ...] | list[int], mark: int) -> bool:
     """True if ``mark`` fills one of the 8 lines of the 3x3 grid ``marks``."""
     return any(marks[a] == mark and marks[b] == mark and marks[c] == mark for a, b, c in LINES_3X3)
-
-
-def _single_board_after(cell: int, board: tuple[int, ...], mark: int, won: bool) -> State:
-    """The state after ``mark`` took ``cell`` on a one-board game (3x3, declared): won, else drawn when the board is
-    full, else still on. Only how a line is found differs between those games."""
-    result = mark if won else DRAWN if EMPTY not in board else 0
-    return State(board=board, last_move=cell, result=result)
 
 
 @dataclass(frozen=True)
@@ -67,24 +63,44 @@ class State:
         return sum(1 for mark in self.board if mark != EMPTY)
 
 
-class _Game:
-    """What both games share: cell naming, turn order, move checking and rendering."""
+class BoardRules:
+    """What every game of marks on a rows x cols board shares: cell naming, turn order, move checking, rendering.
+
+    A one-board game only says how a move ends it (``result``); a game whose state holds more than the board
+    (Ultimate's subgrid owners) overrides ``new``, ``legal`` and ``_after`` too.
+    """
 
     name: str
-    size: int
-    n_cells: int
+    rows: int
+    cols: int
+
+    @property
+    def n_cells(self) -> int:
+        return self.rows * self.cols
+
+    @property
+    def size(self) -> int:
+        """Cells per row: cell = row * size + col."""
+        return self.cols
 
     # -- basic queries -------------------------------------------------------------------------------
     def new(self) -> State:
         """The empty board, x to move."""
-        raise NotImplementedError
+        return State(board=(EMPTY,) * self.n_cells)
 
     def legal(self, s: State) -> list[int]:
-        """Cells the player to move may take, ascending; empty once the game is over."""
-        raise NotImplementedError
+        """Cells the player to move may take, ascending; empty once the game is over. Default: every empty cell."""
+        if s.result != 0:
+            return []
+        return [cell for cell in range(self.n_cells) if s.board[cell] == EMPTY]
+
+    def result(self, board: tuple[int, ...], cell: int, mark: int) -> int:
+        """How the game stands after ``mark`` (X or O) took ``cell``, ``board`` the board after the move: 0 still on,
+        X or O the winner, DRAWN a draw. The one rule a one-board game must give."""
+        raise NotImplementedError(f"{type(self).__name__} must say how a move ends the game: define result()")
 
     def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
-        raise NotImplementedError
+        return State(board=board, last_move=cell, result=self.result(board, cell, mark))
 
     def to_move(self, s: State) -> Literal["x", "o"]:
         """Whose turn it is: x when the number of marks is even."""
@@ -128,6 +144,11 @@ class _Game:
     def _why_illegal(self, s: State, cell: int, legal: list[int]) -> str:
         return f"cell {self.cell_name(cell)} ({cell}) is not legal here; legal cells: {legal}"
 
+    def children(self, s: State) -> list[tuple[int, State]]:
+        """Every legal move of ``s`` and the state it leads to (``play`` without its checks: the cells are legal)."""
+        mark = self.mark_to_move(s)
+        return [(cell, self._after(s, cell, s.board[:cell] + (mark,) + s.board[cell + 1:], mark)) for cell in self.legal(s)]
+
     def play_many(self, cells: list[int] | tuple[int, ...], s: State | None = None) -> State:
         """Play a sequence of cells from ``s`` (default: a new game); handy for tests and replays."""
         state = self.new() if s is None else s
@@ -138,21 +159,21 @@ class _Game:
     # -- naming and drawing --------------------------------------------------------------------------
     def cell_name(self, cell: int) -> str:
         """Human name of a cell: column letter then row number from 1 at the top, e.g. 4 -> "b2"."""
-        return f"{COLUMN_LETTERS[cell % self.size]}{cell // self.size + 1}"
+        return f"{COLUMN_LETTERS[cell % self.cols]}{cell // self.cols + 1}"
 
     def parse_cell(self, text: str) -> int:
         """Inverse of ``cell_name`` (case and spaces ignored); ValueError if not a cell. Every cell a person types or
         reads is written this one way (docs/design.md, CLI conventions)."""
         cleaned = "".join(str(text).split()).lower()
-        letters = COLUMN_LETTERS[: self.size]
-        digits = "0123456789"  # ASCII only: "²".isdigit() is True but int("²") fails
-        if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1] in digits:
-            row = int(cleaned[1]) - 1
-            if 0 <= row < self.size:
-                return row * self.size + letters.index(cleaned[0])
+        letters = COLUMN_LETTERS[: self.cols]
+        found = _CELL.fullmatch(cleaned)  # ASCII digits only: "²".isdigit() is True but int("²") fails
+        if found and found.group(1) in letters:
+            row = int(found.group(2)) - 1
+            if 0 <= row < self.rows:
+                return row * self.cols + letters.index(found.group(1))
         raise ValueError(
             f"{text!r} is not a cell of the {self.name} board: expected a column {letters[0]}-{letters[-1]} "
-            f"and a row 1-{self.size}, e.g. {self.cell_name(self.size + 1)}"
+            f"and a row 1-{self.rows}, e.g. {self.cell_name(min(self.cols + 1, self.n_cells - 1))}"
         )
 
     def render(self, s: State, mark_legal: bool = False) -> str:
@@ -185,7 +206,14 @@ class _Game:
         return self._draw(symbol)
 
     def _draw(self, symbol) -> str:
-        raise NotImplementedError
+        """A plain grid: column letters on top, row numbers down the side."""
+        width = len(str(self.rows))
+        rows = [" " * (width + 3) + "   ".join(COLUMN_LETTERS[: self.cols])]
+        for r in range(self.rows):
+            rows.append(f"{r + 1:<{width}}   " + " | ".join(symbol(r * self.cols + c) for c in range(self.cols)))
+            if r < self.rows - 1:
+                rows.append(" " * (width + 2) + "+".join(["---"] * self.cols))
+        return "\n".join(rows)
 
     def validate(self, s: State) -> None:
         """Raise ValueError if ``s`` is not a well-formed state of this game (sizes and mark counts)."""
@@ -198,23 +226,14 @@ class _Game:
             raise ValueError(f"last_move must be -1 or a cell 0..{self.n_cells - 1}, got {s.last_move}")
 
 
-class Standard(_Game):
+class Standard(BoardRules):
     """Noughts & Crosses on a 3x3 grid: three in a row, column or diagonal wins; a full board draws."""
 
     name = "standard"
-    size = 3
-    n_cells = 9
+    rows = cols = 3
 
-    def new(self) -> State:
-        return State(board=(EMPTY,) * 9)
-
-    def legal(self, s: State) -> list[int]:
-        if s.result != 0:
-            return []
-        return [cell for cell in range(9) if s.board[cell] == EMPTY]
-
-    def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
-        return _single_board_after(cell, board, mark, won=_has_line(board, mark))
+    def result(self, board: tuple[int, ...], cell: int, mark: int) -> int:
+        return mark if _has_line(board, mark) else DRAWN if EMPTY not in board else 0
 
     def _draw(self, symbol) -> str:
         rows = ["    a   b   c"]
@@ -228,7 +247,7 @@ class Standard(_Game):
         return "Standard()"
 
 
-class Ultimate(_Game):
+class Ultimate(BoardRules):
     """Ultimate Noughts & Crosses: nine 3x3 subgrids; win three subgrids in a line.
 
     ``free_move`` says where a player sent to a decided (won, lost or drawn) subgrid may play:
@@ -237,8 +256,7 @@ class Ultimate(_Game):
     """
 
     name = "ultimate"
-    size = 9
-    n_cells = 81
+    rows = cols = 9
 
     def __init__(self, free_move: str = "anywhere") -> None:
         self.free_move = check_free_move(free_move)
@@ -319,97 +337,3 @@ class Ultimate(_Game):
 
     def __repr__(self) -> str:
         return f"Ultimate(free_move={self.free_move!r})"
-
-
-NUMBER_WORDS = ("one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
-_SPOKEN = re.compile(r"(row|column)\s*(\w+)\s*,?\s*(?:and\s+)?(row|column)\s*(\w+)")
-
-
-class Declared(_Game):
-    """A declared game (``ncbot.envs.declaration``): ``k`` in a line on a rows x cols board; with ``gravity`` a mark
-    drops to the lowest empty square of its column. A full board without a line draws."""
-
-    def __init__(self, declaration: Declaration) -> None:
-        self.declaration = declaration
-        self.name, self.rows, self.cols = declaration.name, declaration.rows, declaration.cols
-        self.size = self.cols  # cells are row * cols + col, as on the built-in boards
-        self.n_cells = declaration.cells
-        self.gravity = declaration.gravity
-        self.lines_through = tuple(tuple(line for line in declaration.lines if cell in line) for cell in range(self.n_cells))
-
-    def new(self) -> State:
-        return State(board=(EMPTY,) * self.n_cells)
-
-    def legal(self, s: State) -> list[int]:
-        if s.result != 0:
-            return []
-        if not self.gravity:
-            return [cell for cell in range(self.n_cells) if s.board[cell] == EMPTY]
-        return sorted(cell for cell in map(lambda col: self._drop(s.board, col), range(self.cols)) if cell >= 0)
-
-    def _drop(self, board: tuple[int, ...], col: int) -> int:
-        """The lowest empty square of column ``col`` (-1 when the column is full)."""
-        return next((r * self.cols + col for r in reversed(range(self.rows)) if board[r * self.cols + col] == EMPTY), -1)
-
-    def _after(self, s: State, cell: int, board: tuple[int, ...], mark: int) -> State:
-        won = any(all(board[c] == mark for c in line) for line in self.lines_through[cell])
-        return _single_board_after(cell, board, mark, won=won)
-
-    def _why_illegal(self, s: State, cell: int, legal: list[int]) -> str:
-        lowest = self._drop(s.board, cell % self.cols)
-        return (f"cell {self.cell_name(cell)} ({cell}) is not the lowest empty square of column "
-                f"{COLUMN_LETTERS[cell % self.cols]}: a mark drops to {self.cell_name(lowest)}")
-
-    def cell_name(self, cell: int) -> str:
-        return f"{COLUMN_LETTERS[cell % self.cols]}{cell // self.cols + 1}"
-
-    def parse_cell(self, text: str) -> int:
-        """Inverse of ``cell_name`` ("b3", case and spaces ignored), or spoken: "row two column three" (either order,
-        digits or number words)."""
-        spoken = _SPOKEN.fullmatch(" ".join(str(text).lower().split()))
-        if spoken and spoken.group(1) != spoken.group(3):
-            where = {spoken.group(1): spoken.group(2), spoken.group(3): spoken.group(4)}
-            row, col = _number(where["row"]), _number(where["column"], COLUMN_LETTERS)
-            if 1 <= row <= self.rows and 1 <= col <= self.cols:
-                return (row - 1) * self.cols + col - 1
-        cleaned = "".join(str(text).split()).lower()
-        letters = COLUMN_LETTERS[: self.cols]
-        if len(cleaned) == 2 and cleaned[0] in letters and cleaned[1] in "123456789"[: self.rows]:
-            return (int(cleaned[1]) - 1) * self.cols + letters.index(cleaned[0])
-        raise ValueError(
-            f"{text!r} is not a cell of the {self.name} board: expected a column {letters[0]}-{letters[-1]} and a row "
-            f"1-{self.rows}, e.g. {self.cell_name(self.cols + 1)}, or \"row two column three\""
-        )
-
-    def _draw(self, symbol) -> str:
-        rows = ["    " + "   ".join(COLUMN_LETTERS[: self.cols])]
-        for r in range(self.rows):
-            rows.append(f"{r + 1}   " + " | ".join(symbol(r * self.cols + c) for c in range(self.cols)))
-            if r < self.rows - 1:
-                rows.append("   " + "+".join(["---"] * self.cols))
-        return "\n".join(rows)
-
-    def __repr__(self) -> str:
-        return f"Declared({self.declaration.describe()})"
-
-
-def _number(word: str, letters: str = "") -> int:
-    """1..9 from a digit, a number word or (a column) one of ``letters``; 0 (no cell) otherwise."""
-    if word in NUMBER_WORDS:
-        return NUMBER_WORDS.index(word) + 1
-    if len(word) == 1 and word in letters:
-        return letters.index(word) + 1
-    return int(word) if len(word) == 1 and word in "123456789" else 0
-
-
-Game = Standard | Ultimate | Declared
-
-
-def make_game(game: str = "standard", free_move: str = "anywhere") -> Standard | Ultimate | Declared:
-    """Build a game by name ("standard", "ultimate", a shipped declaration or a YAML file); ValueError otherwise."""
-    game = check_game(game)
-    if game == "standard":
-        return Standard()
-    if game == "ultimate":
-        return Ultimate(free_move=free_move)
-    return Declared(declared_game(game))

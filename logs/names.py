@@ -55,10 +55,10 @@ class NameTables:
             utterances = [str(text) for text in model.utterance_texts]
         game, cols = "", 0
         if isinstance(getattr(base, "game", None), str):
-            from ncbot.envs.rules import make_game
+            from ncbot.envs.games import make_game
 
-            rules = make_game(base.game)
-            game, cols = rules.name, 0 if rules.name in ("standard", "ultimate") else rules.size
+            rules = getattr(base, "rules", None) or make_game(base.game)
+            game, cols = rules.name, 0 if isinstance(rules.sheet_grid, int) else rules.cols
         return cls(table("action_names"), table("templates"), commands, table("user_act_names"),
                    table("feature_names"), utterances, game, cols)
 

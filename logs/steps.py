@@ -40,9 +40,6 @@ class FinishedEpisode:
     total_reward: float
     truncated: bool
 
-    def step_rows(self) -> np.ndarray:
-        return np.frombuffer(self.rows, self.row_dtype)
-
 
 def _key_name(key: str | tuple[str, ...]) -> str:
     return ".".join(key) if isinstance(key, tuple) else key

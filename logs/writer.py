@@ -19,6 +19,7 @@ import numpy as np
 import ncbot.logs.foxglove as foxglove
 import ncbot.logs.packed as packed
 import ncbot.logs.schemas as schemas
+from ncbot.envs.games import built_in_of_cells
 from ncbot.fileio import fsync_folder
 from ncbot.logs.board_image import board_png, changed_cell
 from ncbot.logs.names import NameTables
@@ -149,8 +150,8 @@ class EpisodeLogger:
         ids_at_end = self._stream_steps(key, arrays, rows, phase in self.board_image_phases) \
             if detail == "per_action" else {}
         finished = assembler.add(arrays, self._names, detail=detail == "packed", active=rows)
-        if game is None:  # the env's game when its names were given, else the board size tells 3x3 from Ultimate
-            game = self._names.game or ("standard" if arrays["next.board"].shape[-1] == 9 else "ultimate")
+        if game is None:  # the env's game when its names were given, else the built-in game of this board size
+            game = self._names.game or built_in_of_cells(arrays["next.board"].shape[-1])
         ids = [self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=epsilon,
                                    env_steps=env_steps, game=game, extra=extra,
                                    episode_id=ids_at_end.get((episode.batch_index, episode.end_t)))

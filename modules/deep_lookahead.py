@@ -36,8 +36,12 @@ TEMPORAL_FEATURES = {9: 73, 81: 289}  # observation width with the temporal feat
 # --------------------------------------------------------------------------------------------- search on bitboards
 
 
-def win_in_one(engine: StandardBits | UltimateBits, pos: tuple) -> bool:
-    """True if the side to move has a legal move that wins the game at once (table look-ups only)."""
+def win_in_one(engine, pos: tuple) -> bool:
+    """True if the side to move has a legal move that wins the game at once (3x3 and Ultimate bitboards: table
+    look-ups only; any other game's search positions: each move played)."""
+    if not isinstance(engine, (StandardBits, UltimateBits)):
+        turn = engine.turn(pos)
+        return engine.result(pos) == ONGOING and any(engine.result(engine.play(pos, m)) == turn for m in engine.moves(pos))
     if isinstance(engine, StandardBits):
         bits0, bits1, turn, result = pos
         if result != ONGOING:

@@ -29,13 +29,13 @@ from torch import nn
 
 from ncbot.envs.core import HUMAN, ROBOT
 from ncbot.envs.opponents.base import Opponent
-from ncbot.envs.opponents.bitboards import CELL_OF, ONGOING, SQUARES_OF_MASK, StandardBits, UltimateBits, make_bits
+from ncbot.envs.games import make_game
+from ncbot.envs.opponents.bitboards import ONGOING
 from ncbot.envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
-from ncbot.envs.threat_features import position_threat_indices, threat_planes
 from ncbot.modules.deep_lookahead import move_order, owners_from_order, win_in_one
 from ncbot.modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 from ncbot.modules.qnet import ACTION_VALUE_KEY, MLPReader
-from ncbot.modules.value_net import ValueNetEvaluator
+from ncbot.modules.value_net import VALUE_GAME, ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
 
@@ -67,7 +67,10 @@ class TurnFeatures:
         first_cell = "0" * len(str(self.cells - 1))  # the feature names' zero-padded first cell: [0] or [00]
         self.time_plane = names.index(f"time[{first_cell}]") if temporal else None
         self.threat_plane = names.index(f"robot_threat[{first_cell}]") if threats else None  # planes run to the end
-        self.engine = make_bits(game, free_move)  # reads the threats of a position given as cell lists
+        self.rules = make_game(game, free_move)
+        self.engine = self.rules.search_engine()  # reads the threats of a position given as cell lists
+        if threats and not hasattr(self.engine, "threat_indices"):
+            raise ValueError(f"the search reads threat planes of positions; game {self.rules.name!r} gives none")
         base = torch.zeros(self.n_features)
         word_start = names.index(f"word[{model.words[0]}]")
         move_utterance = min((u for u, a in enumerate(model.utterance_acts.tolist()) if a == USER_ACTS.index("GameMove")),
@@ -104,7 +107,7 @@ class TurnFeatures:
                 for cell in other:
                     board[cell] = HUMAN
                 pos = self.engine.from_board(board, ROBOT)
-            features[[self.threat_plane + i for i in position_threat_indices(pos, self.cells)]] = 1.0
+            features[[self.threat_plane + i for i in self.engine.threat_indices(pos)]] = 1.0
         return features
 
     def batch(self, boards: torch.Tensor, player: int, last_move: torch.Tensor) -> torch.Tensor:
@@ -119,7 +122,7 @@ class TurnFeatures:
             features[:, self.time_plane:self.time_plane + self.cells] = times
         if self.threat_plane is not None:  # the side to move as the robot (code 1), the other as the human
             seen = torch.where(boards == player, ROBOT, torch.where(boards != 0, HUMAN, 0)).to(torch.int8)
-            features[:, self.threat_plane:] = threat_planes(seen)
+            features[:, self.threat_plane:] = self.rules.threat_planes(seen)
         return features
 
 
@@ -156,20 +159,18 @@ class GuidedMCTS:
             raise ValueError(f"value_weight must be in [0, 1], got {value_weight}")
         if temperature <= 0:
             raise ValueError(f"temperature must be > 0, got {temperature}")
-        if game not in ("standard", "ultimate"):
-            raise ValueError(f"Q-guided search plays 3x3 and Ultimate only; the declared game {game!r} has no search "
-                             "robot (play it without --search)")
         features.check_reads(qnet)
         self.qnet, self.features = qnet, features
         self._reader = MLPReader.of(qnet)
-        self.engine: StandardBits | UltimateBits = make_bits(game, free_move)
-        self.cells = 9 if game == "standard" else 81
+        rules = make_game(game, free_move)
+        self.engine = rules.search_engine()
+        self.cells, self.subgrids = rules.n_cells, rules.subgrids  # subgrid owners: read from the move order
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
         # after a search: each visited root move's mean value in [0, 1] for the side to move ({} when the root
         # rules decided without searching); the search teacher reads it (modules/search_targets.py)
         self.root_values: dict[int, float] = {}
-        if value_net is not None and game != "ultimate":
+        if value_net is not None and rules.id != VALUE_GAME:
             raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
                              "(--value needs an Ultimate agent)")
         if value_net is None:  # the Q-guided leaf value needs the Q read of the expansion: expand at the leaf
@@ -184,13 +185,8 @@ class GuidedMCTS:
 
     # -- Q-network reads --------------------------------------------------------------------------------------
     def _cells_of(self, pos: tuple) -> tuple[list[int], list[int]]:
-        """(cells of the side to move, cells of the other side) of a bitboard position."""
-        if self.cells == 9:
-            lists = (list(SQUARES_OF_MASK[pos[0]]), list(SQUARES_OF_MASK[pos[1]]))
-        else:
-            lists = tuple([CELL_OF[k][p] for k in range(9) for p in SQUARES_OF_MASK[subs[k]]] for subs in (pos[0], pos[1]))
-        turn = self.engine.turn(pos)
-        return (lists[0], lists[1]) if turn == 0 else (lists[1], lists[0])
+        """(cells of the side to move, cells of the other side) of a search position."""
+        return self.engine.position_cells(pos)
 
     def _q(self, pos: tuple, last_move: int, moves: list[int]) -> list[float]:
         own, other = self._cells_of(pos)
@@ -322,7 +318,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
         moves = tensordict.get(self.root_key)[:, :cells] & legal
         moves = torch.where(moves.any(-1, keepdim=True), moves, legal)
         boards = tensordict.get("board")
-        order = move_order(tensordict.get("observation"), boards) if cells == 81 else None
+        order = move_order(tensordict.get("observation"), boards) if self.search.subgrids else None
         q_rows = tensordict.get(ACTION_VALUE_KEY)[:, :cells].tolist()
         action = tensordict.get("action").clone()
         seeds = torch.randint(0, 2**62, (len(rows),), generator=self.generator).tolist()

@@ -19,44 +19,17 @@ from typing import Sequence
 
 import torch
 
+from ncbot.envs.games.symmetries import square_symmetries  # noqa: F401  (re-exported: the 3x3 and 9x9 maps)
+
 AUGMENT_CHOICES = ("none", "d4")
 CELL_FEATURE = re.compile(r"^(robot_move|human_move|time)\[(\d+)\]$")
 
 
-def square_symmetries(side: int) -> torch.Tensor:
-    """(8, side*side) int64: row g maps cell c (row-major) to the cell it lands on under symmetry g (row 0 = identity)."""
-    rows, cols = torch.meshgrid(torch.arange(side), torch.arange(side), indexing="ij")
-    last = side - 1
-    images = []
-    for turned in range(4):
-        r, c = rows, cols
-        for _ in range(turned):  # a quarter turn clockwise: (r, c) -> (c, last - r)
-            r, c = c, last - r
-        images.append(r * side + c)
-        images.append(r * side + (last - c))  # the same turn after a left-right mirror
-    return torch.stack([image.reshape(-1) for image in images])
-
-
-def declared_symmetries(rows: int, cols: int, gravity: bool) -> torch.Tensor:
-    """(G, rows*cols) int64 the symmetries of a declared board, as ``square_symmetries``: all 8 of a square board
-    without gravity, the 4 mirrors and half turn of a rectangular one, and with gravity (a mark falls down) only the
-    left-right mirror."""
-    if rows == cols and not gravity:
-        return square_symmetries(rows)
-    r, c = torch.meshgrid(torch.arange(rows), torch.arange(cols), indexing="ij")
-    flips = ((False, False), (False, True)) if gravity else ((False, False), (False, True), (True, False), (True, True))
-    return torch.stack([((rows - 1 - r if up else r) * cols + (cols - 1 - c if side else c)).reshape(-1)
-                        for up, side in flips])
-
-
 def game_symmetries(game: str) -> torch.Tensor:
-    """(G, cells) the board symmetries of ``game`` (8 on 3x3 and Ultimate; a declared game's from its declaration)."""
-    if game in ("standard", "ultimate"):
-        return square_symmetries(3 if game == "standard" else 9)
-    from ncbot.envs.declaration import declared_game
+    """(G, cells) the board symmetries of ``game``: the maps its rules are unchanged under (``Game.symmetries``)."""
+    from ncbot.envs.games import make_game
 
-    declaration = declared_game(game)
-    return declared_symmetries(declaration.rows, declaration.cols, declaration.gravity)
+    return make_game(game).symmetries()
 
 
 class BoardSymmetries:

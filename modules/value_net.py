@@ -33,6 +33,7 @@ from ncbot.modules.qnet import MLPReader
 from ncbot.modules.symmetry import square_symmetries
 
 VALUE_FORMAT = "ncbot-value-v1"
+VALUE_GAME = "ultimate"  # the game whose positions the networks score (features of its bitboards)
 N_FEATURES = 219
 DEFAULT_HIDDEN = (256, 256)
 DEFAULT_PLAYOUT_WEIGHT = 0.0  # the network alone: docs/ultimate.md "A value network for the search" measures the mix

@@ -119,7 +119,7 @@ class AgentOpponent:
     def __init__(self, checkpoint: str, game: str, free_move: str, seed: int) -> None:
         import torch
 
-        from ncbot.envs.rules import make_game
+        from ncbot.envs.games import make_game
         from ncbot.modules.guided_mcts import TurnFeatures
         from ncbot.modules.qnet import make_qnet
         from ncbot.pipelines.checkpoint import load_agent_checkpoint
@@ -149,7 +149,7 @@ class AgentOpponent:
         features = self.features.batch(boards, player, last_move)
         with torch.no_grad():
             q = self.qnet.module(features)[:, :self.cells]
-        if self.game == "ultimate" and owners is None:
+        if self.rules.subgrids and owners is None:
             owners = subgrid_owners(boards)
         cells = torch.zeros(rows, dtype=torch.long)
         for row in torch.nonzero(legal.any(dim=1)).flatten().tolist():

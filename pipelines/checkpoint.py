@@ -138,9 +138,9 @@ TRAINING_KEYS = {"learner": dict, "egreedy": dict, "history": list, "frames": in
                  "wall_time": (int, float)}
 def game_actions(game: str) -> int:
     """The game moves (one per square) + 9 other dialogue acts (docs/env.md): 18 on 3x3, 90 on Ultimate."""
-    from ncbot.envs.core import cells_of_game
+    from ncbot.envs.games import make_game
 
-    return cells_of_game(game) + 9
+    return make_game(game).n_cells + 9
 
 
 def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:

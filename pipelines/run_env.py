@@ -8,7 +8,10 @@ from __future__ import annotations
 from functools import lru_cache
 from typing import Any
 
-FIRST_CHOICES = ("robot", "human", "alternate")  # who opens test games (`--first`, `eval.first`)
+from ncbot.envs.core import FIRST_CHOICES
+
+# who opens test games (`--first`, `eval.first`): the env's choices but a random draw, so each seat is reported
+TEST_FIRST_CHOICES = tuple(choice for choice in FIRST_CHOICES if choice != "random")
 
 
 def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | None = None,
@@ -16,17 +19,14 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
     """Batched dialogue env for this run; `first` is who starts (robot | human | alternate | random); `hearing`
     (e.g. a `ncbot.speech.hearing.RecogniserHearing`) replaces the ears `env.asr` would give it."""
     from ncbot.envs import make_env
+    from ncbot.envs.readings import FIELDS
 
-    readings = {"taken_squares": env_config.taken_squares, "misread_rate": env_config.misread_rate,
-                "win_set": env_config.win_set, "about_to": env_config.about_to, "dialogues": env_config.dialogues,
-                "dialogue_subset": env_config.subset}
-    if hearing is not None:
-        readings["hearing"] = hearing
-    elif env_config.asr == "channel":
-        readings["hearing"] = run_hearing(env_config)
-    repeated = sorted(set(readings) & set(env_config.options))
+    given = set(FIELDS) | ({"hearing"} if hearing is not None or env_config.asr == "channel" else set())
+    repeated = sorted(given & set(env_config.options))
     if repeated:
         raise ValueError(f"env.options.{repeated[0]} repeats the config key env.{repeated[0]}: set env.{repeated[0]} only")
+    if hearing is None and env_config.asr == "channel":
+        hearing = run_hearing(env_config)
     return make_env(
         game=env_config.game,
         batch_size=(int(batch_size),),
@@ -36,9 +36,20 @@ def make_run_env(env_config: Any, *, batch_size: int, seed: int, first: str | No
         first=first or env_config.first,
         opponent=opponent or env_config.opponent,
         max_actions=env_config.max_steps,
-        **readings,
+        readings=readings_of(env_config),
+        **({"hearing": hearing} if hearing is not None else {}),
         **env_config.options,
     )
+
+
+def readings_of(env_config: Any):
+    """The paper's readings of a run's `env` section, as the one object every part of the env reads
+    (`ncbot.envs.readings.Readings`): built here, once per env, from the config keys `env.taken_squares`, ..."""
+    from ncbot.envs.readings import Readings
+
+    return Readings(taken_squares=env_config.taken_squares, misread_rate=env_config.misread_rate,
+                    win_set=env_config.win_set, about_to=env_config.about_to, dialogues=env_config.dialogues,
+                    dialogue_subset=env_config.subset)
 
 
 def run_hearing(env_config: Any):
@@ -61,7 +72,7 @@ def _channel_hearing(game: str, dialogues: str, path: str | None, snr_db: tuple[
     return ChannelHearing(model, dialogue.utterance_texts, dialogue.words, snr_db, noise)
 
 
-def check_first(first: str, allowed: tuple[str, ...] = FIRST_CHOICES, name: str = "first") -> str:
+def check_first(first: str, allowed: tuple[str, ...] = TEST_FIRST_CHOICES, name: str = "first") -> str:
     """`first` (who opens: robot | human | ...) checked against the values a command takes."""
     if first not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {first!r}")

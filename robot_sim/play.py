@@ -34,7 +34,7 @@ from ncbot.robot_sim.localise import localise_sheet
 from ncbot.robot_sim.motion import RobotMotion
 from ncbot.robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
 from ncbot.robot_sim.reach import check_reach
-from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, is_built_in
+from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, placed_by_hand
 from ncbot.robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog
 from ncbot.robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
@@ -102,7 +102,7 @@ class RobotGameRunner:
         self.speech = GameSpeech(config.game, self._ranges) if config.speech == "real" else None
         self.speaker = self._robot_speaker()
         self.records: list[GameRecord] = []
-        from ncbot.envs.rules import make_game
+        from ncbot.envs.games import make_game
         from ncbot.vision.recogniser import MoveRecogniser
 
         self.rules = make_game(config.game, config.free_move)
@@ -258,7 +258,7 @@ class RobotGameRunner:
             believed = self._sheet_estimate.canvas_to_world(*self.scene.canvas.cell_pixel(action))
             record.cell_localisation_error = max(record.cell_localisation_error,
                                                  float(np.linalg.norm(believed - self.scene.cell_world(action))))
-            if self.config.game != "ultimate" or self.config.ultimate_robot_draws:
+            if not self.rules.subgrids or self.config.ultimate_robot_draws:  # Ultimate: the robot points (paper)
                 self.motion.draw_mark(mark, self._sheet_estimate.canvas_to_world)
             else:
                 self.motion.point_at(believed)
@@ -296,7 +296,7 @@ class RobotGameRunner:
                                              meshes_dir=cfg.meshes_dir, conditions=self._ranges,
                                              conditions_seed=seed))
         self._render_seconds = 0.0
-        if not is_built_in(cfg.game):  # a declared grid's drawing positions were derived: every cell reachable?
+        if not placed_by_hand(cfg.game):  # a plain grid's drawing positions were derived: every cell reachable?
             check_reach(self.scene, self.rules.cell_name)
         self.scene.render = self._timed_render(self.scene.render)  # every frame of the game goes through it
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)

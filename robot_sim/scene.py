@@ -20,9 +20,8 @@ from ncbot.robot_sim.pepper_model import (BASE_JOINTS, CAMERA_BOTTOM_PITCH, PACK
                                     write_pepper_urdf)
 from ncbot.robot_sim.render_system import new_render_system
 from ncbot.robot_sim.sheet import SheetCanvas
-from ncbot.vision.sheet import Grid, built_in_like
+from ncbot.vision.sheet import Grid, built_in_like, game_grid
 
-GAME_GRID = {"standard": 3, "ultimate": 9}
 #: The sheet lies this far from the table's edge, so that nudges (<= 1.5 cm, 6 degrees) never push it over.
 SHEET_MARGIN = 0.03
 
@@ -31,26 +30,22 @@ TABLE_DEPTH, TABLE_WIDTH = 0.8, 1.2
 
 
 def sheet_grid(game: str) -> Grid:
-    """The grid on the sheet of any game the scene can lay out: 3, 9, or a declared game's (rows, cols)
-    (a shipped name or a YAML file, `ncbot.envs.declaration`)."""
-    if game in GAME_GRID:
-        return GAME_GRID[game]
-    from ncbot.envs.declaration import declared_game
+    """The grid on the sheet of a game (its id, ``ncbot.envs.games``): 3, 9 or (rows, cols); a one-line ValueError
+    naming the choices, or saying the sheet cannot draw the game's board."""
+    from ncbot.envs.games import make_game
 
-    declaration = declared_game(game)  # a one-line ValueError naming the choices or the declaration's bad field
-    return declaration.rows, declaration.cols
+    return game_grid(make_game(game))
 
 
 def check_game(game: str) -> Grid:
-    """The grid of a game the robot plays (`sheet_grid`): 3, 9 or a declared game's (rows, cols); a one-line
-    ValueError naming the choices otherwise. Kept as its own name for the callers that only check."""
+    """The grid of a game the robot plays (`sheet_grid`). Kept as its own name for the callers that only check."""
     return sheet_grid(game)
 
 
-def is_built_in(game: str) -> bool:
-    """3x3 and Ultimate: their sheets' drawing positions were placed by hand; a declared grid's were derived
+def placed_by_hand(game: str) -> bool:
+    """The 3x3 and 9x9 sheets' drawing positions were placed by hand; a plain grid's were derived from its layout
     (`ncbot.robot_sim.reach` checks them)."""
-    return game in GAME_GRID
+    return isinstance(sheet_grid(game), int)
 
 
 @dataclass

@@ -51,15 +51,6 @@ class ChannelHearing:
         self._table = utterance_table(texts, env_words)
         self.n_env_words = len(env_words)
 
-    @classmethod
-    def for_game(cls, model: ChannelModel, game: str, snr_db: tuple[float, float] | None = (10.0, 30.0),
-                 kind: str = "babble") -> ChannelHearing:
-        """The hearing of ``game``'s dialogue env (its utterance ids and word columns), built before the env."""
-        from ncbot.envs.dialogue import build_dialogue_model
-
-        dialogue = build_dialogue_model(game)
-        return cls(model, dialogue.utterance_texts, dialogue.words, snr_db, kind)
-
     def hear(
         self, utterance: torch.Tensor, generator: torch.Generator | None = None, snr_db: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -165,12 +165,6 @@ def _snap(start: float, stop: float, n: int, found: list[float]) -> np.ndarray:
     return bounds
 
 
-def locate_grid(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray] | None:
-    """Grid boundaries in a square page warp: (xs, ys), cols+1 and rows+1 increasing pixel positions, or None."""
-    found = _grid_lines(page_gray, grid)
-    return None if found is None else found[:2]
-
-
 def _grid_lines(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(xs, ys, ink mask of the page warp) or None: the straight grid first, the lattice bends it later."""
     n_rows, n_cols = grid_shape(grid)

@@ -7,13 +7,6 @@ BOARD_SYMBOL = {"nought": "o", "cross": "x", "nothing": ""}
 CELL_SIZE = 40  # the classifier's input side, pixels (the paper's 40x40 grayscale cells)
 
 
-def label_index(name: str) -> int:
-    """Index of a label name; raises the one-line error the CLI shows."""
-    if name not in LABELS:
-        raise ValueError(f"label {name!r} is unknown; expected one of {LABELS}")
-    return LABELS.index(name)
-
-
 def symbol_to_index(symbol: str) -> int:
     """Board spelling ("o", "x", "") -> label index."""
     for name, sym in BOARD_SYMBOL.items():

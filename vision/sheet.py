@@ -42,6 +42,18 @@ def grid_shape(grid: Grid) -> tuple[int, int]:
     raise ValueError(f"grid must be 3, 9 or (rows, cols) with {low}..{high} each; got {grid!r}")
 
 
+def game_grid(game) -> Grid:
+    """The grid of a game's sheet (any object with ``sheet_grid``, ``name``, ``rows`` and ``cols``: an
+    ``ncbot.envs.games`` game); a one-line ValueError when the reader and the sheet cannot draw it."""
+    try:
+        grid_shape(game.sheet_grid)
+    except ValueError:
+        low, high = SIDE_RANGE
+        raise ValueError(f"game {game.name!r} has a {game.rows}x{game.cols} board: the sheet, the reader and the robot "
+                         f"draw 3x3, Ultimate's 9x9 or plain grids of {low}..{high} rows and columns") from None
+    return game.sheet_grid
+
+
 def built_in_like(grid: Grid) -> int:
     """The built-in size (3 or 9) a grid is treated like where sizes differ: how close the camera comes (the
     photo generator) and the reader's page warp, rho and hand size; a declared grid goes by its longer side."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-from ncbot.envs.opponents.bitboards import make_bits
+from ncbot.envs.games import make_game
 from ncbot.logs.reader import read_episode_records, read_episodes
 from ncbot.modules.deep_lookahead import losing_moves
 
@@ -38,7 +38,7 @@ def plies_of(record) -> list[tuple[str, int]]:
 
 def classify(plies: list[tuple[str, int]], last: int, free_move: str = "anywhere") -> tuple[str, int]:
     """(class, plies from the last escape to the end of the game); see the module docstring."""
-    engine = make_bits("ultimate", free_move)
+    engine = make_game("ultimate", free_move).search_engine()
     pos = engine.from_board([0] * 81, 1)
     decisions = []  # (pos before the robot's move, its move)
     for who, cell in plies:

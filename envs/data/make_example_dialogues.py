@@ -85,15 +85,15 @@ def play_game(game, robot_first: bool, want: str, rng: random.Random) -> list[tu
 
 
 def play_once(game, robot_first: bool, rng: random.Random) -> tuple[list[tuple[str, int]], str]:
-    """One legal game (robot: a winning square if it has one, else random; user: random) and its result for the
-    robot ("win", "lose" or "draw")."""
+    """One legal game (robot: a square that wins it the game if it has one, else random; user: random) and its result
+    for the robot ("win", "lose" or "draw")."""
     robot_mark = 1 if robot_first else 2
     s, moves = game.new(), []
     while game.outcome(s) is None:
         legal = game.legal(s)
         robot_turn = game.mark_to_move(s) == robot_mark
         if robot_turn:
-            winning = [c for c in legal if game.outcome(game.play(s, c)) not in (None, "draw")]
+            winning = [c for c in legal if game.outcome(game.play(s, c)) == "xo"[robot_mark - 1]]
             cell = rng.choice(winning or legal)
         else:
             cell = rng.choice(legal)
@@ -264,9 +264,9 @@ def write_set(out: Path, header: str, skeletons: list, make_lines, seed: int) ->
     """One dialogue file: both games, the given skeletons, game moves from its own seeded stream."""
     rng = random.Random(seed)
     lines = [header.rstrip("\n")]
-    for name, game in (("standard", Standard()), ("ultimate", Ultimate("anywhere"))):
+    for game in (Standard(), Ultimate("anywhere")):
         for index, skeleton in enumerate(skeletons):
-            lines += make_lines(game, name, index, *skeleton, rng)
+            lines += make_lines(game, game.name, index, *skeleton, rng)
     out.write_text("\n".join(lines) + "\n")
     print(f"wrote {out}")
 
@@ -289,10 +289,10 @@ def reachable_results(game, rng: random.Random) -> set[str]:
 
 
 def declared_dialogue_text(game, file_name: str) -> str:
-    """The example dialogues of a declared game (``ncbot.envs.rules.Declared``) for the set read from ``file_name``:
-    the same skeletons, utterances and writers as the built-in games', moves sampled with the declared rules, as
-    the YAML text a dialogue file holds. A skeleton whose result the game does not reach gets the first reachable of
-    win, lose, draw. Same declaration and set -> same text."""
+    """The example dialogues of a game without hand-made ones (a declared game, a ``BoardGame`` of a user) for the set
+    read from ``file_name``: the same skeletons, utterances and writers as the built-in games', moves sampled with the
+    game's rules, as the YAML text a dialogue file holds. A skeleton whose result the game does not reach gets the
+    first reachable of win, lose, draw. Same rules and set -> same text."""
     header, skeletons, make_lines, seed = SETS[file_name]
     rng = random.Random(seed)
     reachable = reachable_results(game, rng)

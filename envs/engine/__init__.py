@@ -1,4 +1,4 @@
-"""Batched tensor engine for 3x3 and Ultimate Noughts & Crosses: whole-batch torch ops, no Python loop over games.
+"""Batched tensor engines of the games: whole-batch torch ops, no Python loop over games.
 
 Why tables: every 3x3 grid (the whole 3x3 board, or one Ultimate subgrid) has one of 3^9 = 19,683 contents.
 Precomputing, for each, "has a line", "is full", "every line blocked" and the bitmask of squares that would
@@ -13,32 +13,19 @@ row-major on the full grid (as in ``ncbot.envs.rules``). Boards are ``(B, cells)
 Outcome codes (``ncbot.envs.core``): 0 game on, 1 / 2 that player won, 3 draw.
 
 Layout: ``tables`` (grid tables and gathers), ``base`` (the state and shared helpers), ``standard`` and
-``ultimate`` (one engine each), ``declared`` (any declared game, ``ncbot.envs.declaration``); this module picks one by name.
+``ultimate`` (one engine each), ``declared`` (any declared game, ``ncbot.envs.declaration``), ``tabulated`` (a game
+tabulated from its rules, ``ncbot.envs.games.table``). A game builds its own: ``make_game(game).engine(readings)``.
 """
 from __future__ import annotations
 
-from ncbot.envs.core import DRAWN, FREE_MOVE_CHOICES, check_game  # noqa: F401  (re-exported)
-from ncbot.envs.declaration import declared_game
+from ncbot.envs.core import DRAWN  # noqa: F401  (re-exported)
 from ncbot.envs.engine.base import Boards
 from ncbot.envs.engine.declared import DeclaredEngine
 from ncbot.envs.engine.standard import StandardEngine
+from ncbot.envs.engine.tabulated import TabulatedEngine
 from ncbot.envs.engine.tables import (  # noqa: F401  (re-exported)
     REWARD_ABOUT_TO_DRAW, REWARD_ABOUT_TO_WIN, GridTables, grid_tables, lookup, lookup_rows, uniform_choice,
 )
 from ncbot.envs.engine.ultimate import UltimateEngine
 
-__all__ = ["Boards", "StandardEngine", "UltimateEngine", "DeclaredEngine", "make_engine", "grid_tables", "uniform_choice"]
-
-
-def make_engine(game: str, free_move: str = "anywhere", win_set: str = "wins_and_threats",
-                about_to: str = "standing") -> StandardEngine | UltimateEngine | DeclaredEngine:
-    """The engine of ``game`` ("standard", "ultimate" or a declared game); ValueError naming the choices otherwise.
-
-    ``win_set`` (which moves the env's ``winning_actions`` holds) and ``about_to`` (when "about to win" pays +5)
-    are the paper's readings of ``ncbot.envs.core``; the defaults are this project's original rewards."""
-    game = check_game(game)
-    if game == "standard":
-        return StandardEngine(win_set=win_set, about_to=about_to)
-    if game == "ultimate":
-        return UltimateEngine(free_move, win_set=win_set, about_to=about_to)
-    return DeclaredEngine(declared_game(game), win_set=win_set, about_to=about_to)
+__all__ = ["Boards", "StandardEngine", "UltimateEngine", "DeclaredEngine", "TabulatedEngine", "grid_tables", "uniform_choice"]

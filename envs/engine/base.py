@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import torch
 
-from ncbot.envs.core import ABOUT_TO_CHOICES, WIN_SET_CHOICES, check_choice
+from ncbot.envs.readings import Readings
 from ncbot.envs.engine.tables import grid_tables, uniform_choice
 
 
@@ -31,15 +31,14 @@ class Boards:
 class _Engine:
     """What both games share: state creation and the player-agnostic helpers."""
 
-    game: str
     cells: int
     grids: int
 
-    def __init__(self, win_set: str = "wins_and_threats", about_to: str = "standing") -> None:
-        # the paper's readings of set A and of "about to win" (envs.core, docs/env.md "Readings"); the defaults
-        # are the rewards and winning moves this project always had
-        self.win_set = check_choice("win_set", win_set, WIN_SET_CHOICES)
-        self.about_to = check_choice("about_to", about_to, ABOUT_TO_CHOICES)
+    def __init__(self, readings: Readings = Readings()) -> None:
+        # the paper's readings of set A (``win_set``) and of "about to win" (``about_to``): ``ncbot.envs.readings``
+        if not isinstance(readings, Readings):
+            raise ValueError(f"readings must be an ncbot.envs.readings.Readings, got {readings!r}")
+        self.readings = readings
         self.tables = grid_tables(3)
         self.pow3 = 3 ** torch.arange(9, dtype=torch.int64)
 

@@ -17,6 +17,7 @@ from ncbot.envs.core import DRAWN, REWARD_LOSE, REWARD_WIN
 from ncbot.envs.declaration import Declaration
 from ncbot.envs.engine.base import Boards, _Engine
 from ncbot.envs.engine.tables import prioritise, uniform_choice
+from ncbot.envs.readings import Readings
 
 
 class DeclaredEngine(_Engine):
@@ -24,10 +25,10 @@ class DeclaredEngine(_Engine):
 
     grids = 1
 
-    def __init__(self, declaration: Declaration, win_set: str = "wins_and_threats", about_to: str = "standing") -> None:
-        super().__init__(win_set=win_set, about_to=about_to)
+    def __init__(self, declaration: Declaration, readings: Readings = Readings()) -> None:
+        super().__init__(readings)
         self.declaration = declaration
-        self.game, self.cells, self.k = declaration.game, declaration.cells, declaration.k
+        self.cells, self.k = declaration.cells, declaration.k
         self.rows, self.cols, self.gravity = declaration.rows, declaration.cols, declaration.gravity
         lines = torch.tensor(declaration.lines, dtype=torch.int64)  # (L, k)
         incidence = torch.zeros(len(lines), self.cells)
@@ -115,7 +116,7 @@ class DeclaredEngine(_Engine):
         cells = out[:, : self.cells]
         cells.index_copy_(0, rows, torch.where(legal, reward, cells.index_select(0, rows)))
         if wins is not None:
-            is_win = win if self.win_set == "wins" else reward == REWARD_WIN
+            is_win = win if self.readings.win_set == "wins" else reward == REWARD_WIN
             target = wins[:, : self.cells]
             target.index_copy_(0, rows, torch.where(legal, is_win, target.index_select(0, rows)))
 
@@ -147,7 +148,7 @@ class DeclaredEngine(_Engine):
             playable_on_line = (board == 0).logical_and(playable).float() @ self.incidence_t
             twos = twos & ((playable_on_line == 2) | self.vertical)
         about_to_win = self._after_move(win, playable) | ((twos.float() @ self.incidence) > 0)
-        if self.about_to == "created":
+        if self.readings.about_to == "created":
             had = (win & playable).any(1, keepdim=True)
             about_to_win = about_to_win & ~had
         return prioritise(win, draw, about_to_lose, about_to_draw, about_to_win), win

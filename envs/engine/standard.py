@@ -13,7 +13,6 @@ from ncbot.envs.engine.tables import grid_tables, lookup, prioritise
 class StandardEngine(_Engine):
     """3x3: one grid; its base-3 code answers every question."""
 
-    game = "standard"
     cells = 9
     grids = 1
 
@@ -64,7 +63,7 @@ class StandardEngine(_Engine):
     def rows_by_code(self, player: int) -> tuple[torch.Tensor, torch.Tensor]:
         """(3^9, 9) bool legal squares and (3^9, 9) float32 move rewards of ``player``, row = board code: what a
         caller needs to answer "legal" and "look-ahead" for a whole batch with one row gather each."""
-        return self._code_tables()[0], self._move_reward_rows(player, self.about_to)
+        return self._code_tables()[0], self._move_reward_rows(player, self.readings.about_to)
 
     @staticmethod
     def empty_rows_by_code() -> torch.Tensor:
@@ -80,9 +79,9 @@ class StandardEngine(_Engine):
     def winning_rows_by_code(self, player: int) -> torch.Tensor:
         """(3^9, 9) bool, row = board code: the squares of ``player``'s set A under ``win_set``: every move worth
         +5 (``wins_and_threats``) or only the empty squares that complete a line of ``player`` now (``wins``)."""
-        if self.win_set == "wins":
+        if self.readings.win_set == "wins":
             return self._win_rows(player)
-        return self._move_reward_rows(player, self.about_to) == REWARD_WIN
+        return self._move_reward_rows(player, self.readings.about_to) == REWARD_WIN
 
     @staticmethod
     @lru_cache(maxsize=2)
@@ -137,7 +136,7 @@ class StandardEngine(_Engine):
         state.outcome = self._outcome_table().index_select(0, code)
 
     def move_rewards(self, state: Boards, player: int, active: torch.Tensor | None = None) -> torch.Tensor:
-        return self._move_reward_rows(player, self.about_to).index_select(0, state.codes[:, 0])
+        return self._move_reward_rows(player, self.readings.about_to).index_select(0, state.codes[:, 0])
 
     @staticmethod
     @lru_cache(maxsize=4)

@@ -8,17 +8,17 @@ import torch
 from ncbot.envs.core import DRAWN, REWARD_LOSE, REWARD_WIN, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL, check_free_move
 from ncbot.envs.engine.base import Boards, _Engine
 from ncbot.envs.engine.tables import grid_tables, lookup, lookup_rows, prioritise, uniform_choice_by_rows
+from ncbot.envs.readings import Readings
 
 
 class UltimateEngine(_Engine):
     """Ultimate: nine subgrid codes plus the owner grid; the look-ahead works on bitmasks of subgrids."""
 
-    game = "ultimate"
     cells = 81
     grids = 9
 
-    def __init__(self, free_move: str = "anywhere", win_set: str = "wins_and_threats", about_to: str = "standing") -> None:
-        super().__init__(win_set, about_to)
+    def __init__(self, free_move: str = "anywhere", readings: Readings = Readings()) -> None:
+        super().__init__(readings)
         self.free_move = check_free_move(free_move)
         self.meta = grid_tables(4)
         self.subgrid_of = torch.tensor(SUBGRID_OF_CELL)  # (81,) subgrid holding the cell
@@ -171,7 +171,7 @@ class UltimateEngine(_Engine):
         squares = ((rows * out.shape[1]).unsqueeze(1) + self.subgrid_cells.index_select(0, subs)).view(-1)  # flat indices
         events = self._events_at(state, player, rows, subs, open_grid).view(-1)
         rewards, is_plus5, is_game_win = self._event_tables()
-        is_win = is_game_win if self.win_set == "wins" else is_plus5
+        is_win = is_game_win if self.readings.win_set == "wins" else is_plus5
         # scatter_ rather than index_copy_: the same writes (the indices are distinct), ~4x faster here
         out.view(-1).scatter_(0, squares, rewards.index_select(0, events))
         if wins is not None:
@@ -206,7 +206,7 @@ class UltimateEngine(_Engine):
         dead_before = meta_now & 2
         # about_to="created": the player already has a winning square (an open subgrid where it can complete a
         # line whose winning completes a line of subgrids: the "about to win" test below, before the move)
-        had_threat = ((now & (meta_now >> 2)) > 511) if self.about_to == "created" else None
+        had_threat = ((now & (meta_now >> 2)) > 511) if self.readings.about_to == "created" else None
         meta_code, now, open_bits, dead_before = (t.index_select(0, rows).unsqueeze(1).to(i32) for t in (meta_code, now, open_bits, dead_before))
 
         sub, pos = subs.unsqueeze(1).to(i32), self._positions32  # (N, 1), (1, 9)

@@ -1,7 +1,7 @@
 """Play opponents against each other with the exact rules: for tests, benchmarks and the ladder.
 
 All games of a match advance in lockstep (the same side is to move in every unfinished game), so each ply
-is one batched ``select`` call. Moves are applied through ``ncbot.envs.rules``, which therefore referees every
+is one batched ``select`` call. Moves are applied through the game's exact rules, which therefore referee every
 opponent: an illegal choice raises at once instead of skewing the statistics.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import torch
 
 from ncbot.envs.opponents.base import Opponent
-from ncbot.envs.rules import make_game
+from ncbot.envs.games import check_game, make_game
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ def play_match(first: Opponent, second: Opponent, n_games: int, seed: int = 0, g
                free_move: str | None = None, batch_size: int = 256,
                progress: Callable[..., Any] | None = None) -> MatchResult:
     """``n_games`` games with ``first`` moving first (board code 1) and ``second`` (code 2), in batches."""
-    game = game or first.game
+    game = check_game(game) if game else first.game
     free_move = free_move or first.free_move
     if n_games < 1:
         raise ValueError(f"n_games must be at least 1, got {n_games}")
@@ -71,7 +71,7 @@ def play_match(first: Opponent, second: Opponent, n_games: int, seed: int = 0, g
             legal = torch.zeros(len(active), rules.n_cells, dtype=torch.bool)
             for row, i in enumerate(active):
                 legal[row, rules.legal(states[i])] = True
-            owners = torch.tensor([states[i].subgrids for i in active], dtype=torch.int8) if game == "ultimate" else None
+            owners = torch.tensor([states[i].subgrids for i in active], dtype=torch.int8) if rules.subgrids else None
             began = time.perf_counter()
             cells = mover.select(boards, last_move, legal, 1 + ply % 2, generator, owners=owners)
             seconds[ply % 2] += time.perf_counter() - began

@@ -11,7 +11,8 @@ from typing import Callable, Protocol
 
 import torch
 
-from ncbot.envs.core import CELLS_OF_GAME, FREE_MOVE_CHOICES, GAME_CHOICES, cells_of_game, check_free_move, check_game  # noqa: F401
+from ncbot.envs.core import check_free_move
+from ncbot.envs.games import check_game, make_game
 
 class Opponent:
     """A move chooser for batches of games; subclasses implement ``_select``.
@@ -23,9 +24,10 @@ class Opponent:
     name: str = "opponent"
 
     def __init__(self, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
-        self.game = check_game(game)
         self.free_move = check_free_move(free_move)
-        self.n_cells = cells_of_game(self.game)
+        self.rules = make_game(game, self.free_move)  # the game object: its rules and what follows from them
+        self.game = self.rules.id
+        self.n_cells = self.rules.n_cells
         self.seed = int(seed)
         self._own_generator = torch.Generator().manual_seed(self.seed)
 
@@ -40,14 +42,17 @@ class Opponent:
     ) -> torch.Tensor:
         """(B,) int64 legal cells, one per row; ``generator`` (default: the opponent's own, seeded) drives all chance.
 
-        ``owners`` (B, 9) optional, Ultimate only: subgrid owners as board codes (0 open, 1, 2, 3 drawn). With
-        ``free_move="anywhere"`` a subgrid can hold lines of both players and only the history tells who took
-        it first; callers that track owners (the env, the arena) pass them so look-ahead opponents are exact.
+        ``owners`` (B, subgrids) optional, for a game whose state tracks subgrid owners (Ultimate): as board codes
+        (0 open, 1, 2, 3 drawn). With ``free_move="anywhere"`` a subgrid can hold lines of both players and only the
+        history tells who took it first; callers that track owners (the env, the arena) pass them so look-ahead
+        opponents are exact.
         """
         boards, last_move, legal = self._check_inputs(boards, last_move, legal, player)
         if owners is not None:
-            if self.game != "ultimate" or tuple(owners.shape) != (boards.shape[0], 9):
-                raise ValueError(f"owners must have shape ({boards.shape[0]}, 9) and only goes with game 'ultimate'")
+            subgrids = self.rules.subgrids
+            if not subgrids or tuple(owners.shape) != (boards.shape[0], subgrids):
+                raise ValueError(f"owners must have shape ({boards.shape[0]}, {subgrids}) and only go with a game that "
+                                 f"tracks subgrid owners; {self.rules.name} tracks {subgrids or 'none'}")
             owners = owners.to(torch.int8)
         generator = self._own_generator if generator is None else generator
         return self._select(boards, last_move, legal, int(player), generator, owners)

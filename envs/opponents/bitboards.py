@@ -14,8 +14,8 @@ drawn subgrids, ``macro*`` the subgrids each side owns, ``target`` the subgrid t
 from __future__ import annotations
 
 from ncbot.envs.core import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
-from ncbot.envs.declaration import declared_game
-from ncbot.envs.opponents.declared_bits import DRAW, ONGOING, DeclaredBits
+from ncbot.envs.opponents.declared_bits import DRAW, ONGOING
+
 FULL = 0b111111111
 
 LINE_MASKS = tuple(sum(1 << i for i in line) for line in LINES_3X3)
@@ -74,6 +74,15 @@ class StandardBits:
             mine = bits1
         result = turn if IS_LINE[mine] else DRAW if (bits0 | bits1) == FULL else ONGOING
         return (bits0, bits1, turn ^ 1, result)
+
+    def position_cells(self, pos: tuple) -> tuple[list[int], list[int]]:
+        """The cells of the side to move and of the other side."""
+        lists = (list(SQUARES_OF_MASK[pos[0]]), list(SQUARES_OF_MASK[pos[1]]))
+        return lists if pos[2] == 0 else (lists[1], lists[0])
+
+    def threat_indices(self, pos: tuple) -> list[int]:
+        """The env's threat planes of the position that are 1, seen from the side to move (``threat_features``)."""
+        return position_threat_indices(pos, self.n_cells)
 
     def rollout(self, pos: tuple, rand) -> int:
         """Play uniformly random moves to the end; the result (0, 1 or DRAW)."""
@@ -187,6 +196,15 @@ class UltimateBits:
             result = DRAW
         return (subs0, subs1, decided, macro0, macro1, target, turn ^ 1, n_empty, result)
 
+    def position_cells(self, pos: tuple) -> tuple[list[int], list[int]]:
+        """The cells of the side to move and of the other side."""
+        lists = tuple([CELL_OF[k][p] for k in range(9) for p in SQUARES_OF_MASK[subs[k]]] for subs in (pos[0], pos[1]))
+        return lists if pos[6] == 0 else (lists[1], lists[0])
+
+    def threat_indices(self, pos: tuple) -> list[int]:
+        """The env's threat planes of the position that are 1, seen from the side to move (``threat_features``)."""
+        return position_threat_indices(pos, self.n_cells)
+
     def rollout(self, pos: tuple, rand) -> int:
         """Play uniformly random legal moves to the end; the result (0, 1 or DRAW). The hot loop of MCTS.
 
@@ -248,8 +266,25 @@ class UltimateBits:
             turn ^= 1
 
 
-def make_bits(game: str, free_move: str = "anywhere") -> StandardBits | UltimateBits | DeclaredBits:
-    """The bitboard engine of ``game`` (sides relative to the mover: 0 to move, 1 the other; ``DRAW`` = 2)."""
-    if game == "standard":
-        return StandardBits()
-    return UltimateBits(free_move) if game == "ultimate" else DeclaredBits(declared_game(game))
+def position_threat_indices(pos: tuple, cells: int) -> list[int]:
+    """Indices into the ``threat_planes`` of one bitboard position (``ncbot.envs.opponents.bitboards``) that are 1, seen
+    from the side to move (its threats first, as the robot's).
+
+    Why: the Q-guided search builds one position's features per expansion; the batched torch version costs ~0.3 ms
+    there, these table lookups a few microseconds, and the bitboard knows the exact subgrid owners. Tested equal to
+    ``threat_planes`` on random games of both games."""
+    if cells == 9:
+        bits0, bits1, turn, _ = pos
+        sides = (bits0, bits1) if turn == 0 else (bits1, bits0)
+        free = FULL ^ (bits0 | bits1)
+        return [plane * 9 + c for plane, bits in enumerate(sides) for c in SQUARES_OF_MASK[COMPLETING[bits] & free]]
+    subs0, subs1, decided, macro0, macro1, _, turn = pos[:7]
+    sides, macros = ((subs0, subs1), (macro0, macro1)) if turn == 0 else ((subs1, subs0), (macro1, macro0))
+    indices = []
+    for plane, subs in enumerate(sides):
+        for k in SQUARES_OF_MASK[FULL ^ decided]:  # open subgrids only
+            threats = COMPLETING[subs[k]] & (FULL ^ (subs0[k] | subs1[k]))
+            indices += [plane * 81 + CELL_OF[k][p] for p in SQUARES_OF_MASK[threats]]
+    for plane, macro in enumerate(macros):
+        indices += [162 + plane * 9 + k for k in SQUARES_OF_MASK[COMPLETING[macro] & (FULL ^ decided)]]
+    return indices

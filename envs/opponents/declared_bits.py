@@ -67,6 +67,11 @@ class DeclaredBits:
         result = turn if self._wins(mine, cell) else DRAW if (bits0 | bits1) == self.full else ONGOING
         return (bits0, bits1, turn ^ 1, result, tops)
 
+    def position_cells(self, pos: tuple) -> tuple[list[int], list[int]]:
+        """The cells of the side to move and of the other side."""
+        lists = tuple([c for c in range(self.n_cells) if bits >> c & 1] for bits in (pos[0], pos[1]))
+        return lists if pos[2] == 0 else (lists[1], lists[0])
+
     def rollout(self, pos: tuple, rand) -> int:
         """Play uniformly random moves to the end; the result (0, 1 or DRAW)."""
         while pos[3] == ONGOING:

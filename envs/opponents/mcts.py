@@ -1,4 +1,4 @@
-"""``mcts:N``: plain UCT with N simulations and uniformly random playouts, for both games and both rule variants.
+"""``mcts:N``: plain UCT with N simulations and uniformly random playouts, on any game's search positions.
 
 The search itself is the shared loop of ``ncbot.envs.opponents.search`` (UCT selection, ``RandomRollout`` evaluator).
 
@@ -14,7 +14,6 @@ import random
 import torch
 
 from ncbot.envs.opponents.base import Opponent, register_opponent, simulation_count
-from ncbot.envs.opponents.bitboards import make_bits
 from ncbot.envs.opponents.search import UCT, RandomRollout, run_search
 
 DEFAULT_EXPLORATION = 0.7  # UCB1 constant for rewards in [0, 1]; 0.5-0.7 beat 1.0-1.4 vs random at 100 sims (docs)
@@ -43,7 +42,7 @@ class MCTSOpponent(Opponent):
             raise ValueError(f"mcts needs at least 1 simulation, got {simulations}")
         self.simulations = int(simulations)
         self.exploration = float(exploration)
-        self.engine = make_bits(self.game, self.free_move)
+        self.engine = self.rules.search_engine()
         self.name = f"mcts:{self.simulations}"
 
     def _select(self, boards, last_move, legal, player, generator, owners):

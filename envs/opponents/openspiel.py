@@ -26,9 +26,9 @@ from typing import Any
 import torch
 
 from ncbot.envs.core import SUBGRID_CELLS, SUBGRID_OF_CELL, TARGET_OF_CELL
+from ncbot.envs.games import make_game
 from ncbot.envs.opponents.base import Opponent, register_opponent, simulation_count
 
-OPENSPIEL_GAMES = {"standard": "tic_tac_toe", "ultimate": "ultimate_tic_tac_toe"}
 OPENSPIEL_FREE_MOVE = "open_subgrids"  # OpenSpiel's Ultimate: sent to a decided subgrid -> any undecided one
 DEFAULT_UCT_C = 2.0  # OpenSpiel's examples/mcts.py --uct_c default (MCTSBot itself requires the argument)
 _ULTIMATE_FREE_CHOICE = 253  # observation tensor: 243 board planes, current player, 9 forced boards, free choice
@@ -45,15 +45,27 @@ def import_pyspiel() -> Any:
     return pyspiel
 
 
+def openspiel_name(game: str) -> str:
+    """The name of OpenSpiel's version of ``game`` (``Game.openspiel_name``); ValueError when it has none."""
+    name = getattr(make_game(game), "openspiel_name", None)
+    if name is None:
+        raise ValueError(f"OpenSpiel has no version of the game {game!r}: use 'mcts:N'")
+    return name
+
+
 def load_openspiel_game(game: str, free_move: str) -> Any:
     """OpenSpiel's version of our game, or ValueError when its rule is not ours (Ultimate under ``anywhere``) or it
     has none (a declared game)."""
-    if game not in OPENSPIEL_GAMES:
-        raise ValueError(f"OpenSpiel has no version of the declared game {game!r}: use 'mcts:N'")
-    if game == "ultimate" and free_move != OPENSPIEL_FREE_MOVE:
-        raise ValueError(f"OpenSpiel's ultimate_tic_tac_toe uses the '{OPENSPIEL_FREE_MOVE}' rule, not '{free_move}': "
+    name = openspiel_name(game)
+    if getattr(make_game(game, free_move), "free_move", OPENSPIEL_FREE_MOVE) != OPENSPIEL_FREE_MOVE:
+        raise ValueError(f"OpenSpiel's {name} uses the '{OPENSPIEL_FREE_MOVE}' rule, not '{free_move}': "
                          f"play it with --free-move {OPENSPIEL_FREE_MOVE} (an agent trained on that rule)")
-    return import_pyspiel().load_game(OPENSPIEL_GAMES[game])
+    return import_pyspiel().load_game(name)
+
+
+def _split(game: str) -> bool:
+    """OpenSpiel plays a move of a game with subgrids (Ultimate) as a subgrid, then a square inside it."""
+    return make_game(game).subgrids > 0
 
 
 def choosing_subgrid(state: Any) -> bool:
@@ -63,14 +75,14 @@ def choosing_subgrid(state: Any) -> bool:
 
 def cell_of(game: str, subgrid: int, square: int) -> int:
     """Our cell of OpenSpiel's (local board, local cell) pair on Ultimate."""
-    return SUBGRID_CELLS[subgrid][square] if game == "ultimate" else square
+    return SUBGRID_CELLS[subgrid][square] if _split(game) else square
 
 
 def legal_cells(state: Any, game: str) -> list[int]:
     """Our cells the player to move may take in an OpenSpiel state (a free Ultimate move: over every subgrid)."""
     if state.is_terminal():
         return []
-    if game == "standard":
+    if not _split(game):
         return sorted(state.legal_actions())
     if choosing_subgrid(state):
         return sorted(cell_of(game, k, p) for k in state.legal_actions() for p in state.child(k).legal_actions())
@@ -86,7 +98,7 @@ def forced_subgrid(state: Any) -> int:
 
 def apply_cell(state: Any, game: str, cell: int) -> list[int]:
     """Play our ``cell`` in an OpenSpiel state (in place); the OpenSpiel actions taken. ValueError if OpenSpiel refuses."""
-    if game == "standard":
+    if not _split(game):
         actions = [cell]
     elif choosing_subgrid(state):
         actions = [SUBGRID_OF_CELL[cell], TARGET_OF_CELL[cell]]
@@ -94,7 +106,7 @@ def apply_cell(state: Any, game: str, cell: int) -> list[int]:
         actions = [TARGET_OF_CELL[cell]] if forced_subgrid(state) == SUBGRID_OF_CELL[cell] else [-1]
     for action in actions:
         if state.is_terminal() or action not in state.legal_actions():
-            raise ValueError(f"OpenSpiel's {OPENSPIEL_GAMES[game]} refuses cell {cell}, which our rules allow: the rules differ")
+            raise ValueError(f"OpenSpiel's {openspiel_name(game)} refuses cell {cell}, which our rules allow: the rules differ")
         state.apply_action(action)
     return actions
 
@@ -137,7 +149,7 @@ class OpenSpielOpponent(Opponent):
 
     def _play_one_move(self, state: Any, seed: int) -> int:
         """Decide and play one move of ours in ``state`` (Ultimate, free: a subgrid, then a square); our cell."""
-        if self.game == "standard":
+        if not _split(self.game):
             action = self.decide(state, seed)
             state.apply_action(action)
             return action

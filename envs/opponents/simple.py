@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from ncbot.envs.core import GAME_CHOICES
-from ncbot.envs.engine import make_engine
 from ncbot.envs.opponents.base import Opponent, masked_uniform_choice, no_argument, register_opponent
-from ncbot.envs.opponents.lines import subgrid_owners, subgrid_taking_cells, winning_cells
 
 
 class RandomOpponent(Opponent):
@@ -20,36 +17,16 @@ class RandomOpponent(Opponent):
 
 
 class RuleOpponent(Opponent):
-    """Take a winning cell if there is one, else block the opponent's, else play at random.
-
-    On Ultimate the same rule is applied at two levels, in this order of preference: win the game, block a
-    game-winning cell of the opponent, take a subgrid, block the opponent taking a subgrid, random. Ties are
-    broken uniformly at random.
+    """Take a winning cell if there is one, else block the opponent's, else play at random: the game's own scores
+    (``Game.rule_scores``). On Ultimate the same rule is applied at two levels, in this order of preference: win the
+    game, block a game-winning cell of the opponent, take a subgrid, block the opponent taking a subgrid, random.
+    Ties are broken uniformly at random.
     """
 
     name = "rule"
 
-    def __init__(self, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
-        super().__init__(game, free_move, seed)
-        self.engine = None if self.game in GAME_CHOICES else make_engine(self.game)
-
     def _select(self, boards, last_move, legal, player, generator, owners):
-        other = 3 - player
-        if self.engine is not None:  # a declared game: the engine's line counts answer both questions
-            scores = 2 * self.engine.winning_squares(boards, player).long() + self.engine.winning_squares(boards, other).long()
-        elif self.game == "standard":
-            scores = 2 * winning_cells(boards, player).long() + winning_cells(boards, other).long()
-        else:
-            owners = subgrid_owners(boards) if owners is None else owners
-            takes_mine = subgrid_taking_cells(boards, player, owners)
-            takes_theirs = subgrid_taking_cells(boards, other, owners)
-            scores = (
-                8 * winning_cells(boards, player, owners, takes_mine).long()
-                + 4 * winning_cells(boards, other, owners, takes_theirs).long()
-                + 2 * takes_mine.long()
-                + takes_theirs.long()
-            )
-        return masked_uniform_choice(legal, generator, scores)
+        return masked_uniform_choice(legal, generator, self.rules.rule_scores(boards, player, owners))
 
 
 class WinnerOpponent(Opponent):
@@ -63,13 +40,9 @@ class WinnerOpponent(Opponent):
     def __init__(self, share: float, game: str = "standard", free_move: str = "anywhere", seed: int = 0) -> None:
         super().__init__(game, free_move, seed)
         self.share = float(share)
-        self.engine = None if self.game in GAME_CHOICES else make_engine(self.game)
 
     def _select(self, boards, last_move, legal, player, generator, owners):
-        if self.engine is not None:
-            wins = self.engine.winning_squares(boards, player) & legal
-        else:
-            wins = winning_cells(boards, player, owners if self.game == "ultimate" else None) & legal
+        wins = self.rules.winning_cells(boards, player, owners) & legal
         take = (torch.rand(legal.shape[0], generator=generator) < self.share) & wins.any(1)
         return torch.where(take, masked_uniform_choice(wins, generator), masked_uniform_choice(legal, generator))
 

@@ -8,7 +8,7 @@ env_app = typer.Typer(help="The multimodal dialogue game env: describe its featu
 
 def feature_meaning(key: str, game: str) -> str:
     """A one-line meaning of a feature key such as ``robot_move[04]`` or ``word[hello]``."""
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import make_game
 
     kind, _, rest = key.partition("[")
     value = rest.rstrip("]")
@@ -26,23 +26,23 @@ def feature_meaning(key: str, game: str) -> str:
 @env_app.command("describe")
 def describe(
     game: str = typer.Option("standard", help="standard (3x3), ultimate (9x9), a shipped declared game (four, "
-                             "connect_four) or a game YAML file (docs/games.md)"),
+                             "connect_four), a game YAML file or a game class (path/to/file.py:Misere; docs/games.md)"),
     temporal: bool = typer.Option(True, "--temporal/--no-temporal", help="include the temporal features"),
 ) -> None:
     """Print the feature table (index, key, meaning) and the action table (index, act, template, command)."""
     import re
 
     from ncbot.envs import make_env
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import load_game
 
+    rules = load_game(game)
+    game = rules.id
     env = make_env(game, temporal=temporal)
-    rules = make_game(game)
 
     def readable(name: str) -> str:  # GameMove(gridloc=4) -> GameMove(b2): cells as the board names them
         return re.sub(r"gridloc=(\d+)", lambda match: rules.cell_name(int(match.group(1))), name)
 
-    if rules.name not in ("standard", "ultimate"):
-        typer.echo(rules.declaration.describe())
+    typer.echo(rules.describe())
     typer.echo(f"{rules.name} game: {env.n_features} features, {env.n_actions} actions, vocabulary of {len(env.words)} words\n")
     typer.echo("FEATURES (the sorted key-value memory as a vector)")
     typer.echo(f"{'index':>5}  {'key':<18} meaning")

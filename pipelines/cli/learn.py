@@ -122,8 +122,12 @@ def eval_command(
     value: Optional[str] = typer.Option(None, "--value", help="With --search on Ultimate: a value network (ncbot train-value) scores the search's leaves."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show games done, rate and ETA on stderr "
                                   "(a bar on a terminal, a line every tenth of the games in a pipe)."),
+    game: Optional[str] = typer.Option(None, "--game", help="The run's game class (my_pkg.games:Misere, "
+                                       "path/to/file.py:Misere) for a run of your own game: ncbot imports a game's "
+                                       "code only when you name it."),
 ) -> None:
     """Play greedy test games with a trained agent and report the paper's metrics."""
+    from ncbot.pipelines.game_option import name_game
     from ncbot.pipelines.run_env import check_first, robot_seat
 
     check_first(first, name="--first")
@@ -136,6 +140,7 @@ def eval_command(
     from ncbot.pipelines.agents import register_agent_opponent
 
     torch.set_num_threads(1)
+    name_game(game, checkpoint)
     if exhaustive:
         _exhaustive_eval(checkpoint, first, seed, dialogue_seeds, as_json)
         return

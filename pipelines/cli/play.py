@@ -16,7 +16,8 @@ def play_command(
                                                "(its game is played); without it the robot uses the look-ahead masks "
                                                "alone, choosing at random inside them."),
     game: Optional[str] = typer.Option(None, "--game", help="standard | ultimate | a declared game (four, connect_four, "
-                                       "a game YAML file), without a checkpoint (default standard)."),
+                                       "a game YAML file) | a game class (path/to/file.py:Misere), without a checkpoint "
+                                       "(default standard); with one, it names the game class of a run of your own game."),
     first: str = typer.Option("robot", "--first", help="Who opens: robot | human (you draw the first mark)."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the robot's random choices (look-ahead policy) and the env."),
@@ -25,9 +26,9 @@ def play_command(
 ) -> None:
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None:
-        from ncbot.envs.core import check_game
+        from ncbot.envs.games import load_game
 
-        game = check_game(game)
+        game = load_game(game).id
     from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"), "--first")
@@ -68,6 +69,9 @@ def ladder_command(
                                         "from ncbot train-value) scores the search's leaves instead of random playouts."),
     workers: int = typer.Option(1, "--workers", help="Matches (opponent x seat) played in parallel processes; the "
                                 "rows are the same for any number."),
+    game: Optional[str] = typer.Option(None, "--game", help="The run's game class (my_pkg.games:Misere, "
+                                       "path/to/file.py:Misere) for a run of your own game: ncbot imports a game's "
+                                       "code only when you name it."),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
@@ -86,6 +90,9 @@ def ladder_command(
     if out is not None:
         check_writable_dir(out, "--out")
     from ncbot.pipelines.evaluate.ladder import run_ladder  # torch and the env load only now: errors above stay fast
+    from ncbot.pipelines.game_option import name_game
+
+    name_game(game, checkpoint)
 
     names = [name.strip() for name in opponents.split(",") if name.strip()] if opponents is not None else None
     if names is not None and not names:
@@ -99,7 +106,7 @@ def ladder_command(
 def match_command(
     first: str = typer.Argument(..., help="Opponent name moving first, e.g. random, rule, minimax, mcts:100, agent:CKPT."),
     second: str = typer.Argument(..., help="Opponent name moving second."),
-    game: str = typer.Option("standard", "--game", help="standard | ultimate | a declared game (four, connect_four, a game YAML file)."),
+    game: str = typer.Option("standard", "--game", help="standard | ultimate | a declared game (four, connect_four, a game YAML file) | a game class (path/to/file.py:Misere)."),
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     games: int = typer.Option(100, "--games", max=MAX_GAMES, help="Number of games."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the match."),
@@ -109,6 +116,7 @@ def match_command(
         raise ValueError(f"--games must be a positive number of games, got {games}")
     import torch
 
+    from ncbot.envs.games import load_game
     from ncbot.envs.opponents import make_opponent
     from ncbot.envs.opponents.arena import play_match
     from ncbot.pipelines.agents import register_agent_opponent
@@ -116,6 +124,7 @@ def match_command(
 
     torch.set_num_threads(1)
     register_agent_opponent()
+    game = load_game(game, free_move).id
     players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
     result = play_match(players[0], players[1], games, seed=seed, progress=progress_bar)
     typer.echo("| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")

@@ -41,24 +41,25 @@ def _simulator_unavailable(error: Exception) -> None:
 
 CHECKPOINT_HELP = ("A checkpoint .pt written by ncbot train, or its run folder (its game is played); without it the "
                    "look-ahead filter alone plays.")
-GAME_HELP = ("standard (3x3), ultimate (9x9) or a declared game (a shipped name such as four or connect_four, or a "
-             "YAML file); a checkpoint plays its own game, so with one this only checks it.")
+GAME_HELP = ("standard (3x3), ultimate (9x9), a declared game (a shipped name such as four or connect_four, or a "
+             "YAML file) or a game class (my_pkg.games:Misere, path/to/file.py:Misere); a checkpoint plays its own "
+             "game, so with one this only checks it (and names the game class of a run of your own game).")
 
 
 def game_and_agent(checkpoint: Optional[Path], game: Optional[str]):
     """(game, checkpoint file or None, (config, policy) or None): the game is the checkpoint's where one is given."""
-    from ncbot.envs.core import check_game as game_id
+    from ncbot.envs.games import load_game
     from ncbot.robot_sim.scene import check_game
 
     if checkpoint is None:
-        game = game_id(game or "standard")  # a declared file becomes its absolute path, as in a run's config
+        game = load_game(game or "standard").id  # a file becomes its absolute path, like a run's config
         check_game(game)
         return game, None, None
     from ncbot.pipelines.agents import load_agent
     from ncbot.pipelines.checkpoint import FINAL_NAME
 
     if game is not None:
-        game = game_id(game)  # a bad name: one line before the checkpoint is loaded
+        game = load_game(game).id  # a bad name: one line before the checkpoint is loaded
     agent = load_agent(checkpoint)  # a missing file, a run folder without checkpoint.pt, a foreign file: one line
     trained = agent[0].env.game
     if game is not None and game != trained:
@@ -198,8 +199,8 @@ def serve(
 @robot_app.command("render")
 def render(
     output: Path = typer.Option(Path("mouth.png"), "--out", "-o", help="PNG to write."),
-    game: str = typer.Option("standard", help="standard, ultimate, or a declared game (a shipped name such as four or "
-                             "connect_four, or a YAML file): its grid on the sheet."),
+    game: str = typer.Option("standard", help="standard, ultimate, a declared game (a shipped name such as four or "
+                             "connect_four, or a YAML file) or a game class (path/to/file.py:Misere): its grid on the sheet."),
     width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Camera width."),
     height: int = typer.Option(480, min=16, max=MAX_PIXELS, help="Camera height."),
     marks: str = typer.Option("", help="Marks to put on the sheet, e.g. 'xb2,oa1,xc3' (mark, then the cell as on the board)."),
@@ -218,21 +219,22 @@ def render(
         raise ValueError(f"--view must be mouth or overview; got {view!r}")
     check_writable_file(output, "--out", IMAGE_SUFFIXES)
     require("robot", "sapien", what="ncbot robot render")
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import load_game
     from ncbot.robot_sim.conditions import load_conditions
     from ncbot.robot_sim.render_system import SimulatorUnavailable
     from ncbot.robot_sim.reach import check_reach
-    from ncbot.robot_sim.scene import PepperScene, SceneConfig, is_built_in
+    from ncbot.robot_sim.scene import PepperScene, SceneConfig, placed_by_hand
     from ncbot.robot_sim.sheet import MARK_OF_PLAYER, MarkSpec
 
     ranges = load_conditions(conditions)
+    rules = load_game(game)
+    game = rules.id
     try:
         scene = PepperScene(SceneConfig(game=game, camera_width=width, camera_height=height, conditions=ranges,
                                         conditions_seed=seed))
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
-    rules = make_game(game)
-    if not is_built_in(game):  # a declared grid's drawing positions were derived, not placed: check each one
+    if not placed_by_hand(game):  # a declared grid's drawing positions were derived, not placed: check each one
         check_reach(scene, rules.cell_name)
     rng = np.random.default_rng(seed)
     taken: set[int] = set()

@@ -232,6 +232,8 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
              noisy: bool = typer.Option(False, help="cells: noisy instead of clean."),
              grid: str = typer.Option("3", help="frames/sequence: 3 (noughts & crosses), 9 (ultimate) or ROWSxCOLS, "
                                       "e.g. 6x7 (a declared game's plain grid; 3..9 each)."),
+             game: Optional[str] = typer.Option(None, "--game", help="frames/sequence: the sheet of this game instead of "
+                                                "--grid (a name, a game YAML file or a game class path/to/file.py:Misere)."),
              hand: bool = typer.Option(False, help="frames: a hand reaches over the sheet."),
              style: str = typer.Option("pen", help="Stroke style(s), comma list of pen, sketch, hershey."),
              quality: str = typer.Option("clean", "--quality", help="frames/sequence: photo quality, clean or harsh "
@@ -249,7 +251,7 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
         raise ValueError(f"--style takes a comma list of {', '.join(STYLES)}; got {style!r}")
     if kind not in ("cells", "frames", "sequence"):
         raise ValueError(f"kind must be cells, frames or sequence; got {kind!r}")
-    shape = parse_grid(grid)
+    shape = parse_grid(grid) if game is None else _game_grid(game)
     label = grid_label(shape)
     if quality not in CONDITIONS:
         raise ValueError(f"--quality must be one of {', '.join(CONDITIONS)}; got {quality!r}")
@@ -285,6 +287,15 @@ def generate(kind: str = typer.Argument(..., help="cells, frames or sequence."),
                             "move": seq.move, "symbol": seq.symbol})
     atomic_write_text("".join(json.dumps(r) + "\n" for r in records), out / "labels.jsonl")
     typer.echo(f"wrote {len(records)} images and labels.jsonl to {out}")
+
+
+def _game_grid(game: str):
+    """The grid of the sheet of ``game`` (the user names it here: a game class is imported); one line when the sheet
+    cannot draw its board."""
+    from ncbot.envs.games import load_game
+    from ncbot.vision.sheet import game_grid
+
+    return game_grid(load_game(game))
 
 
 def register(app: typer.Typer) -> None:

@@ -8,6 +8,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
+from ncbot.envs.games import load_game
 from ncbot.fileio.yaml_file import read_yaml
 from ncbot.pipelines.config.errors import validation_line
 from ncbot.pipelines.config.sections import RunConfig
@@ -97,7 +98,18 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> RunConf
         raise ValueError(f"config file {str(path)!r} must hold a mapping of sections (env, agent, ...)")
     if "grid" in data and "suites" in data:
         raise ValueError(f"{str(path)!r} is an ablation grid, not a run config: run ncbot ablate {path}")
-    return config_from_dict(apply_overrides(data, overrides or []))
+    config = config_from_dict(apply_overrides(data, overrides or []))
+    load_game(config.env.game, config.env.free_move)  # the user names the game here: a game class is imported now
+    return config
+
+
+def name_games(overrides: list[str]) -> None:
+    """Import the game classes an ``env.game=...`` override names (the command line of a resumed run names its
+    game again: a run folder's config alone never imports code, docs/games.md)."""
+    for text in overrides:
+        path, value = parse_override(text)
+        if path == ["env", "game"] and isinstance(value, str):
+            load_game(value)
 
 
 def dump_config(config: RunConfig) -> str:

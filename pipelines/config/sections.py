@@ -64,7 +64,9 @@ class DialogueSubset(Section):
 class EnvConfig(Section):
     """The dialogue game the robot learns (envs.make_env)."""
 
-    game: str = "standard"  # standard | ultimate | a shipped declared game (four, connect_four) | a game YAML file
+    # standard | ultimate | a shipped declared game (four, connect_four) | a game YAML file | a game class's import path
+    # (my_pkg.games:Misere or path/to/file.py:Misere: imported when a config or command line you pass names it)
+    game: str = "standard"
     temporal: bool = True  # the paper's 9/81 temporal features
     free_move: Literal["anywhere", "open_subgrids"] = "anywhere"  # ultimate rule variant
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # games played in parallel by one batched env
@@ -92,9 +94,10 @@ class EnvConfig(Section):
     @field_validator("game")
     @classmethod
     def _known_game(cls, game: str) -> str:
-        """A built-in name, a shipped declaration or a game YAML file (docs/games.md); a file becomes its absolute
-        path, so a run folder's config names the same game from anywhere."""
-        from ncbot.envs.core import check_game
+        """A built-in name, a shipped declaration, a game YAML file or a game class's import path (docs/games.md); a
+        file becomes its absolute path, so a run folder's config names the same game from anywhere. Nothing is
+        imported here: a config read from a run folder or checkpoint never runs a game's code."""
+        from ncbot.envs.games import check_game
 
         return check_game(game)
 

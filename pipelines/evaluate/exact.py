@@ -128,7 +128,9 @@ def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactRe
     from ncbot.modules.recurrent import memory_env
     from ncbot.pipelines.run_env import make_run_env, robot_seat
 
-    if config.env.game != "standard":
+    from ncbot.envs.games import make_game
+
+    if make_game(config.env.game).n_cells != CELLS:  # the user's choices are then checked move by move (BranchUser)
         raise ValueError(f"exact evaluation enumerates 3x3 games only; this agent plays {config.env.game!r}")
     if not dialogue_seeds:
         raise ValueError("exact evaluation needs at least one dialogue seed")

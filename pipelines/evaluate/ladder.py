@@ -19,14 +19,12 @@ from typing import Any
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.evaluate.games import wilson_interval
 
-DEFAULT_LADDERS = {
-    "standard": ["random", "rule", "minimax"],
-    "ultimate": ["random", "rule", "mcts:10", "mcts:100", "mcts:300"],
-}
-DECLARED_LADDER = ["random", "rule", "mcts:10", "mcts:100"]  # a declared game (docs/games.md): no exact solver
+SOLVED_LADDER = ["random", "rule", "minimax"]  # a game with an exact solver (Game.solver): perfect play on top
+SEARCH_LADDER = ["random", "rule", "mcts:10", "mcts:100"]  # a game too large to solve: search of growing budget
+LONGER_LADDERS = {"ultimate": SEARCH_LADDER + ["mcts:300"]}  # games whose agents outgrow mcts:100 (by game id)
 OPENERS = ("robot", "human")  # each match is played robot-first and human-first
-# Ultimate score targets: mcts:100, and strong search (openspiel-mcts needs free_move open_subgrids)
-ULTIMATE_GOALS = {"mcts:100": 0.5, "mcts:1000": 0.75, "mcts:10000": 0.5, "openspiel-mcts:1000": 0.5}
+# score targets by game id: Ultimate's, mcts:100 and strong search (openspiel-mcts needs free_move open_subgrids)
+SCORE_GOALS = {"ultimate": {"mcts:100": 0.5, "mcts:1000": 0.75, "mcts:10000": 0.5, "openspiel-mcts:1000": 0.5}}
 SEARCH_SECONDS_PER_MOVE = 0.2  # the robot's decision budget with search, one core
 
 
@@ -55,7 +53,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
     robot_spec = (checkpoint, search, lookahead, seed, value, baseline)
     config, robot, choosers = load_ladder_robot(*robot_spec)
     game = config.env.game
-    names = list(opponents) if opponents else DEFAULT_LADDERS.get(game, DECLARED_LADDER)
+    names = list(opponents) if opponents else default_ladder(game)
     for name in names:  # fail fast, with the registry's message, before any game is played
         make_opponent(name, game=game, free_move=config.env.free_move)
     pairs = [(name, first, who) for name in names for first in OPENERS for who in choosers]
@@ -73,8 +71,10 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
 
         # a multiprocessing Pool, not a ProcessPoolExecutor: on Ctrl-C or SIGTERM the executor's exit waits for
         # the running matches (25 min each against mcts:10000); Pool.terminate stops the workers at once
+        from ncbot.envs.games import named_games
+
         pool = multiprocessing.get_context("spawn").Pool(min(workers, len(matches)), initializer=_load_worker_robot,
-                                                         initargs=robot_spec)
+                                                         initargs=(named_games(), *robot_spec))
         try:
             tasks = [(index, *match, games) for index, match in enumerate(matches)]
             for index, row in pool.imap_unordered(_play_worker_match, tasks):
@@ -155,11 +155,17 @@ def play_ladder_match(config, chooser, who: str, opponent: str, first: str, matc
 _WORKER_ROBOT: tuple[Any, dict[str, Any]] | None = None  # (config, choosers) of a ladder worker process
 
 
-def _load_worker_robot(*robot_spec: Any) -> None:
-    """Process-pool initializer: each worker loads the robot once, single-threaded like the parent."""
+def _load_worker_robot(named: tuple[str, ...], *robot_spec: Any) -> None:
+    """Process-pool initializer: each worker loads the robot once, single-threaded like the parent, and names the
+    game classes the user named in the parent (a spawned process starts with none)."""
     import signal
 
     import torch
+
+    from ncbot.envs.games import load_game
+
+    for game in named:
+        load_game(game)
 
     global _WORKER_ROBOT
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent stops the workers
@@ -176,33 +182,45 @@ def _play_worker_match(task: tuple) -> tuple[int, dict[str, Any]]:
     return index, play_ladder_match(config, choosers[who], who, opponent, first, match_seed, games)
 
 
+def default_ladder(game: str) -> list[str]:
+    """The opponents a ladder of ``game`` climbs by default: perfect play where the game has an exact solver, else
+    search of growing budget."""
+    from ncbot.envs.games import make_game
+
+    if game in LONGER_LADDERS:
+        return list(LONGER_LADDERS[game])
+    return list(SOLVED_LADDER if make_game(game).solver() is not None else SEARCH_LADDER)
+
+
 def check_goals(game: str, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The goals that this ladder covers: each with its value, and "met" / "missed" / "undecided".
 
     ``met`` is the point estimate's verdict (kept for scripts); ``verdict`` says whether the games played decide
-    it: the score's 95 % Wilson interval wholly at or above the target (met) or below it (missed)."""
+    it: the score's 95 % Wilson interval wholly at or above the target (met) or below it (missed). A game with an
+    exact solver: never lose to random or minimax; a game with score targets (``SCORE_GOALS``): those."""
+    from ncbot.envs.games import make_game
+
     by_opponent: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         if row.get("policy", "agent") == "agent":
             by_opponent.setdefault(row["opponent"], []).append(row)
     goals = []
-    if game == "standard":
+    if make_game(game).solver() is not None:
         for name in ("random", "minimax"):
             if name in by_opponent:
                 losses = sum(round(r["loss"] * r["games"]) for r in by_opponent[name])
                 goals.append({"goal": f"never loses to {name}", "met": losses == 0, "value": f"{losses} losses",
                               "verdict": "met" if losses == 0 else "missed"})
-    elif game == "ultimate":
-        for name, target in ULTIMATE_GOALS.items():
-            if name in by_opponent:
-                matches = by_opponent[name]
-                played = sum(r["games"] for r in matches)
-                points = sum(r["score"] * r["games"] for r in matches)
-                low, high = wilson_interval(points, played)
-                verdict = "met" if low >= target else "missed" if high < target else "undecided"
-                goals.append({"goal": f"score >= {target} against {name}", "met": points / played >= target,
-                              "value": f"{points / played:.3f} [{low:.3f}, {high:.3f}] over {played} games",
-                              "verdict": verdict})
+    for name, target in SCORE_GOALS.get(game, {}).items():
+        if name in by_opponent:
+            matches = by_opponent[name]
+            played = sum(r["games"] for r in matches)
+            points = sum(r["score"] * r["games"] for r in matches)
+            low, high = wilson_interval(points, played)
+            verdict = "met" if low >= target else "missed" if high < target else "undecided"
+            goals.append({"goal": f"score >= {target} against {name}", "met": points / played >= target,
+                          "value": f"{points / played:.3f} [{low:.3f}, {high:.3f}] over {played} games",
+                          "verdict": verdict})
     searched = [r for r in rows if "search_cpu_s_per_decision" in r]
     if searched:
         worst = max(r["search_cpu_s_per_decision"] for r in searched)

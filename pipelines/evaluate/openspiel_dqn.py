@@ -22,11 +22,11 @@ def dqn_worker(game: str, cap: float, clock_name: str, every: float, opponent: s
     from open_spiel.python.algorithms import random_agent
     from open_spiel.python.pytorch import dqn
 
-    from ncbot.envs.opponents.openspiel import OPENSPIEL_GAMES
+    from ncbot.envs.opponents.openspiel import openspiel_name
 
     torch.set_num_threads(1)
     np.random.seed(seed)
-    env = rl_environment.Environment(OPENSPIEL_GAMES[game])
+    env = rl_environment.Environment(openspiel_name(game))
     size, actions = env.observation_spec()["info_state"][0], env.action_spec()["num_actions"]
     settings = {**DQN_EXAMPLE_SETTINGS, "hidden_layers_sizes": hidden}
     learners = [dqn.DQN(player_id=p, state_representation_size=size, num_actions=actions, seed=seed + p, **settings)
@@ -120,7 +120,9 @@ def evaluate_dqn(snapshot: dict[str, Any], meta: dict[str, Any], game: str, game
     from ncbot.envs.opponents import make_opponent
     from ncbot.envs.opponents.arena import play_match
 
-    free_move = "open_subgrids" if game == "ultimate" else "anywhere"
+    from ncbot.envs.opponents.openspiel import OPENSPIEL_FREE_MOVE
+
+    free_move = OPENSPIEL_FREE_MOVE  # OpenSpiel's rule (Ultimate's variant; the other games have one rule)
     players = [DQNPlayer.build(snapshot["q"][p], meta, game, free_move, seed) for p in range(2)]
     rand = make_opponent("random", game=game, free_move=free_move, seed=seed)
     first = play_match(players[0], rand, games, seed=seed, free_move=free_move)

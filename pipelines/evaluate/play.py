@@ -19,7 +19,7 @@ from typing import Callable
 import torch
 
 from ncbot.envs import dialogue as dlg
-from ncbot.envs.rules import make_game
+from ncbot.envs.games import make_game
 
 QUIT_WORDS = {"quit", "exit", "q"}
 HELP_WORDS = {"help", "?"}

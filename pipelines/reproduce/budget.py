@@ -91,7 +91,7 @@ def write_budget_report(budget: Any, *, runs_dir: Path, out: Path, command: str,
                         dialogue_runs: Path | None = None) -> dict[str, Any]:
     """Write out/data_budget.md and its PNGs; return the `--json` object {vision, dialogues, games} (+ label).
     ``dialogue_runs``: the dialogue-budget agents' runs folder (pipelines/reproduce/dialogues.py)."""
-    games_of_rows = tuple(dict.fromkeys("standard" if row == "standard" else "ultimate" for row in budget.rows))
+    games_of_rows = budget.games
     from ncbot.pipelines.reproduce.vision import vision_budget_part
 
     data = {"label": budget.label, "command": command,

@@ -22,8 +22,7 @@ from ncbot.fileio import atomic_write_text
 THRESHOLDS = (0.95, 0.99)
 MARKDOWN = "games_data.md"
 FIGURE = "games_data.png"
-# the built-in games' boards (a declared game's come from its declaration)
-BUILT_IN = {"standard": ("3x3", 3, 3, 3, False), "ultimate": ("Ultimate", 9, 9, 3, False)}
+LABELS = {"standard": "3x3", "ultimate": "Ultimate"}  # how the tables name the built-in games (by game id)
 
 
 @dataclass(frozen=True)
@@ -82,12 +81,13 @@ def count_dialogues(game: str, dialogue_set: str, subset: tuple[int, int] | None
 
 
 def _board(game: str) -> tuple[str, int, int, int, bool]:
-    if game in BUILT_IN:
-        return BUILT_IN[game]
-    from ncbot.envs.declaration import declared_game
+    """(label, rows, cols, marks in a line that win (0: not a line game), gravity) of a run's game."""
+    from ncbot.envs.games import make_game
 
-    d = declared_game(game)
-    return d.name, d.rows, d.cols, d.k, d.gravity
+    rules = make_game(game)
+    declaration = getattr(rules, "declaration", None)
+    k = declaration.k if declaration is not None else 3 if game in LABELS else 0
+    return LABELS.get(game, rules.name), rules.rows, rules.cols, k, rules.gravity
 
 
 def read_run(run_dir: str | Path) -> GameRun:

@@ -19,7 +19,9 @@ CHECKPOINT_GAMES = 3000
 
 def full_budget(row: str) -> tuple[str, ...]:
     """The overrides `ncbot reproduce table --budget full` gives a cell (pipelines/reproduce/grid.py's BUDGETS)."""
-    every = 5_000 if row == "standard" else 20_000
+    from ncbot.pipelines.reproduce.grid import BUDGETS
+
+    every = BUDGETS["full"].eval_every_frames[row]
     return ("train.max_games=20000", "eval.games=3000", f"train.eval_every_frames={every}", "logger.mcap=false")
 
 
@@ -92,8 +94,9 @@ def plan() -> list[GapRun]:
                            full_budget("ultimate100") + ("collector.total_frames=800000", "checkpoint.keep=16"),
                            (CheckpointEval(400_000, both_seats=True), *extra)))
     # (b) one seed of the paper-mode cells the other questions do not train, test games logged
-    for row, cells in (("standard", tuple(CELL_CONFIGS)),
-                       ("ultimate100", ("dqn_original-notemporal", "dqn_variant-notemporal", "proposed-notemporal"))):
+    paper_cells = {"standard": tuple(CELL_CONFIGS),
+                   "ultimate100": ("dqn_original-notemporal", "dqn_variant-notemporal", "proposed-notemporal")}
+    for row, cells in paper_cells.items():
         for cell in cells:
             runs.append(GapRun("paper", row, cell, 30, full_budget(row), (ActsEval(),)))
     # (c) Proposed + temporal under three screened readings, test games logged

@@ -49,6 +49,13 @@ class Budget:
     dialogue_games: int = 1_000
     dialogue_points: tuple[int, ...] = (1, 2, 4, 8, 12, 24)  # k of the agents (the filter agreement: always all six)
 
+    @property
+    def games(self) -> tuple[str, ...]:
+        """The games the rows play, in row order: each row's paper config names its game."""
+        from ncbot.pipelines.config import load_config
+
+        return tuple(dict.fromkeys(load_config(row_config(row)).env.game for row in self.rows))
+
 
 BUDGETS = {
     "full": Budget(

@@ -1,7 +1,6 @@
 """What the page needs to draw and play a game's board, derived from the game's rules (never per-game page code).
 
-Why the server hands this over instead of the page knowing the games: a declared game (`ncbot.envs.declaration`)
-has any rows x cols, may drop marks into columns, and names its squares as its rules do (`b3`, as the dialogue
+Why the server hands this over instead of the page knowing the games: a game (`ncbot.envs.games`) has any rows x cols, may drop marks into columns, and names its squares as its rules do (`b3`, as the dialogue
 and every error message write them); the page reads it all from one JSON object.
 """
 from __future__ import annotations
@@ -10,29 +9,20 @@ import json
 from typing import Any
 
 
-BUILT_IN_TITLES = {"standard": "noughts and crosses", "ultimate": "ultimate noughts and crosses"}
+KINDS = {3: "standard", 9: "ultimate"}  # how the page draws a grid: 3x3, Ultimate's subgrids, else a labelled grid
 
 
 def board_layout(game: str) -> dict[str, Any]:
-    """{kind, name, title, rows, cols, gravity, names, rules} of `game` (standard, ultimate or a declared game's
-    id); title: what the page's heading calls it."""
-    from ncbot.envs.rules import make_game
+    """{kind, name, title, rows, cols, gravity, names, rules} of `game` (its id); kind: how the page draws the grid
+    (standard, ultimate, declared: a plain labelled grid); title: what the page's heading calls it."""
+    from ncbot.envs.games import make_game
 
     rules = make_game(game)
-    declaration = getattr(rules, "declaration", None)
-    if declaration is None:
-        rows = cols = rules.size
-        kind, gravity = rules.name, False
-        text = ("Noughts and crosses: three in a row, column or diagonal wins" if kind == "standard" else
-                "Ultimate: win three small boards in a row; your move sends the robot to the matching small board")
-    else:
-        rows, cols, kind, gravity = declaration.rows, declaration.cols, "declared", declaration.gravity
-        text = declaration.describe()
-        if gravity:
-            text += ": click anywhere in a column"
-    title = BUILT_IN_TITLES.get(kind, rules.name.replace("_", " "))
-    return {"kind": kind, "name": rules.name, "title": title, "rows": rows, "cols": cols, "gravity": gravity,
-            "names": [rules.cell_name(cell) for cell in range(rows * cols)], "rules": text + "."}
+    kind = KINDS.get(rules.sheet_grid, "declared")
+    text = rules.describe() + (": click anywhere in a column" if rules.gravity else "")
+    return {"kind": kind, "name": rules.name, "title": rules.title, "rows": rules.rows, "cols": rules.cols,
+            "gravity": rules.gravity, "names": [rules.cell_name(cell) for cell in range(rules.n_cells)],
+            "rules": text + "."}
 
 
 def layout_script(game: str) -> str:

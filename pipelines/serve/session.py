@@ -27,7 +27,7 @@ import numpy as np
 SIM_LOCK = threading.Lock()
 #: Parallel mode: the policy is one object shared by every session, so its calls still take turns (~ms each).
 POLICY_LOCK = threading.Lock()
-FIRST_CHOICES = ("robot", "human")
+SEAT_CHOICES = ("robot", "human")  # who opens a browser game: the env's FIRST_CHOICES a person can pick
 PERSON_SIDE = {"win": "loss", "loss": "win", "draw": "draw", "unfinished": "unfinished"}
 
 
@@ -117,7 +117,7 @@ class Session:
         self._thread: threading.Thread | None = None
         self._runner = None
         self._voice = None
-        from ncbot.envs.rules import make_game
+        from ncbot.envs.games import make_game
 
         self.rules = make_game(config.game)  # the cells' names and, with gravity, which square a column click takes
 
@@ -143,8 +143,8 @@ class Session:
 
     def start(self, first: Any, participant: Any = "") -> None:
         """Begin the first game (who opens: robot or human); `participant` is the person's optional code."""
-        if first not in FIRST_CHOICES:
-            raise SessionError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {str(first)[:40]!r}")
+        if first not in SEAT_CHOICES:
+            raise SessionError(f"first must be one of {', '.join(SEAT_CHOICES)}; got {str(first)[:40]!r}")
         if not isinstance(participant, str):
             raise SessionError("participant must be a string")
         if self._thread is not None:

@@ -198,10 +198,11 @@ def check_teacher_value(config: RunConfig) -> None:
     settings = config.search_targets
     if not settings.enabled or settings.value is None:
         return
-    if config.env.game != "ultimate":
+    from ncbot.modules.value_net import VALUE_GAME, load_value_net
+
+    if config.env.game != VALUE_GAME:
         raise ValueError(f"config key 'search_targets.value' scores Ultimate positions; this run plays "
                          f"{config.env.game} (leave it null)")
-    from ncbot.modules.value_net import load_value_net
 
     with torch.random.fork_rng():
         load_value_net(settings.value, config.env.free_move)

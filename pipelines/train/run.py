@@ -132,6 +132,7 @@ def resolve_run(config_path: str | None, overrides: list[str], *, out: str | Non
     --seed and --episodes are validated with the config (same bounds, one line naming the option)."""
     from ncbot.fileio.yaml_file import read_yaml
     from ncbot.pipelines.config import MAX_SEED, apply_overrides, load_config
+    from ncbot.pipelines.config.files import name_games
 
     if seed is not None and not 0 <= seed <= MAX_SEED:
         raise ValueError(f"--seed must be between 0 and {MAX_SEED}, got {seed}")
@@ -151,6 +152,7 @@ def resolve_run(config_path: str | None, overrides: list[str], *, out: str | Non
         if not isinstance(data, dict):
             raise ValueError(f"run config {str(saved)!r} must hold a mapping of sections; expected the config.yaml "
                              "ncbot train wrote")
+        name_games(overrides)  # a run folder's config never imports a game's code; the command line may name it
         config = config_from_dict(apply_overrides(data, overrides))
     else:
         if config_path is None:

@@ -26,7 +26,6 @@ import torch
 from torch import nn
 
 from ncbot.envs.opponents.base import Opponent
-from ncbot.envs.opponents.bitboards import make_bits
 from ncbot.modules.deep_lookahead import win_in_one
 from ncbot.modules.guided_mcts import TurnFeatures
 from ncbot.pipelines.config import SelfPlayConfig
@@ -42,7 +41,7 @@ class SnapshotPool(Opponent):
         super().__init__(game, free_move, seed)
         self.settings = settings
         self.features = TurnFeatures(game, temporal, free_move, threats)
-        self.engine = make_bits(game, free_move)
+        self.engine = self.rules.search_engine()
         self.snapshots: list[nn.Module] = []
         self.added = 0
         self._next_frames = 0

@@ -26,11 +26,12 @@ from typing import Any
 import torch
 
 from ncbot.envs.core import FREE_MOVE_CHOICES
-from ncbot.envs.opponents.bitboards import ONGOING, make_bits
+from ncbot.envs.games import make_game
+from ncbot.envs.opponents.bitboards import ONGOING
 from ncbot.envs.opponents.mcts import DEFAULT_EXPLORATION
 from ncbot.envs.opponents.search import UCT, RandomRollout, run_search
 from ncbot.fileio.atomic import atomic_write_text
-from ncbot.modules.value_net import DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
+from ncbot.modules.value_net import VALUE_GAME, DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
     value_checkpoint
 from ncbot.pipelines.checkpoint import atomic_save
 
@@ -46,7 +47,7 @@ def labelled_games(free_move: str, positions: int, simulations: int, seed: int, 
     The features (all 0 or 1) are kept as one byte each: 120K positions as Python float lists took ~200 MB."""
     from ncbot.pipelines.progress import progress_bar
 
-    engine = make_bits("ultimate", free_move)
+    engine = make_game(VALUE_GAME, free_move).search_engine()
     rng = random.Random(seed)
     rand = rng.random
     start = engine.from_board([0] * 81, 1, -1)

@@ -10,9 +10,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ncbot.envs.declaration import Declaration, declared_game, load_declaration, shipped_games
-from ncbot.envs.engine import StandardEngine, make_engine
+from ncbot.envs.engine import StandardEngine
+from ncbot.envs.games import make_game
+from ncbot.envs.games.declared import DeclaredGame as Declared
+from ncbot.envs.readings import Readings
+from tests.envs.helpers import engine_of as make_engine
 from ncbot.envs.engine.declared import DeclaredEngine
-from ncbot.envs.rules import Declared, make_game
 
 DIRECTIONS = ((0, 1), (1, 0), (1, 1), (1, -1))
 
@@ -113,7 +116,7 @@ def test_engine_rewards_agree_with_the_reference(shape, seed, about_to):
     game, ref, rng = Declared(declared(*shape)), Reference(*shape), random.Random(seed)
     positions = [random_position(game, rng, 0.08) for _ in range(4)]
     positions = [s for s in positions if game.outcome(s) is None] or [game.new()]
-    engine = DeclaredEngine(declared(*shape), about_to=about_to)
+    engine = DeclaredEngine(declared(*shape), Readings(about_to=about_to))
     state = engine.from_boards(torch.tensor([s.board for s in positions]))
     for player in (1, 2):
         rewards = engine.move_rewards(state, player)
@@ -145,8 +148,8 @@ def test_declared_3x3_engine_gives_the_standard_engines_rewards():
     states = [random_position(game, rng, 0.1) for _ in range(400)]
     boards = torch.tensor(sorted({s.board for s in states if game.outcome(s) is None}))
     for about_to in ("standing", "created"):
-        generic = DeclaredEngine(declared(3, 3, 3, False), about_to=about_to)
-        standard = StandardEngine(about_to=about_to)
+        generic = DeclaredEngine(declared(3, 3, 3, False), Readings(about_to=about_to))
+        standard = StandardEngine(Readings(about_to=about_to))
         for player in (1, 2):
             mine = generic.move_rewards(generic.from_boards(boards), player)
             theirs = standard.move_rewards(standard.from_boards(boards), player)
@@ -187,7 +190,7 @@ def test_a_game_is_a_built_in_a_shipped_name_or_a_file(tmp_path):
     path.write_text("name: five_four\nrows: 5\ncols: 4\nk: 3\ngravity: true\n")
     game = make_game(str(path))
     assert (game.name, game.n_cells, game.gravity) == ("five_four", 20, True)
-    with pytest.raises(ValueError, match="game must be one of standard, ultimate, connect_four, four or a game YAML file; got 'chess'"):
+    with pytest.raises(ValueError, match=r"game must be one of standard, ultimate, connect_four, four, a game YAML file or an import path MODULE:CLASS / FILE\.py:CLASS; got 'chess'"):
         make_game("chess")
     with pytest.raises(ValueError, match="not found"):
         make_game(str(tmp_path / "missing.yaml"))

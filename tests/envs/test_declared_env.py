@@ -11,8 +11,9 @@ from ncbot.envs import make_env
 from ncbot.envs.dialogue import build_dialogue_model
 from ncbot.envs.opponents import make_opponent
 from ncbot.envs.opponents.arena import play_match
-from ncbot.envs.opponents.bitboards import DRAW, ONGOING, make_bits
-from ncbot.envs.rules import make_game
+from ncbot.envs.games import make_game
+from ncbot.envs.opponents.bitboards import DRAW, ONGOING
+from tests.envs.helpers import search_of as make_bits
 
 
 @pytest.fixture()
@@ -93,5 +94,5 @@ def test_search_and_rule_opponents_beat_random_and_minimax_refuses(five_four):
         strong, weak = make_opponent(name, game=five_four, seed=0), make_opponent("random", game=five_four, seed=1)
         result = play_match(strong, weak, 20, seed=0)
         assert result.first_wins >= 17, (name, result)
-    with pytest.raises(ValueError, match="opponent 'minimax' is exact only for game 'standard'"):
+    with pytest.raises(ValueError, match="opponent 'minimax' needs a game small enough to solve exactly; 'four' is too large"):
         make_opponent("minimax", game="four")

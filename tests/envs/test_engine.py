@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from ncbot.envs.engine import grid_tables, make_engine
+from ncbot.envs.engine import grid_tables
+from tests.envs.helpers import engine_of as make_engine
 from ncbot.envs.rules import LINES_3X3, SUBGRID_CELLS, Standard, Ultimate
 
 torch.set_num_threads(1)

@@ -9,7 +9,7 @@ from torchrl.envs.utils import check_env_specs
 
 from ncbot.envs import make_env
 from ncbot.envs.dialogue import ROBOT_COMMANDS
-from ncbot.envs.external_opponent import ExternalOpponent
+from tests.envs.helpers import QueuedMoves
 from ncbot.envs.rules import LINES_3X3
 
 torch.set_num_threads(1)
@@ -35,7 +35,7 @@ def start_game(env) -> TensorDict:
 
 
 def scripted(starts: str = "robot", **kw):
-    return make_env("standard", batch_size=(1,), first=starts, opponent=ExternalOpponent(), **kw)
+    return make_env("standard", batch_size=(1,), first=starts, opponent=QueuedMoves(), **kw)
 
 
 # ---------------------------------------------------------------- specs and sizes
@@ -169,7 +169,7 @@ def test_lookahead_does_not_change_state(robot_first_env) -> None:
 
 # ---------------------------------------------------------------- features
 def test_features_words_commands_and_temporal() -> None:
-    env = make_env("standard", batch_size=(1,), asr_confidence=(0.25, 0.5), opponent=ExternalOpponent())
+    env = make_env("standard", batch_size=(1,), asr_confidence=(0.25, 0.5), opponent=QueuedMoves())
     td = env.reset()
     assert td["observation"].abs().sum() == 0
     td = act(env, "Salutation(greeting)")
@@ -281,7 +281,7 @@ def test_out_of_range_action(bad: int) -> None:
         env.step(TensorDict({"action": torch.tensor([bad])}, batch_size=[1]))
 
 
-def test_external_opponent_rejects_illegal_queued_move() -> None:
+def test_an_opponent_object_with_rows_plays_queued_moves_and_rejects_illegal_ones() -> None:
     env = scripted("robot")
     start_game(env)
     with pytest.raises(ValueError, match="not legal"):

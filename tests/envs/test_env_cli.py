@@ -34,4 +34,4 @@ def test_bad_game_is_one_line_exit_2() -> None:
     result = subprocess.run([sys.executable, "-m", "ncbot", "env", "describe", "--game", "chess"], capture_output=True, text=True)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        "ncbot: error: game must be one of standard, ultimate, connect_four, four or a game YAML file; got 'chess'"]
+        "ncbot: error: game must be one of standard, ultimate, connect_four, four, a game YAML file or an import path MODULE:CLASS / FILE.py:CLASS; got 'chess'"]

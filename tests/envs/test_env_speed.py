@@ -8,7 +8,7 @@ from torchrl.envs.utils import step_mdp
 
 from ncbot.envs import make_env
 from ncbot.envs.dialogue_env import uniform_choice
-from ncbot.envs.engine import make_engine
+from tests.envs.helpers import engine_of as make_engine
 from ncbot.envs.engine.tables import uniform_choice_by_rows
 
 
@@ -189,7 +189,7 @@ def test_stage_table_equals_phase_rules() -> None:
                     for closed in (False, True):
                         stage = outcome * 2 + marks + ROBOT_FIRST * robot_first + AGREED * agreed + CLOSED * closed
                         expected = dlg.phase_of(agreed, closed, outcome, (marks == 0) == robot_first)
-                        assert int(env._stage_phase[stage]) == expected
+                        assert int(env.tables.stage_phase[stage]) == expected
 
 
 def test_standard_mask_and_lookahead_by_code_equal_engine_path() -> None:
@@ -227,18 +227,18 @@ def test_reply_tables_equal_model_tables_and_follow_edits() -> None:
     options, model_counts = env.model.reply_options, env.model.reply_counts
     width = options.shape[-1]
     for _ in range(2):
-        counts, replies = env._reply_tables()
+        counts, replies = env.user.reply_tables()
         flat, flat_counts = options.reshape(-1, width), model_counts.reshape(-1)
         assert torch.equal(counts, flat_counts)
         for context in range(len(flat_counts)):
             if int(flat_counts[context]) == 0:  # pick = floor(u * 0) = 0 only
-                assert int(replies[context * (width + 1)]) == env._silence
+                assert int(replies[context * (width + 1)]) == env.tables.silence
                 continue
             for pick in range(width + 1):
                 expected = int(flat[context, min(pick, width - 1)])
-                if int(env.model.utterance_acts[expected]) == dlg.USER_MOVE and not bool(env._user_turn[context]):
-                    expected = env._silence  # a move utterance where the user does not move
+                if int(env.model.utterance_acts[expected]) == dlg.USER_MOVE and not bool(env.tables.user_turn[context]):
+                    expected = env.tables.silence  # a move utterance where the user does not move
                 assert int(replies[context * (width + 1) + pick]) == expected
         model_counts[1] = 0  # edit in place: the next read must see it
         options[2, :, 0] = int(torch.nonzero(env.model.utterance_acts == dlg.USER_MOVE)[0])  # a move reply everywhere
-    assert int(env._reply_tables()[0].reshape(model_counts.shape)[1].sum()) == 0
+    assert int(env.user.reply_tables()[0].reshape(model_counts.shape)[1].sum()) == 0

@@ -18,7 +18,7 @@ from ncbot.envs.opponents import make_opponent  # noqa: E402
 from ncbot.envs.opponents.arena import play_match  # noqa: E402
 from ncbot.envs.opponents.openspiel import apply_cell, legal_cells, load_openspiel_game  # noqa: E402
 from ncbot.envs.core import SUBGRID_OF_CELL  # noqa: E402
-from ncbot.envs.rules import make_game  # noqa: E402
+from ncbot.envs.games import make_game  # noqa: E402
 
 OUTCOMES = {1.0: "x", -1.0: "o", 0.0: "draw"}  # OpenSpiel's return of player 0 (x) -> our outcome
 

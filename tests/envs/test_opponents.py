@@ -11,7 +11,8 @@ from ncbot.envs.opponents.arena import play_match
 from ncbot.envs.opponents.base import Opponent
 from ncbot.envs.opponents.bitboards import DRAW, ONGOING, StandardBits, UltimateBits
 from ncbot.envs.opponents.minimax import position_values
-from ncbot.envs.rules import Standard, Ultimate, make_game
+from ncbot.envs.games import make_game
+from ncbot.envs.rules import Standard, Ultimate
 
 torch.set_num_threads(1)
 
@@ -211,7 +212,7 @@ def test_random_opponent_is_uniform_enough() -> None:
 def test_bad_names_and_arguments_raise_clear_errors() -> None:
     with pytest.raises(ValueError, match=r"unknown opponent 'chess'.*random.*rule.*minimax.*mcts:N"):
         make_opponent("chess")
-    with pytest.raises(ValueError, match="minimax.*standard.*mcts"):
+    with pytest.raises(ValueError, match="minimax.*solve exactly.*ultimate.*mcts"):
         make_opponent("minimax", game="ultimate")
     for bad in ("mcts", "mcts:0", "mcts:many"):
         with pytest.raises(ValueError, match="positive simulation count"):
@@ -368,7 +369,7 @@ def test_shared_search_loop_makes_the_decisions_of_the_former_uct_loop() -> None
     120 positions, pinned from the former loop (commit 1c89ae0), must not move."""
     import hashlib
 
-    from ncbot.envs.opponents.bitboards import make_bits
+    from tests.envs.helpers import search_of as make_bits
     from ncbot.envs.opponents.mcts import uct_search
 
     digest = hashlib.sha256()

@@ -210,7 +210,8 @@ def test_config_fields_reach_the_env_and_the_masks() -> None:
     config = load_config(default, ["env.taken_squares=misread", "env.misread_rate=0.1", "env.win_set=wins",
                                    "env.about_to=created", "agent.all_negative=untaken"])
     env = make_run_env(config.env, batch_size=2, seed=0)
-    assert (env.taken_squares, env.misread_rate, env.win_set, env.about_to) == ("misread", 0.1, "wins", "created")
+    readings = env.readings
+    assert (readings.taken_squares, readings.misread_rate, readings.win_set, readings.about_to) == ("misread", 0.1, "wins", "created")
     for overrides, key in ((["env.taken_squares=misread"], "env.misread_rate"),
                            (["env.misread_rate=0.1"], "env.misread_rate"),
                            (["env.taken_squares=maybe"], "env.taken_squares"),

@@ -17,8 +17,8 @@ from ncbot.envs.rules import (
     Standard,
     State,
     Ultimate,
-    make_game,
 )
+from ncbot.envs.games import make_game
 
 VARIANTS = ("anywhere", "open_subgrids")
 

@@ -74,7 +74,7 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
     """The search's and self-play's features (``TurnFeatures``) of real positions: the same planes as the env's
     observation (robot to move), seen from the other side too, and the one-position paths (cell lists, the search's
     bitboards) equal to the batch."""
-    from ncbot.envs.opponents.bitboards import make_bits
+    from tests.envs.helpers import search_of as make_bits
     from ncbot.modules.guided_mcts import TurnFeatures
 
     env = make_env(game, batch_size=(16,), threat_features=True, free_move="open_subgrids", seed=5, first="alternate")

@@ -80,7 +80,7 @@ def test_ultimate_ladder_against_mcts(tmp_path) -> None:
     result = run_ladder(str(checkpoint), games=2, opponents=["mcts:5"], seed=0, out_dir=str(tmp_path / "u"),
                         progress=False)
     assert [r["seat"] for r in result["rows"]] == ["first", "second"]
-    with pytest.raises(ValueError, match="minimax.*standard"):
+    with pytest.raises(ValueError, match="minimax.*solve exactly"):
         run_ladder(str(checkpoint), games=2, opponents=["minimax"], progress=False, out_dir=str(tmp_path / "x"))
 
 

@@ -8,7 +8,7 @@ import sys
 import pexpect
 import pytest
 
-from ncbot.envs.rules import make_game
+from ncbot.envs.games import make_game
 
 PROMPTS = [r"Your move \(e\.g\. [a-i]\d\): ", r"You: ", pexpect.EOF]
 ROW = re.compile(r"^(\d)\s+(\S.*)?$")

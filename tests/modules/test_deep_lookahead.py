@@ -6,7 +6,8 @@ import torch
 
 from ncbot.envs import make_env
 from ncbot.envs.opponents.bitboards import StandardBits, UltimateBits
-from ncbot.envs.rules import DRAWN, EMPTY, O, X, State, make_game
+from ncbot.envs.games import make_game
+from ncbot.envs.rules import DRAWN, EMPTY, O, X, State
 from ncbot.modules.deep_lookahead import KStepLookahead, losing_moves, owners_from_order
 from ncbot.modules.masks import LOOKAHEAD_RULES
 

@@ -167,3 +167,26 @@ def test_search_reads_the_same_q_values_as_the_network(ultimate_checkpoint):
     fast = search._q(pos, last, moves)
     search._reader = None
     assert torch.allclose(torch.tensor(search._q(pos, last, moves)), torch.tensor(fast), atol=1e-5)
+
+
+def test_the_search_plays_a_game_given_only_by_its_rules():
+    """Q-guided search on any game's search positions: misère Noughts & Crosses (docs/examples/misere.py, positions
+    from its table), a fresh network; every move it chooses is legal, the game ends."""
+    import random
+
+    from ncbot.envs.games import load_game
+    from ncbot.envs.opponents.bitboards import ONGOING
+    from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
+    from ncbot.modules.qnet import make_qnet
+
+    game = load_game(f"{Path(__file__).resolve().parents[2] / 'docs' / 'examples' / 'misere.py'}:Misere")
+    features = TurnFeatures(game.id, temporal=True)
+    search = GuidedMCTS(make_qnet(features.n_features, game.n_cells + 9, [16]), features, game.id, simulations=32)
+    engine, rng = game.search_engine(), random.Random(0)
+    pos, moves_played = engine.from_board([0] * 9, 1), 0
+    while engine.result(pos) == ONGOING:
+        moves = engine.moves(pos)
+        move, visits = search.search(pos, moves, rng)
+        assert move in moves and (len(moves) == 1 or sum(visits.values()) > 0)
+        pos, moves_played = engine.play(pos, move), moves_played + 1
+    assert 5 <= moves_played <= 9

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from ncbot.envs.engine import make_engine
+from tests.envs.helpers import engine_of as make_engine
 from ncbot.modules.symmetry import BoardSymmetries, make_symmetries, square_symmetries
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.run_env import make_run_env

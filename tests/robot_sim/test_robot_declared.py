@@ -40,7 +40,7 @@ def test_rendered_connect_four_marks_read_back_in_their_cells(tmp_path):
 def test_every_declared_cell_is_reached_and_a_sheet_out_of_reach_is_refused(sapien_render_system):
     import sapien
 
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import make_game
     from ncbot.robot_sim.reach import check_reach, reach_errors
     from ncbot.robot_sim.scene import PepperScene, SceneConfig
 
@@ -65,7 +65,7 @@ def test_a_whole_connect_four_game_is_played_through_the_camera(sapien_render_sy
     """Gravity with vision in the loop: each of the person's marks lands on the lowest empty square of its column
     and the robot reads it there (through the 6x7 grid reader), the robot draws its own marks, and its belief
     ends equal to the true board."""
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import make_game
     from ncbot.logs import LogReader, read_episodes
     from ncbot.robot_sim.game_config import RobotPlayConfig
     from ncbot.robot_sim.play import play_robot_games

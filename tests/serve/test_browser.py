@@ -154,7 +154,7 @@ def test_a_whole_four_game_through_the_page(tmp_path):
 def test_a_whole_connect_four_game_through_the_page_by_columns(tmp_path):
     """Gravity: the person clicks the TOP square of a column and the mark drops to its lowest empty square, on the
     page and on the sheet the robot reads."""
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import make_game
 
     rules = make_game("connect_four")
     clicked: list[int] = []

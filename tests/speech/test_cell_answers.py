@@ -54,7 +54,7 @@ def test_each_cell_phrase_said_clean_is_heard_as_its_cell(ears_parts):
 
 def test_a_declared_grid_names_cells_by_row_and_column_and_hears_them():
     """The spoken form the declared rules parse ("row two, column three"), one phrase per cell, heard back."""
-    from ncbot.envs.rules import make_game
+    from ncbot.envs.games import make_game
     from ncbot.speech.asr import Recogniser
     from ncbot.speech.cell_answers import AnswerEars, answer_sentences, cell_of, cell_phrase, cell_phrases, words_of
     from ncbot.speech.tts import Voice
