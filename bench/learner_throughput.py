@@ -60,10 +60,10 @@ class Ours:
     """The default pipeline's env, Collector, replay buffer and learners (one per precision, same start weights)."""
 
     def __init__(self, config_path: str) -> None:
-        from ncbot.modules.policy import make_policies
-        from ncbot.modules.qnet import make_qnet, seeded_init
-        from ncbot.modules.symmetry import make_symmetries
-        from ncbot.modules.transitions import make_multistep, prepare_transitions
+        from ncbot.modules.policies.policy import make_policies
+        from ncbot.modules.networks.qnet import make_qnet, seeded_init
+        from ncbot.modules.replay.symmetry import make_symmetries
+        from ncbot.modules.replay.transitions import make_multistep, prepare_transitions
         from ncbot.pipelines.config import load_config
         from ncbot.modules.learner import Learner, make_replay_buffer
         from ncbot.pipelines.run_env import make_run_env

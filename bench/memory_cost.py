@@ -8,7 +8,7 @@ buffer is filled past the burn-in, then each round times, in CPU seconds of this
 robust to a shared machine), `--batches` collected batches (collect + store) and `optim.updates_per_batch`
 updates after each; the settings take turns and the median round is reported as CPU ms per frame.
 `--reference-unroll` adds, for each recurrent setting, a twin whose loss unrolls its slices through TorchRL's
-recurrent mode (`modules.recurrent.unroll_in_recurrent_mode`, the same numbers) instead of on the tensors.
+recurrent mode (`modules.networks.recurrent.unroll_in_recurrent_mode`, the same numbers) instead of on the tensors.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def _parts(config_path: str, overrides: list[str], memory: str):
 
 def _reference_parts(config_path: str, overrides: list[str], memory: str):
     """The parts of `memory` with the loss's unroll swapped for TorchRL's recurrent mode (same numbers, tested)."""
-    from ncbot.modules.recurrent import unroll_in_recurrent_mode
+    from ncbot.modules.networks.recurrent import unroll_in_recurrent_mode
 
     config, parts, batches = _parts(config_path, overrides, memory)
     loss = parts.learner.loss_module
@@ -45,7 +45,7 @@ def _reference_parts(config_path: str, overrides: list[str], memory: str):
 
 
 def _store(config, parts, batch, frames: int) -> None:
-    from ncbot.modules.transitions import prepare_transitions
+    from ncbot.modules.replay.transitions import prepare_transitions
 
     loss = config.loss
     rows = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward, bootstrap=loss.bootstrap,

@@ -14,12 +14,12 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-from ncbot.modules.loss import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
-from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
-from ncbot.modules.symmetry import BoardSymmetries
-from ncbot.modules.prioritized_sampler import ProportionalSampler
-from ncbot.modules.prioritized_slices import PrioritizedSequenceSampler
-from ncbot.modules.transitions import LOSS_KEYS
+from ncbot.modules.objectives.competitive_dqn import PRIORITY_KEY, CompetitiveDQNLoss, make_target_updater
+from ncbot.modules.search.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
+from ncbot.modules.replay.symmetry import BoardSymmetries
+from ncbot.modules.replay.prioritized_sampler import ProportionalSampler
+from ncbot.modules.replay.prioritized_slices import PrioritizedSequenceSampler
+from ncbot.modules.replay.transitions import LOSS_KEYS
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class LearnerSettings:
     lr: float
     weight_decay: float
     max_grad_norm: float
-    # agent.memory (modules/recurrent.py): a recurrent network learnt from slices of dialogues
+    # agent.memory (modules/networks/recurrent.py): a recurrent network learnt from slices of dialogues
     memory: str = "none"
     sequence_length: int = 16
     burn_in: int = 0
@@ -52,7 +52,7 @@ def scheduled_lr(frames: int, lr: float, lr_end: float | None, total_frames: int
 
 def make_loss(qnet: TensorDictModule, *, loss_function: str = "l2", double_dqn: bool = False,
               precision: str = "fp32", gamma: float = 0.99) -> CompetitiveDQNLoss:
-    """The competitive DQN loss reading the transitions `ncbot.modules.transitions.prepare_transitions` stores (its
+    """The competitive DQN loss reading the transitions `ncbot.modules.replay.transitions.prepare_transitions` stores (its
     learning reward and bootstrap mask: `LOSS_KEYS`), with its TD(0) value estimator."""
     loss_module = CompetitiveDQNLoss(qnet, loss_function=loss_function, double_dqn=double_dqn, precision=precision)
     loss_module.set_keys(**LOSS_KEYS)
@@ -64,12 +64,12 @@ def make_replay_buffer(size: int, batch_size: int, *, prioritized: bool = False,
                        beta: float = 0.4, sequence_length: int | None = None,
                        device: torch.device | str = "cpu") -> TensorDictReplayBuffer:
     """The run's replay buffer: TorchRL's TensorDictReplayBuffer over a LazyTensorStorage, with its uniform
-    RandomSampler or, `prioritized`, a proportional one (`ncbot.modules.prioritized_sampler`: rows drawn by the loss's
+    RandomSampler or, `prioritized`, a proportional one (`ncbot.modules.replay.prioritized_sampler`: rows drawn by the loss's
     |TD error|, each with its importance weight `priority_weight`); with a `sequence_length` (agent.memory), slices
-    of dialogues (`ncbot.modules.recurrent.make_sequence_buffer`; `prioritized`: by R2D2's sequence priority). The storage lives on `device` (the learner's: sampled
+    of dialogues (`ncbot.modules.networks.recurrent.make_sequence_buffer`; `prioritized`: by R2D2's sequence priority). The storage lives on `device` (the learner's: sampled
     batches need no copy; the uniform sampler draws its indices there)."""
     if sequence_length is not None:
-        from ncbot.modules.recurrent import make_sequence_buffer
+        from ncbot.modules.networks.recurrent import make_sequence_buffer
 
         return make_sequence_buffer(size, batch_size, sequence_length, device, prioritized=prioritized, alpha=alpha,
                                     beta=beta)
@@ -107,8 +107,8 @@ class Learner:
     @classmethod
     def build(cls, qnet: TensorDictModule, settings: LearnerSettings,
               symmetries: BoardSymmetries | None = None) -> "Learner":
-        if settings.memory != "none":  # slices of dialogues through the recurrent network (modules/recurrent.py)
-            from ncbot.modules.recurrent import make_sequence_loss
+        if settings.memory != "none":  # slices of dialogues through the recurrent network (modules/networks/recurrent.py)
+            from ncbot.modules.networks.recurrent import make_sequence_loss
 
             loss_module = make_sequence_loss(qnet, settings, symmetries)
             symmetries = None  # the loss turns whole slices

@@ -144,7 +144,7 @@ def game_actions(game: str) -> int:
 
 
 def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:
-    """The state-dict shapes `ncbot.modules.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
+    """The state-dict shapes `ncbot.modules.networks.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
     widths = [n_features, *hidden, n_actions]
     shapes: dict[str, tuple[int, ...]] = {}
     for layer, (inputs, outputs) in enumerate(zip(widths, widths[1:])):
@@ -163,8 +163,8 @@ def _require(data: dict[str, Any], keys: dict[str, Any], path: Path, expected: s
 
 def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
     """The Q-network weights match the sizes the config builds; ValueError naming the first mismatch."""
-    if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/recurrent.py
-        from ncbot.modules.recurrent import recurrent_qnet_shapes
+    if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/networks/recurrent.py
+        from ncbot.modules.networks.recurrent import recurrent_qnet_shapes
 
         expected = recurrent_qnet_shapes(data["n_features"], data["n_actions"], config.agent)
     else:

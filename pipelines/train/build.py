@@ -21,13 +21,13 @@ class TrainingParts:
 
     env: Any
     qnet: Any
-    agent: Any  # modules.policy.AgentPolicies: greedy, explore and its egreedy module
+    agent: Any  # modules.policies.policy.AgentPolicies: greedy, explore and its egreedy module
     learner: Any  # modules.learner.Learner
     buffer: Any
     multistep: Any  # TorchRL's MultiStepTransform, or None for one-step targets
-    teacher: Any = None  # modules.search_targets.SearchTeacher of `search_targets`, or None
+    teacher: Any = None  # modules.search.search_targets.SearchTeacher of `search_targets`, or None
     selfplay_pool: Any = None  # pipelines.train.selfplay's snapshot pool of `selfplay`, or None
-    sequence_rows: Any = None  # agent.memory: modules.recurrent.SequenceRows (dialogue id, step, hidden state)
+    sequence_rows: Any = None  # agent.memory: modules.networks.recurrent.SequenceRows (dialogue id, step, hidden state)
     device: torch.device = torch.device("cpu")  # of the networks, loss, optimiser and replay storage (train.device)
     counters: dict[str, Any] = field(default_factory=lambda: {"frames": 0, "updates": 0, "episodes": 0,
                                                               "wall_offset": 0.0, "cpu_offset": 0.0})
@@ -100,10 +100,10 @@ def build_parts(config: RunConfig, seed: int, frames_done: int) -> TrainingParts
     the checkpoint it resumes from, which also seed the env so a resumed run plays new games)."""
     from ncbot.modules.device import resolve_device
     from ncbot.modules.learner import Learner, make_replay_buffer
-    from ncbot.modules.policy import make_policies
-    from ncbot.modules.recurrent import SequenceRows, make_agent_qnet, memory_env
-    from ncbot.modules.symmetry import make_symmetries
-    from ncbot.modules.transitions import make_multistep
+    from ncbot.modules.policies.policy import make_policies
+    from ncbot.modules.networks.recurrent import SequenceRows, make_agent_qnet, memory_env
+    from ncbot.modules.replay.symmetry import make_symmetries
+    from ncbot.modules.replay.transitions import make_multistep
     from ncbot.pipelines.run_env import make_run_env
 
     # --- env and agent -------------------------------------------------------------------------------------------
@@ -201,18 +201,18 @@ def check_teacher_value(config: RunConfig) -> None:
     if config.env.game != "ultimate":
         raise ValueError(f"config key 'search_targets.value' scores Ultimate positions; this run plays "
                          f"{config.env.game} (leave it null)")
-    from ncbot.modules.value_net import load_value_net
+    from ncbot.modules.search.value_net import load_value_net
 
     with torch.random.fork_rng():
         load_value_net(settings.value, config.env.free_move)
 
 
 def make_teacher(config: RunConfig, greedy: Any, seed: int):
-    """The search teacher of `search_targets` (modules/search_targets.py) on the run's own Q-network, or None."""
+    """The search teacher of `search_targets` (modules/search/search_targets.py) on the run's own Q-network, or None."""
     settings = config.search_targets
     if not settings.enabled:
         return None
-    from ncbot.modules.search_targets import SearchTeacher
+    from ncbot.modules.search.search_targets import SearchTeacher
     from ncbot.pipelines.agents import guided_search
 
     with torch.random.fork_rng():  # building it draws no number from the run's stream: same run up to start_frames

@@ -93,8 +93,8 @@ class TrainingLoop:
 
     def store(self, batch: Any) -> None:
         """A collected batch into the replay buffer (learning reward, bootstrap mask and n-step windows under their
-        own keys: modules/transitions.py), the search teacher, the MCAP log; then epsilon and self-play move on."""
-        from ncbot.modules.transitions import prepare_transitions
+        own keys: modules/replay/transitions.py), the search teacher, the MCAP log; then epsilon and self-play move on."""
+        from ncbot.modules.replay.transitions import prepare_transitions
 
         config, parts, counters = self.config, self.parts, self.counters
         loss = config.loss

@@ -27,8 +27,8 @@ from torch import nn
 
 from ncbot.envs.opponents.base import Opponent
 from ncbot.envs.opponents.bitboards import make_bits
-from ncbot.modules.deep_lookahead import win_in_one
-from ncbot.modules.guided_mcts import TurnFeatures
+from ncbot.modules.policies.deep_lookahead import win_in_one
+from ncbot.modules.search.guided_mcts import TurnFeatures
 from ncbot.pipelines.config import SelfPlayConfig
 
 

@@ -7,8 +7,8 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torch import nn
 
-from ncbot.modules.loss import CompetitiveDQNLoss, make_target_updater
-from ncbot.modules.qnet import make_qnet
+from ncbot.modules.objectives.competitive_dqn import CompetitiveDQNLoss, make_target_updater
+from ncbot.modules.networks.qnet import make_qnet
 
 torch.set_num_threads(1)
 N_ACTIONS = 4
@@ -179,7 +179,7 @@ def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDic
 
 def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
     from ncbot.modules.learner import make_loss
-    from ncbot.modules.qnet import seeded_init
+    from ncbot.modules.networks.qnet import seeded_init
 
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
@@ -254,7 +254,7 @@ def _filled_buffer(size: int = 300, batch: int = 48):
 
 
 def _learner(batch_size: int | None = None, **loss_settings):
-    from ncbot.modules.qnet import seeded_init
+    from ncbot.modules.networks.qnet import seeded_init
     from ncbot.modules.learner import Learner
     from ncbot.pipelines.config import RunConfig
     from ncbot.pipelines.train.build import learner_settings

@@ -12,7 +12,7 @@ from tensordict import TensorDict
 
 from ncbot.pipelines.config import load_config
 from ncbot.modules.learner import make_replay_buffer
-from ncbot.modules.prioritized_sampler import ProportionalSampler
+from ncbot.modules.replay.prioritized_sampler import ProportionalSampler
 from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 from tests.modules.test_loss import _learner, mlp_loss, mlp_transitions

@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
-from ncbot.modules.policy import make_policies
-from ncbot.modules.qnet import make_qnet, seeded_init
-from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
+from ncbot.modules.search.guided_mcts import GuidedMCTS, TurnFeatures
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.networks.qnet import make_qnet, seeded_init
+from ncbot.modules.search.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.run_env import make_run_env
 from ncbot.pipelines.train.build import make_collector
@@ -155,7 +155,7 @@ def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
     (["search_targets.value={value}", "env.free_move=open_subgrids"], "trained on the 'anywhere' free-move rule"),
 ])
 def test_a_bad_teacher_value_network_is_one_line_before_the_run_folder_is_made(tmp_path: Path, overrides, message) -> None:
-    from ncbot.modules.value_net import make_value_net, value_checkpoint
+    from ncbot.modules.search.value_net import make_value_net, value_checkpoint
     from tests.learning_helpers import ncbot
 
     value = tmp_path / "value.pt"

@@ -110,7 +110,7 @@ def test_tiny_run_on_cpu_equals_the_run_on_auto_here(tmp_path: Path) -> None:
 def test_cpu_adapters_change_nothing() -> None:
     """On the CPU the evaluation calls the policy itself and a checkpoint's state is saved as it is."""
     from ncbot.modules.device import on_device, to_cpu
-    from ncbot.modules.qnet import MLPReader, make_qnet
+    from ncbot.modules.networks.qnet import MLPReader, make_qnet
 
     qnet = make_qnet(5, 3, [4])
     assert on_device(qnet) is qnet
@@ -179,7 +179,7 @@ def test_learner_networks_and_replay_storage_live_on_cuda(tmp_path: Path) -> Non
         assert parts.learner.symmetries.generator.device.type == "cuda"
         assert parts.learner.loss_module.autocast_type == "cuda"
         # a few real updates on batches the env made: the state lives on the GPU, the Adam moments too
-        from ncbot.modules.transitions import prepare_transitions
+        from ncbot.modules.replay.transitions import prepare_transitions
         from ncbot.pipelines.train.build import make_collector
 
         collector = make_collector(parts.env, parts.agent.explore, 128, 256, device=parts.device)
@@ -274,7 +274,7 @@ def test_tiny_ultimate_run_on_cuda_completes(tmp_path: Path) -> None:
 @pytest.mark.cuda
 def test_guided_search_reads_a_network_on_cuda(tmp_path: Path) -> None:
     from ncbot.pipelines.agents import guided_search, load_agent
-    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.search.guided_mcts import GuidedMCTSPolicy
     from ncbot.pipelines.evaluate.games import evaluate_agent
     from ncbot.pipelines.train.run import train
 

@@ -1,4 +1,4 @@
-"""agent.memory (modules/recurrent.py) with real TorchRL parts: the hidden state runs through a dialogue and
+"""agent.memory (modules/networks/recurrent.py) with real TorchRL parts: the hidden state runs through a dialogue and
 restarts with the next, replayed slices stay inside one dialogue, the loss unrolls them as the actor stepped,
 a tiny recurrent run trains, checkpoints and evaluates, and memory none changes nothing."""
 from __future__ import annotations
@@ -13,14 +13,14 @@ from tensordict import TensorDict
 
 from ncbot.envs import make_env
 from ncbot.modules.learner import Learner, LearnerSettings
-from ncbot.modules.loss import make_target_updater
-from ncbot.modules.prioritized_slices import sequence_priority
-from ncbot.modules.policy import make_policies
-from ncbot.modules.recurrent import (
+from ncbot.modules.objectives.competitive_dqn import make_target_updater
+from ncbot.modules.replay.prioritized_slices import sequence_priority
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.networks.recurrent import (
     EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
     make_sequence_buffer, memory_env, unroll_in_recurrent_mode,
 )
-from ncbot.modules.transitions import LOSS_KEYS, prepare_transitions
+from ncbot.modules.replay.transitions import LOSS_KEYS, prepare_transitions
 from ncbot.pipelines.checkpoint import load_checkpoint
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.train.build import make_collector

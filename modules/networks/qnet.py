@@ -35,7 +35,7 @@ def make_qnet(n_features: int, n_actions: int, hidden: Sequence[int] = (100, 100
 
 class MLPReader:
     """One-position reads of a Linear/ReLU ``nn.Sequential`` in numpy (``make_qnet``'s network, the value network
-    of ``ncbot.modules.value_net``): ``reader(x)`` for a (F,) float32 array is the network's output as a float32 array.
+    of ``ncbot.modules.search.value_net``): ``reader(x)`` for a (F,) float32 array is the network's output as a float32 array.
 
     Why: the searches read a network once per simulation on one position. At that size torch's per-op dispatch
     (``nn.Module.__call__``, autograd's no-grad guard, ``F.linear``) costs more than the products; numpy's

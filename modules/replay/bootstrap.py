@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from tensordict import TensorDictBase
 
-from ncbot.modules.masks import lookahead_rule
+from ncbot.modules.policies.masks import lookahead_rule
 
 BOOTSTRAP_CHOICES = ("available", "greedy")
 NEXT_LOOKAHEAD_KEYS = (("next", "lookahead_reward"), ("next", "winning_actions"))

@@ -1,6 +1,6 @@
 """A position-value network for Ultimate: the leaf evaluator that lets the Q-guided search drop random playouts.
 
-Why: the Q-guided search (``ncbot.modules.guided_mcts``) scored a leaf by 25 % of the Q-network's value and 75 % of one
+Why: the Q-guided search (``ncbot.modules.search.guided_mcts``) scored a leaf by 25 % of the Q-network's value and 75 % of one
 random playout. The Q-values were learnt against a random user, and one playout is a coin toss; against
 ``mcts:10000`` (which averages ten thousand playouts a move) that search scored 0.15. This network is trained
 (``ncbot.pipelines.train.value_training``) to predict the root value a plain UCT search finds from a position, so one
@@ -14,7 +14,7 @@ flag, the open subgrids where each side could complete a line with one mark (2 x
 complete a line of subgrids (2): ``N_FEATURES`` = 219. The threats are what an MLP finds hard to compute from
 marks: with them the error on held-out games fell from 0.0045 to 0.0028 (docs/ultimate.md). The network's output
 is a logit; its sigmoid is the mover's expected score (win 1, draw 0.5, loss 0). The eight symmetries of the
-square act on subgrids and squares alike (``ncbot.modules.symmetry.square_symmetries``), so training sees every
+square act on subgrids and squares alike (``ncbot.modules.replay.symmetry.square_symmetries``), so training sees every
 position in eight orientations.
 """
 from __future__ import annotations
@@ -29,8 +29,8 @@ from torch import nn
 
 from ncbot.envs.opponents.bitboards import COMPLETING, ONGOING
 from ncbot.envs.opponents.search import Node, Rand, RandomRollout, result_value
-from ncbot.modules.qnet import MLPReader
-from ncbot.modules.symmetry import square_symmetries
+from ncbot.modules.networks.qnet import MLPReader
+from ncbot.modules.replay.symmetry import square_symmetries
 
 VALUE_FORMAT = "ncbot-value-v1"
 N_FEATURES = 219

@@ -2,7 +2,7 @@
 
 A rule maps the env's `action_mask` (available actions), `lookahead_reward` (one-step reward of every action) and
 `winning_actions` (the paper's set A when non-empty) to (explore mask, greedy mask). The deeper rules of
-`ncbot.modules.deep_lookahead` build on these keys; `ncbot.modules.masks` names every rule in one table.
+`ncbot.modules.policies.deep_lookahead` build on these keys; `ncbot.modules.policies.masks` names every rule in one table.
 
 When every allowed action has a negative look-ahead reward, the paper leaves the greedy choice open (Algorithm 2
 takes the argmax over A minus A_hat, which is then empty). The option ``agent.all_negative`` decides:

@@ -1,6 +1,6 @@
 """Targets improved by search: the Q-network is also trained towards the moves its own Q-guided search picks.
 
-Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``ncbot.modules.guided_mcts``: priors from the
+Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``ncbot.modules.search.guided_mcts``: priors from the
 current Q-network, leaves scored by Q plus random playouts or by a value network) is a better player than the greedy
 network it starts from, so its choices are labels. Each label is (observation, greedy mask, searched move); the learner adds DQfD's
 large-margin loss (Hester et al. 2018) on a batch of labels to the TD loss:
@@ -20,8 +20,8 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-from ncbot.modules.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
-from ncbot.modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from ncbot.modules.search.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
+from ncbot.modules.policies.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
 
 EXPERT_ACTION_KEY = "expert_action"
 LABEL_MASK_KEY = "label_mask"  # the searched move and the moves the label ranks it above

@@ -31,11 +31,11 @@ Sequence replay (`make_sequence_buffer`, `SequenceRows`, `SequenceDQNLoss`), cho
 - Targets: one unroll of the online and one of the target network over the L + 1 observations
   (obs_0, next_obs_0, ..., next_obs_{L-1}) gives Q(s_t) and Q(s_{t+1}) from the same hidden-state history;
   y_t = r_t + gamma * max over the next bootstrap mask of Q_target(s_{t+1}) (r_t alone on terminated steps),
-  the target of `ncbot.modules.loss.CompetitiveDQNLoss`; double DQN picks a' with the online unroll.
+  the target of `ncbot.modules.objectives.competitive_dqn.CompetitiveDQNLoss`; double DQN picks a' with the online unroll.
 - Defaults L = 16, burn-in 4, 128 memory units: a 3x3 dialogue is ~10-15 acts, so most slices are whole
   dialogues; on Ultimate (~50-70 acts) the slices start inside dialogues and the burn-in matters.
 - Prioritised replay (`buffer.prioritized`): slices drawn by R2D2's sequence priority
-  (`ncbot.modules.prioritized_slices`); the loss weights each slice by its importance weight and writes its priority.
+  (`ncbot.modules.replay.prioritized_slices`); the loss weights each slice by its importance weight and writes its priority.
 Not combined with memory (one-line config errors): n-step returns, bf16, self-play and the search teacher (they
 read the network as an MLP or the buffer as transitions).
 """
@@ -53,9 +53,9 @@ from torchrl.modules.utils import get_primers_from_module
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import distance_loss
 
-from ncbot.modules.loss import LOSS_FUNCTIONS, PRIORITY_KEY, CompetitiveDQNLoss
-from ncbot.modules.prioritized_slices import PrioritizedSequenceSampler, sequence_priority
-from ncbot.modules.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
+from ncbot.modules.objectives.competitive_dqn import LOSS_FUNCTIONS, PRIORITY_KEY, CompetitiveDQNLoss
+from ncbot.modules.replay.prioritized_slices import PrioritizedSequenceSampler, sequence_priority
+from ncbot.modules.networks.qnet import ACTION_VALUE_KEY, OBSERVATION_KEY, make_qnet, seeded_init
 
 MEMORY_CHOICES = ("none", "gru", "lstm")
 IS_INIT_KEY = "is_init"  # TorchRL's InitTracker key: True on the first step of a dialogue
@@ -77,7 +77,7 @@ def make_recurrent_qnet(n_features: int, n_actions: int, hidden: Sequence[int] =
                         memory: str = "gru", memory_size: int = 128) -> TensorDictSequential:
     """observation -> MLP (`hidden`, ReLU) -> GRU/LSTM (`memory_size`) -> linear head -> `action_value`."""
     if check_memory(memory) == "none":
-        raise ValueError("make_recurrent_qnet builds agent.memory gru or lstm; use modules.qnet.make_qnet for none")
+        raise ValueError("make_recurrent_qnet builds agent.memory gru or lstm; use modules.networks.qnet.make_qnet for none")
     trunk = make_qnet(n_features, 1, hidden).module[:-1]  # the same Linear/ReLU stack, without the Q head
     width = int(hidden[-1])
     state = STATE_KEYS[memory]
@@ -149,7 +149,7 @@ def make_sequence_buffer(size: int, batch_size: int, sequence_length: int, devic
                          prioritized: bool = False, alpha: float = 0.6, beta: float = 0.4) -> TensorDictReplayBuffer:
     """TorchRL replay buffer whose `SliceSampler` draws `batch_size // sequence_length` slices of one dialogue
     each, padded to `sequence_length` (see module doc); `prioritized`: slices drawn by their R2D2 priority
-    (`ncbot.modules.prioritized_slices`)."""
+    (`ncbot.modules.replay.prioritized_slices`)."""
     if batch_size % sequence_length:
         raise ValueError(f"buffer.batch_size ({batch_size}) must be a multiple of buffer.sequence_length "
                          f"({sequence_length}) with agent.memory")
@@ -185,7 +185,7 @@ class SequenceRows:
         episode = torch.cat([self.current.unsqueeze(1), starts], dim=1).cummax(dim=1).values[:, 1:]
         if bool((episode < 0).any()):
             raise ValueError("a collected step belongs to no dialogue (no is_init seen before it): the env must be "
-                             "wrapped by modules.recurrent.memory_env")
+                             "wrapped by modules.networks.recurrent.memory_env")
         self.current = episode[:, -1].clone()
         # the step number counts from each dialogue's first step (also for one that began in an earlier batch)
         first_seen = torch.where(is_init, torch.arange(steps).expand(rows, steps), torch.full_like(frame, -1))
@@ -219,7 +219,7 @@ def unroll_in_recurrent_mode(qnet: TensorDictSequential, observations: torch.Ten
 def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) -> "SequenceDQNLoss":
     """The loss of a recurrent learner from `ncbot.modules.learner.LearnerSettings` (memory, sequence_length, burn_in,
     loss_function, double_dqn, gamma), reading the transitions' learning reward and bootstrap mask (`LOSS_KEYS`)."""
-    from ncbot.modules.transitions import LOSS_KEYS
+    from ncbot.modules.replay.transitions import LOSS_KEYS
 
     loss = SequenceDQNLoss(qnet, sequence_length=settings.sequence_length, burn_in=settings.burn_in,
                            loss_function=settings.loss_function, double_dqn=settings.double_dqn, symmetries=symmetries)
@@ -229,7 +229,7 @@ def make_sequence_loss(qnet: TensorDictSequential, settings, symmetries=None) ->
 
 
 class SequenceDQNLoss(LossModule):
-    """The competitive DQN loss (`ncbot.modules.loss.CompetitiveDQNLoss`: same keys, same target) on slices of
+    """The competitive DQN loss (`ncbot.modules.objectives.competitive_dqn.CompetitiveDQNLoss`: same keys, same target) on slices of
     dialogues, unrolling the recurrent network over each slice (see module doc)."""
 
     _AcceptedKeys = CompetitiveDQNLoss._AcceptedKeys

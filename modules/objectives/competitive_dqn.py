@@ -4,7 +4,7 @@ Target: y = r on terminated steps, else r + gamma^k * max over the next state's 
 network's Q(s', a'), where k is the transition's `steps_to_next_obs` (1 unless n-step returns wrote it). The mask
 is read from ("next", tensor_keys.bootstrap_mask): by default the env's ("next", "action_mask"), i.e. every
 available action (the paper); training wires it with `set_keys` to ("next", "bootstrap_mask"), which
-`modules/transitions.py` fills with the available or the greedy set (`loss.bootstrap`). The reward is read from
+`modules/replay/transitions.py` fills with the available or the greedy set (`loss.bootstrap`). The reward is read from
 ("next", tensor_keys.reward), wired in training to ("next", "learning_reward"). The error is taken on Q(s, a) (the
 paper's Q(s', a') in the error term is a typo). Optional double DQN: the online network picks a' inside the mask,
 the target network scores it. The target network is `value_network` on TorchRL's target parameters (bound once
@@ -27,9 +27,9 @@ from torchrl.objectives import HardUpdate, LossModule, SoftUpdate, ValueEstimato
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
 
-from ncbot.modules.argmax import MaskedArgmax
-from ncbot.modules.masks import AVAILABLE_KEY
-from ncbot.modules.qnet import ACTION_VALUE_KEY, QValues
+from ncbot.modules.networks.argmax import MaskedArgmax
+from ncbot.modules.policies.masks import AVAILABLE_KEY
+from ncbot.modules.networks.qnet import ACTION_VALUE_KEY, QValues
 
 BOOTSTRAP_VALUE_KEY = "bootstrap_value"  # max of Q over the bootstrap mask, written by `value_network`
 PRIORITY_KEY = "td_error"  # |Q(s, a) - y| per row, written by the loss for a prioritised replay buffer
