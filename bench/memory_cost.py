@@ -26,10 +26,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tre
 
 def _parts(config_path: str, overrides: list[str], memory: str):
     from ncbot.pipelines.config import load_config
-    from ncbot.pipelines.train.build import build_parts, frames_per_batch, make_collector
+    from ncbot.pipelines.train.build import assemble, check_run, frames_per_batch, make_collector
 
     config = load_config(config_path, [*overrides, f"agent.memory={memory}", "logger.mcap=false"])
-    parts = build_parts(config, config.train.seed, 0)
+    parts = assemble(config, check_run(config), config.train.seed)
     collector = make_collector(parts.env, parts.agent.explore, frames_per_batch(config), -1)
     return config, parts, iter(collector)
 
@@ -39,19 +39,19 @@ def _reference_parts(config_path: str, overrides: list[str], memory: str):
     from ncbot.modules.networks.recurrent import unroll_in_recurrent_mode
 
     config, parts, batches = _parts(config_path, overrides, memory)
-    loss = parts.learner.loss_module
+    loss = parts.learner.objective
     loss._unroll = lambda observations, states: unroll_in_recurrent_mode(loss.value_network, observations, states)
     return config, parts, batches
 
 
 def _store(config, parts, batch, frames: int) -> None:
-    from ncbot.modules.replay.transitions import prepare_transitions
+    """What the training loop stores of a batch: its transitions, with the recurrent replay hook's keys."""
+    from ncbot.pipelines.train.hooks import RecurrentReplay
 
-    loss = config.loss
-    rows = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward, bootstrap=loss.bootstrap,
-                               lookahead=config.lookahead, multistep=parts.multistep)
-    if parts.sequence_rows is not None:
-        rows = parts.sequence_rows(batch, rows, frames)
+    rows = parts.transitions(batch)
+    for hook in parts.hooks:
+        if isinstance(hook, RecurrentReplay):
+            rows = hook.rows(batch, rows, frames)
     parts.buffer.extend(rows)
 
 

@@ -202,19 +202,11 @@ def register_agent_opponent() -> None:
 def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""
-    from ncbot.modules.search.guided_mcts import GuidedMCTS, TurnFeatures
     from ncbot.modules.networks.recurrent import require_feedforward
+    from ncbot.modules.search.guided_mcts import policy_search
 
     require_feedforward(config, "the Q-guided search")
-    free_move = free_move or config.env.free_move
-    value_net = None
-    if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
-        from ncbot.modules.search.value_net import load_value_net
-
-        value_net = load_value_net(value, free_move)
-    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policies.policy.make_policies)
-    features = TurnFeatures(config.env.game, config.env.temporal, free_move, config.env.threats)
-    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations, value_net=value_net)
+    return policy_search(greedy, config.env, simulations, free_move, value)
 
 
 def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):

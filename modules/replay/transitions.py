@@ -2,7 +2,7 @@
 call (`prepare_transitions`), so the training loop has one line between the Collector and the buffer.
 
 Keys written (nothing the env wrote changes meaning; the loss reads the new keys through its `set_keys`,
-`LOSS_KEYS`, wired by `ncbot.modules.learner.make_loss`):
+`LOSS_KEYS`, wired by `ncbot.pipelines.train.build.make_objective`):
 - ("next", "learning_reward"): the reward the learner trains on (modules/replay/rewards.py, `loss.reward`);
 - ("next", "bootstrap_mask"): the next actions the TD target maximises over (modules/replay/bootstrap.py,
   `loss.bootstrap`);

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import random
 import time
+from typing import Any
 
 import numpy as np
 import torch
@@ -355,3 +356,18 @@ def parse_qmcts(arg: str | None) -> tuple[int, str]:
         raise ValueError(f"opponent 'qmcts' needs a simulation budget and a checkpoint, e.g. "
                          f"'qmcts:100:runs/default/checkpoint.pt'; got 'qmcts:{arg or ''}'")
     return simulations, checkpoint
+
+
+def policy_search(greedy: nn.Module, env: Any, simulations: int, free_move: str | None = None,
+                  value: str | None = None) -> GuidedMCTS:
+    """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an agent's greedy
+    policy (its chain starts with the Q-network, ``ncbot.modules.policies.policy.make_policies``); ``env`` is the
+    agent's env config section (game, temporal, free_move, threats)."""
+    free_move = free_move or env.free_move
+    value_net = None
+    if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
+        from ncbot.modules.search.value_net import load_value_net
+
+        value_net = load_value_net(value, free_move)
+    features = TurnFeatures(env.game, env.temporal, free_move, env.threats)
+    return GuidedMCTS(greedy[0].module, features, env.game, free_move, simulations, value_net=value_net)

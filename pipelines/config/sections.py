@@ -207,8 +207,17 @@ class ScheduleConfig(Section):
 
 
 class LossConfig(Section):
-    """Competitive DQN target and error."""
+    """The objective (a TorchRL loss), its target and error."""
 
+    # the objective (modules/objectives/): competitive_dqn (the paper's loss, on replayed transitions) |
+    # recurrent_dqn (the same on replayed slices of dialogues, for agent.memory) | a user's TorchRL loss by import
+    # path, pkg.module:NameLoss or path/to/file.py:NameLoss (docs/learning.md); null = recurrent_dqn with
+    # agent.memory, else competitive_dqn
+    objective: str | None = None
+    # TorchRL value estimator of the target: td0 (the paper's; with n_step > 1, n-step returns) | td1 | td_lambda
+    # (whole replayed sequences only: recurrent_dqn)
+    value_estimator: Literal["td0", "td1", "td_lambda"] = "td0"
+    lmbda: Fraction = 0.95  # lambda of td_lambda
     gamma: Fraction = 0.7  # paper: 0.7
     reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.replay.rewards); metrics use paper
     # outcome reward for a lost game (paper scale: -5). Against the random user a -5 loss is worth risking for a
@@ -227,6 +236,15 @@ class LossConfig(Section):
     # which next actions the TD target maximises over (modules/replay/bootstrap.py): every available one (the paper) or
     # only the agent's greedy set, the actions it can actually play; untrained actions outside it inflate targets
     bootstrap: Literal["available", "greedy"] = "available"
+
+    @field_validator("objective")
+    @classmethod
+    def _known_objective(cls, objective: str | None) -> str | None:
+        """A built-in name or an import path (imported when the run is built); a file becomes its absolute path, so
+        a run folder's config names the same objective from anywhere."""
+        from ncbot.modules.objectives.names import objective_name
+
+        return None if objective is None else objective_name(objective)
 
 
 class TrainConfig(Section):
@@ -374,6 +392,13 @@ class RunConfig(Section):
         for key, clash, allowed, why in unsupported:
             if clash:
                 raise ValueError(f"config key '{key}' must be {allowed} with agent.memory={memory} ({why})")
+
+    @property
+    def objective(self) -> str:
+        """The objective this run learns with: `loss.objective`, else the default for its network."""
+        from ncbot.modules.objectives.names import default_objective
+
+        return self.loss.objective or default_objective(self.agent.memory)
 
     @property
     def lookahead(self) -> str:
