@@ -1,10 +1,10 @@
-"""A user's objective for ncbot, outside the package: masked double DQN with a Huber error, as a TorchRL loss.
+"""A user's objective for ncbot, outside the package: masked double DQN, as a TorchRL loss.
 
     ncbot train default --out runs/double loss.objective=docs/examples/double_dqn.py:MaskedDoubleDQNLoss
 
 Double DQN (van Hasselt et al. 2016) lets the online network pick the next action and the target network score
 it, which removes the max operator's over-estimation. Here the pick stays inside the next state's bootstrap mask
-(the moves the agent may play there), as in ncbot's own `competitive_dqn`, and the error is Huber's (smooth L1).
+(the moves the agent may play there), as in ncbot's own `competitive_dqn`.
 
 What ncbot asks of an objective (docs/learning.md, "Write your own objective"), all TorchRL's public API:
 - a `LossModule` whose `__init__` takes the Q-network first (and, by keyword, any of the run's options it names:
@@ -30,7 +30,7 @@ from torchrl.objectives.value import TD0Estimator
 
 
 class MaskedDoubleDQNLoss(LossModule):
-    """Double DQN whose online argmax runs over the next state's bootstrap mask; Huber error by default."""
+    """Double DQN whose online argmax runs over the next state's bootstrap mask."""
 
     @dataclass
     class _AcceptedKeys:
@@ -51,9 +51,9 @@ class MaskedDoubleDQNLoss(LossModule):
     value_network_params: TensorDictParams
     target_value_network_params: TensorDictParams
 
-    def __init__(self, value_network: TensorDictModule, *, loss_function: str = "smooth_l1") -> None:
+    def __init__(self, value_network: TensorDictModule, *, loss_function: str = "l2") -> None:
         super().__init__()
-        self.loss_function = "smooth_l1" if loss_function == "l2" else loss_function  # Huber unless asked otherwise
+        self.loss_function = {"huber": "smooth_l1"}.get(loss_function, loss_function)  # TorchRL's distance_loss name
         self.convert_to_functional(value_network, "value_network", create_target_params=True)
 
     @property

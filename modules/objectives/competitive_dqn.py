@@ -12,19 +12,23 @@ mask, the target network scores it (handed to the estimator as `next_value`, as 
 
 The target network is the value network (Q-network + masked max) on TorchRL's target parameters
 (`convert_to_functional(..., create_target_params=True)`), refreshed in place by `HardUpdate` (every C updates, the
-paper) or `SoftUpdate`. TorchRL's TD(0) estimator runs it (`value_estimate(td, target_params=...)`); n-step returns
-are TD(0) over the window (`steps_to_next_obs`). TD(1) and TD(lambda) need whole sequences (`recurrent_dqn`).
+paper) or `SoftUpdate`. TorchRL's TD(0) estimator runs it on the next states (`step_mdp`); n-step returns are TD(0)
+over the window (`steps_to_next_obs`). TD(1) and TD(lambda) need whole sequences (`recurrent_dqn`). The estimator
+runs a copy of the value network bound to the target parameters (`TargetNetwork`) rather than swapping them into
+the value network at every update as `value_estimate(td, target_params=...)` does: the same bits, and at the
+paper's batch of 2 the swap costs more than the target pass itself (bench/target_network.py, docs/learner-speed.md).
 
 `precision="bf16"` runs the Q-network's products in bfloat16 under autocast on the network's device while weights,
 gradients and the loss stay float32 (docs/learner-speed.md).
 """
 from __future__ import annotations
 
+import copy
 from contextlib import nullcontext
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import TensorDictModule, TensorDictModuleBase, TensorDictSequential
 from torchrl.objectives import LossModule, ValueEstimators, default_value_kwargs
 from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
@@ -34,6 +38,40 @@ from ncbot.modules.networks.qnet import ACTION_VALUE_KEY, QValues
 from ncbot.modules.objectives.common import TransitionKeys, check_loss_function
 
 PRECISIONS = ("fp32", "bf16")
+
+
+class TargetNetwork(TensorDictModuleBase):
+    """The value network on the target parameters, as the value estimator runs it: a copy of the Q-network whose
+    parameters are the target tensors (TorchRL's `TensorDictBase.to_module`, kept bound: the target updater and
+    `load_state_dict` write those tensors in place), then the masked max over the bootstrap mask, in one module.
+
+    Kept out of the loss's module tree (TorchRL's estimator holds it, as it holds a value network): the loss's
+    parameters and state_dict are unchanged. `follow` binds it again when the target tensors were replaced (the loss
+    moved to another device or dtype)."""
+
+    def __init__(self, value_network: TensorDictSequential, target_params: TensorDictBase, value_key: str) -> None:
+        super().__init__()
+        self._skeleton = [copy.deepcopy(value_network)]  # the copy the target tensors are bound to (a list: no submodule)
+        self.qnet, self.masked_max = self._skeleton[0][0], value_network[1]
+        self.in_keys, self.out_keys = [*self.qnet.in_keys, self.masked_max.mask_key], [value_key]
+        self._first_key = next(iter(target_params.keys(True, True)))
+        self.follow(target_params, force=True)
+
+    def follow(self, target_params: TensorDictBase, force: bool = False) -> None:
+        """Bind the copy to `target_params` unless it already runs on those very tensors."""
+        if force or target_params.get(self._first_key).data_ptr() != self._bound.data_ptr():
+            target_params.to_module(self._skeleton[0])
+            self._skeleton[0].requires_grad_(False)
+            self._bound = self._skeleton[0].get_parameter(".".join(self._first_key))
+
+    def q_values(self, tensordict: TensorDictBase) -> torch.Tensor:
+        return self.qnet.module(*(tensordict.get(key) for key in self.qnet.in_keys))
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        values = self.q_values(tensordict)
+        masked = values.masked_fill(~tensordict.get(self.masked_max.mask_key), torch.finfo(values.dtype).min)
+        tensordict.set(self.out_keys[0], masked.max(-1)[0].unsqueeze(-1))
+        return tensordict
 
 
 class CompetitiveDQNLoss(LossModule):
@@ -83,8 +121,9 @@ class CompetitiveDQNLoss(LossModule):
                              f"loss.n_step), not {value_type.value}; TD(1) and TD(lambda) need whole sequences "
                              "(loss.objective=recurrent_dqn)")
         self.value_type = value_type
+        target = TargetNetwork(self.value_network, self.target_value_network_params, self.tensor_keys.value)
         self._value_estimator = TD0Estimator(**{**default_value_kwargs(value_type), **hyperparams},
-                                             value_network=self.value_network)
+                                             value_network=target)
         self._forward_value_estimator_keys()
 
     def _forward_value_estimator_keys(self, **kwargs) -> None:
@@ -94,6 +133,8 @@ class CompetitiveDQNLoss(LossModule):
         masked_max.in_keys = [masked_max.value_key, keys.bootstrap_mask]
         self.value_network.in_keys = [*self.value_network[0].in_keys, keys.bootstrap_mask]
         if self._value_estimator is not None:
+            target = self._value_estimator.value_network
+            target.in_keys, target.out_keys = [*target.qnet.in_keys, keys.bootstrap_mask], [keys.value]
             self._value_estimator.set_keys(value=keys.value, reward=keys.reward, done=keys.done,
                                            terminated=keys.terminated, steps_to_next_obs=keys.steps_to_next_obs)
 
@@ -121,21 +162,20 @@ class CompetitiveDQNLoss(LossModule):
         """Double DQN's bootstrap value Q_target(s', argmax_{a' in mask} Q_online(s', a'))."""
         next_state = tensordict.get("next").select(*self.value_network.in_keys)
         online = self.value_network(next_state.copy())
-        with self.target_value_network_params.to_module(self.value_network):
-            target = self.value_network[0](next_state.copy())
-        return torch.gather(target.get(ACTION_VALUE_KEY).float(), -1, online.get("action").unsqueeze(-1))
+        target = self.value_estimator.value_network.q_values(next_state)
+        return torch.gather(target.float(), -1, online.get("action").unsqueeze(-1))
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         """Loss on Q(s, a) against the masked TD target; writes `td_error` (|Q - y|) for prioritised replay and,
         when the batch carries the sampler's `priority_weight`, weights each row's error by it (importance
         sampling, as TorchRL's DQNLoss does)."""
-        keys = self.tensor_keys
+        keys, estimator = self.tensor_keys, self.value_estimator
+        estimator.value_network.follow(self.target_value_network_params)
         with self._matmul_precision():
             q_values = self._online_q(tensordict).float()
-            with torch.no_grad():
+            with torch.no_grad():  # TD(0) runs the target network on the next states (double DQN: handed its value)
                 next_value = self._double_dqn_next_value(tensordict) if self.double_dqn else None
-                target = self.value_estimator.value_estimate(
-                    tensordict, target_params=self.target_value_network_params, next_value=next_value).squeeze(-1)
+                target = estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
         predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
         error = distance_loss(predicted, target.float(), self.loss_function)
         weight = tensordict.get(keys.priority_weight, None)

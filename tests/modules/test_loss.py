@@ -316,9 +316,12 @@ def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch
 
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
 def test_the_estimator_runs_the_target_network_on_the_target_parameters(precision: str) -> None:
-    """TorchRL's TD(0) estimator runs the value network on the next states with the target parameters swapped in:
-    its target is the hand-written one (target weights, masked max), through hard updates, with masks that hide the
-    best action; the target parameters add no optimised parameter."""
+    """TorchRL's TD(0) estimator runs the target network (the value network bound to the target parameters) on the
+    next states: its target is the hand-written one (target weights, masked max) and the one TorchRL's swap of the
+    target parameters into the value network gives, bit for bit, through hard updates and with masks that hide the
+    best action; the target network adds no parameter and no state_dict key."""
+    from torchrl.envs.utils import step_mdp
+
     learner, buffer = _learner(target_period=3), _filled_buffer(batch=8)
     loss = learner.objective
     loss.precision = precision  # (optim.precision in a config)
@@ -327,10 +330,30 @@ def test_the_estimator_runs_the_target_network_on_the_target_parameters(precisio
         batch = buffer.sample()
         assert not batch.get(("next", "bootstrap_mask")).all()  # some next actions masked out
         with torch.no_grad(), loss._matmul_precision():
-            estimated = loss.value_estimator.value_estimate(batch.clone(),
-                                                            target_params=loss.target_value_network_params)
+            estimated = loss.value_estimator.value_estimate(batch.clone())
+            with loss.target_value_network_params.to_module(loss.value_network):
+                swapped = loss.value_network(step_mdp(batch, keep_other=False))["bootstrap_value"]
             expected = _expected_target(loss, batch, gamma=0.7)
+        assert torch.equal(estimated, loss.value_estimator.value_estimate(batch.clone(), next_value=swapped))
         assert torch.allclose(estimated.squeeze(-1), expected, atol=0.05 if precision == "bf16" else 1e-6)
-    online = [p for p in learner.objective.parameters()]
+    online = list(learner.objective.parameters())
     assert len(online) == 6 and all(p.requires_grad for p in online)
     assert not any("target" in name for name, _ in learner.objective.named_parameters())
+    assert all(key.startswith(("value_network_params.", "target_value_network_params.", "_value_estimator.gamma"))
+               for key in learner.objective.state_dict())
+
+
+def test_the_target_network_follows_the_target_parameters_when_the_loss_moves() -> None:
+    """Moving the loss (`.double()`, `.to(device)`) gives the target parameters new tensors: the target network
+    runs on them from the next forward on, and its targets stay the hand-written ones."""
+    loss = mlp_loss()
+    td = mlp_transitions(16)
+    with torch.no_grad():
+        for weight in loss.target_value_network_params.values(True, True):
+            weight.add_(0.5)  # targets that differ from the online network's
+    loss.double()
+    batch = td.apply(lambda x: x.double() if x.is_floating_point() else x)
+    out = loss(batch)
+    expected = _expected_target(loss, batch)
+    assert out["target_mean"].dtype == torch.float64
+    assert out["target_mean"].item() == pytest.approx(expected.mean().item(), abs=1e-9)

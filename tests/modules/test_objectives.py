@@ -97,3 +97,29 @@ def test_a_transition_objective_refuses_sequence_estimators_in_one_line() -> Non
     loss = CompetitiveDQNLoss(make_qnet(6, 4, [8]))
     loss.make_value_estimator(ValueEstimators.TD0, gamma=0.5)
     assert loss.value_type is ValueEstimators.TD0
+
+
+def test_the_documented_double_dqn_is_the_built_in_double_dqn_bit_for_bit() -> None:
+    """docs/examples/double_dqn.py, written on TorchRL's public API alone, steps exactly like competitive_dqn with
+    loss.double_dqn: the same losses, TD errors and weights through target updates."""
+    from ncbot.modules.learner import Learner
+    from ncbot.modules.networks.qnet import seeded_init
+    from ncbot.pipelines.config import RunConfig
+    from tests.modules.test_loss import _filled_buffer
+
+    config = RunConfig()
+    config.loss.double_dqn, config.loss.target_period = True, 3
+    learners = []
+    for cls, options in [(objective_class(f"{EXAMPLE}:MaskedDoubleDQNLoss"), {}),
+                         (CompetitiveDQNLoss, {"double_dqn": True})]:
+        qnet = make_qnet(6, 4, [16, 16])
+        seeded_init(qnet, 0)
+        objective = build_objective(cls, cls.__name__, qnet, options, keys=KEYS, gamma=0.7)
+        learners.append(Learner.build(objective, optim=config.optim, loss=config.loss))
+    buffer = _filled_buffer(batch=16)
+    for _ in range(6):
+        batch = buffer.sample()
+        plugin, built_in = (learner.update(batch.clone()) for learner in learners)
+        assert torch.equal(plugin, built_in)
+    for a, b in zip(*(learner.objective.parameters() for learner in learners)):
+        assert torch.equal(a, b)
