@@ -61,8 +61,8 @@ class Learner:
     auxiliary: list[AuxiliaryLoss] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        # the online parameters, listed once: LossModule.parameters() walks its modules at every call (~80 us, which
-        # is a third of a whole update at the paper's batch of 2)
+        # the online parameters, listed once: LossModule.parameters() walks its modules at every call, a sizeable part
+        # of a whole update at the paper's batch of 2
         self._parameters = list(self.objective.parameters())
 
     @classmethod

@@ -11,7 +11,7 @@ which is zero once Q ranks the searched move above every other move of the mask 
 values themselves to the TD loss. The mask is DQfD's (every move the greedy policy could play, ``gap=None``) or,
 by default, only the moves the search valued clearly below the searched one (``gap``): on Ultimate most moves
 against the random user are near ties, and the full mask taught the search's tie-breaks and wrecked the agent
-(docs/ultimate.md). Labels come from the robot's game moves of the collected batches (optionally
+(docs/search.md). Labels come from the robot's game moves of the collected batches (optionally
 only robot-second games, the weak seat on Ultimate), searched with the network as it is at that point of training.
 """
 from __future__ import annotations

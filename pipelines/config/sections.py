@@ -172,10 +172,10 @@ class BufferConfig(Section):
     # each sampled transition seen under a random rotation/reflection of the board (modules/replay/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
     # prioritised replay (Schaul et al. 2016; modules/replay/prioritized_sampler.py, TorchRL's PrioritizedSampler
-    # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
-    # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
-    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md); on 3x3 it cuts
-    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md).
+    # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: a
+    # lost game is rare late in training, so a uniform buffer replays its surprising last steps as rarely. On in
+    # default.yaml, off in ultimate.yaml: the measurements are in docs/learning.md ("Why prioritised replay") and
+    # docs/search.md.
     # With agent.memory: slices drawn by R2D2's sequence priority (modules/replay/prioritized_slices.py, docs/memory.md).
     prioritized: bool = False
     alpha: Fraction = 0.6
@@ -221,8 +221,8 @@ class LossConfig(Section):
     gamma: Fraction = 0.7  # paper: 0.7
     reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.replay.rewards); metrics use paper
     # outcome reward for a lost game (paper scale: -5). Against the random user a -5 loss is worth risking for a
-    # likelier fast win (exact expectimax robot-second: 0.9291 wins, 0.0042 losses); <= -15 makes the optimum
-    # loss-free (0.9164 wins, zero losses), which is what task success 1.000 asks for.
+    # likelier fast win, so only a larger price makes the return-optimal policy loss-free, which is what task
+    # success 1.000 asks for (exact expectimax figures: docs/learning.md, "Why a loss price of -20").
     loss_reward: Annotated[Number, Field(lt=0)] = -5.0  # used with reward: outcome only
     loss_function: Literal["l2", "huber"] = "l2"  # paper: squared error
     double_dqn: bool = False
@@ -316,9 +316,9 @@ class SearchTargetsConfig(Section):
     After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
     Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
     update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above the moves
-    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: search distilled into the
-    network (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
-    with every teacher tried (docs/ultimate.md)."""
+    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: a search is a
+    stronger player than the network it starts from (AlphaZero / expert iteration distil search into the network).
+    Off by default; its measurements on Ultimate are in docs/search.md."""
 
     enabled: bool = False
     simulations: Annotated[int, Field(gt=0, le=100_000)] = 32
