@@ -9,7 +9,7 @@ Every figure is measured per CPU second of this process (`time.process_time`), w
 with other jobs far better than wall time; the learners take turns over `--rounds` rounds and the median round is
 reported, so a burst of load hits both sides alike. Updates are timed on a full replay buffer that takes a fresh
 collected batch every `optim.updates_per_batch` updates (untimed), as in training. Rows for ncbot: the update the
-training loop runs (`Learner.update`: `loss_module(td)`, backward, Adam, target updater) at the config's precision,
+training loop runs (`Learner.update`: `objective(td)`, backward, Adam, target updater) at the config's precision,
 the same update at the other precision (`optim.precision`), and the whole loop (collect + updates).
 To compare with another commit, run this script from each tree in turn (docs/learner-speed.md gives the command).
 OpenSpiel is a bench-time install only (`pip install open-spiel dm-tree`); without it the script says so and

@@ -19,7 +19,6 @@ moves every figure; compare ratios, not rates across runs). Results: docs/learne
 from __future__ import annotations
 
 import argparse
-import copy
 import logging
 import statistics
 import sys
@@ -51,37 +50,24 @@ class Swap(CompetitiveDQNLoss):
                                            terminated=keys.terminated, steps_to_next_obs=keys.steps_to_next_obs)
 
     def forward(self, tensordict):
-        return self._loss(tensordict, lambda td: self.value_estimator.value_estimate(
-            td, target_params=self.target_value_network_params))
-
-    def _loss(self, tensordict, targets):
-        from tensordict import TensorDict
-        from torchrl.objectives.utils import distance_loss
-
-        keys = self.tensor_keys
         q_values = self._online_q(tensordict).float()
         with torch.no_grad():
-            target = targets(tensordict).squeeze(-1)
-        predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
-        error = distance_loss(predicted, target.float(), self.loss_function)
-        weight = tensordict.get(keys.priority_weight, None)
-        loss = (error * weight.reshape(error.shape)).mean() if weight is not None else error.mean()
-        with torch.no_grad():
-            tensordict.set(keys.priority, (predicted - target).abs().unsqueeze(-1), inplace=True)
-        return TensorDict({"loss": loss, "q_mean": predicted.detach().mean(), "target_mean": target.mean()}, [])
+            target = self.value_estimator.value_estimate(tensordict, target_params=self.target_value_network_params)
+        return self._td_loss(tensordict, q_values, target.squeeze(-1))
 
 
 class TensorBootstrap(CompetitiveDQNLoss):
     """The bound copy's masked max computed by the loss on the tensors and handed to the estimator as `next_value`."""
 
     def forward(self, tensordict):
-        def targets(td):
-            network = self.value_estimator.value_network
-            values = network.q_values(td.get("next"))
-            masked = values.masked_fill(~td.get(("next", network.masked_max.mask_key)), torch.finfo(values.dtype).min)
-            return self.value_estimator.value_estimate(td, next_value=masked.max(-1)[0].unsqueeze(-1))
-
-        return Swap._loss(self, tensordict, targets)
+        network = self.value_estimator.value_network
+        q_values = self._online_q(tensordict).float()
+        with torch.no_grad():
+            values = network.q_values(tensordict.get("next"))
+            masked = values.masked_fill(~tensordict.get(("next", network.masked_max.mask_key)),
+                                        torch.finfo(values.dtype).min)
+            target = self.value_estimator.value_estimate(tensordict, next_value=masked.max(-1)[0].unsqueeze(-1))
+        return self._td_loss(tensordict, q_values, target.squeeze(-1))
 
 
 VARIANTS = {"swap": Swap, "bound": CompetitiveDQNLoss, "tensors": TensorBootstrap}

@@ -1,5 +1,5 @@
 """`competitive_dqn`: the paper's competitive DQN loss (Algorithm 2) as a TorchRL `LossModule`, learnt from replayed
-transitions, called as `loss_td = loss_module(td)`.
+transitions, called as `loss_td = objective(td)`.
 
 Target: y = r on terminated steps, else r + gamma^k * max over the next state's BOOTSTRAP MASK a' of the target
 network's Q(s', a'), where k is the transition's `steps_to_next_obs` (1 unless n-step returns wrote it). The mask
@@ -139,9 +139,9 @@ class CompetitiveDQNLoss(LossModule):
                                            terminated=keys.terminated, steps_to_next_obs=keys.steps_to_next_obs)
 
     def _matmul_precision(self):
-        """bf16: autocast on the parameters' device runs the Linear layers' products in bfloat16 (on the CPU,
-        AVX512_BF16 / AMX do them ~2x faster than float32); parameters, their gradients and everything after the
-        Q-values stay float32."""
+        """bf16: autocast on the parameters' device runs the Linear layers' products in bfloat16 (on the CPU with
+        AVX512_BF16 / AMX, faster than float32: docs/learner-speed.md); parameters, their gradients and everything
+        after the Q-values stay float32."""
         if self.precision == "bf16":
             return torch.autocast(next(self.value_network.parameters()).device.type, dtype=torch.bfloat16)
         return nullcontext()
@@ -169,13 +169,19 @@ class CompetitiveDQNLoss(LossModule):
         """Loss on Q(s, a) against the masked TD target; writes `td_error` (|Q - y|) for prioritised replay and,
         when the batch carries the sampler's `priority_weight`, weights each row's error by it (importance
         sampling, as TorchRL's DQNLoss does)."""
-        keys, estimator = self.tensor_keys, self.value_estimator
+        estimator = self.value_estimator
         estimator.value_network.follow(self.target_value_network_params)
         with self._matmul_precision():
             q_values = self._online_q(tensordict).float()
             with torch.no_grad():  # TD(0) runs the target network on the next states (double DQN: handed its value)
                 next_value = self._double_dqn_next_value(tensordict) if self.double_dqn else None
                 target = estimator.value_estimate(tensordict, next_value=next_value).squeeze(-1)
+        return self._td_loss(tensordict, q_values, target)
+
+    def _td_loss(self, tensordict: TensorDictBase, q_values: torch.Tensor, target: torch.Tensor) -> TensorDict:
+        """The error of Q(s, a) against the targets, each row weighted by its importance weight when prioritised;
+        writes the rows' |TD error|."""
+        keys = self.tensor_keys
         predicted = torch.gather(q_values, -1, tensordict.get(keys.action).unsqueeze(-1)).squeeze(-1)
         error = distance_loss(predicted, target.float(), self.loss_function)
         weight = tensordict.get(keys.priority_weight, None)
