@@ -121,7 +121,10 @@ class CompetitiveDQNLoss(LossModule):
                              f"loss.n_step), not {value_type.value}; TD(1) and TD(lambda) need whole sequences "
                              "(loss.objective=recurrent_dqn)")
         self.value_type = value_type
-        target = TargetNetwork(self.value_network, self.target_value_network_params, self.tensor_keys.value)
+        # (read as a child module: the attribute would warn that no target updater exists yet, made right after)
+        target_params = dict(self.named_children())["target_value_network_params"] if self.delay_value else \
+            self.value_network_params.data
+        target = TargetNetwork(self.value_network, target_params, self.tensor_keys.value)
         self._value_estimator = TD0Estimator(**{**default_value_kwargs(value_type), **hyperparams},
                                              value_network=target)
         self._forward_value_estimator_keys()

@@ -102,11 +102,12 @@ def check_objective_keys(objective: LossModule, name: str, stored: Iterable, *, 
     if not in_keys:
         raise ValueError(f"objective {name} ({type(objective).__name__}) declares no in_keys (the keys forward "
                          "reads from a replayed batch)")
-    have = {_flat(key) for key in stored}
+    have = {_flat(key): key for key in stored}
     missing = [key for key in in_keys if _flat(key) not in have]
     if missing:
+        held = ", ".join(repr(key) for key in sorted(have.values(), key=lambda key: _flat(key)))
         raise ValueError(f"objective {name} ({type(objective).__name__}) reads {missing[0]!r}, which the replayed "
-                         f"rows do not hold (they hold: {', '.join(repr(key) for key in sorted(have, key=str))})")
+                         f"rows do not hold (they hold: {held})")
     if prioritized and getattr(objective.tensor_keys, "priority", None) != PRIORITY_KEY:
         raise ValueError(f"objective {name} ({type(objective).__name__}) writes no {PRIORITY_KEY!r} priority, which "
                          "buffer.prioritized=true needs (declare priority in _AcceptedKeys, or set it false)")

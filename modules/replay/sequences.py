@@ -31,6 +31,11 @@ STEP_KEY = "step"  # the step's place in its dialogue (0 = first)
 VALID_KEY = ("collector", "mask")  # SliceSampler's pad_output mask: True on real steps, False on padding
 
 
+def sequence_keys(memory: str) -> tuple:
+    """The keys a replayed slice holds besides its transitions' (`SequenceRows` and the sampler write them)."""
+    return (IS_INIT_KEY, EPISODE_KEY, STEP_KEY, *STATE_KEYS[check_memory(memory)], VALID_KEY)
+
+
 def make_sequence_buffer(size: int, batch_size: int, sequence_length: int, device: torch.device | str = "cpu", *,
                          prioritized: bool = False, alpha: float = 0.6, beta: float = 0.4) -> TensorDictReplayBuffer:
     """TorchRL replay buffer whose `SliceSampler` draws `batch_size // sequence_length` slices of one dialogue

@@ -35,6 +35,11 @@ BUFFER_KEYS = ("observation", "action", ("next", "observation"), LEARNING_REWARD
 LOSS_KEYS = {"reward": LEARNING_REWARD_KEY[1], "bootstrap_mask": BOOTSTRAP_MASK_KEY[1]}
 
 
+def stored_keys(n_step: int) -> tuple:
+    """The keys of a stored transition, which an objective may read (`steps_to_next_obs` with n-step returns)."""
+    return (*BUFFER_KEYS, STEPS_KEY) if n_step > 1 else BUFFER_KEYS
+
+
 def make_multistep(n_step: int, gamma: float) -> MultiStepTransform | None:
     """TorchRL's n-step transform over the learning reward (None for the one-step target, n_step = 1).
 

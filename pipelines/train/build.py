@@ -127,8 +127,10 @@ def make_objective(config: RunConfig, qnet: Any, symmetries: Any = None, cls: ty
     to the replayed transitions' and its TorchRL value estimator made. An objective that turns board symmetries
     itself (a `symmetries` argument: whole slices) leaves the learner none."""
     from ncbot.modules.objectives.common import PRIORITY_KEY
-    from ncbot.modules.objectives.registry import build_objective, objective_class, objective_options
-    from ncbot.modules.replay.transitions import LOSS_KEYS
+    from ncbot.modules.objectives.registry import (build_objective, check_objective_keys, objective_class,
+                                                   objective_options)
+    from ncbot.modules.replay.sequences import sequence_keys
+    from ncbot.modules.replay.transitions import LOSS_KEYS, stored_keys
 
     name, loss = config.objective, config.loss
     cls = cls or objective_class(name)
@@ -144,6 +146,8 @@ def make_objective(config: RunConfig, qnet: Any, symmetries: Any = None, cls: ty
     estimator = {"gamma": loss.gamma, **({"lmbda": loss.lmbda} if loss.value_estimator == "td_lambda" else {})}
     objective = build_objective(cls, name, qnet, taken, keys={**LOSS_KEYS, "priority": PRIORITY_KEY},
                                 value_estimator=loss.value_estimator, **estimator)
+    stored = [*stored_keys(loss.n_step), *(sequence_keys(config.agent.memory) if replays == "sequences" else ())]
+    check_objective_keys(objective, name, stored, prioritized=config.buffer.prioritized)
     return objective, None if "symmetries" in taken else symmetries
 
 
