@@ -12,7 +12,8 @@ store it, its updates), for three ways to the same target bits.
   place), as one module: no swap;
 - `tensors`: the bootstrap value computed by the loss on the tensors of that copy and handed to the estimator as
   `next_value`: no swap, no `step_mdp`, no TensorDict pass, but the estimator no longer runs the target network.
-The three give the same losses bit for bit (checked first, on the same batches); the variants take turns over
+The three give the same losses bit for bit (checked first, on the same batches), and each variant's loop draws its
+own copy of one random stream, so all three play the same games and replay the same rows; the variants take turns over
 `--rounds` rounds and the median is reported, with ratios against `swap` from the same run (a shared machine's load
 moves every figure; compare ratios, not rates across runs). Results: docs/learner-speed.md.
 """
@@ -99,7 +100,8 @@ def main() -> None:
         _, parts = runs[name]
         parts.buffer.extend(parts.transitions(next(collectors[name])))
 
-    for name, (config, parts) in runs.items():  # a full replay buffer, as for most of a run
+    for name, (config, parts) in runs.items():  # a full replay buffer, as for most of a run: the same in each
+        torch.manual_seed(0)
         while len(parts.buffer) < config.buffer.size:
             collect(name)
     config = runs["swap"][0]
@@ -115,12 +117,18 @@ def main() -> None:
             count += 1
         return count / (time.process_time() - start)
 
+    streams = {name: torch.get_rng_state() for name in runs}  # each variant's own draws: the same games and rows
+
     def loop(name: str) -> float:
-        parts, count, start = runs[name][1], 0, time.process_time()
+        parts, count = runs[name][1], 0
+        torch.set_rng_state(streams[name])
+        start = time.process_time()
         while time.process_time() - start < args.seconds:
             collect(name)
             count += len(parts.learner.update_many(parts.buffer, config.optim.updates_per_batch))
-        return count / (time.process_time() - start)
+        seconds = time.process_time() - start
+        streams[name] = torch.get_rng_state()
+        return count / seconds
 
     rates: dict[tuple[str, str], list[float]] = {}
     for _ in range(args.rounds):
