@@ -2,7 +2,7 @@
 
 Why: the base install (`pip install ncbot`) trains, evaluates, ablates and reads logs; the simulated robot
 (sapien), speech recognition (pocketsphinx), the browser server (fastapi, uvicorn, websockets), the rerun export,
-OpenSpiel's bots and the Ray backend are extras (pyproject.toml). `require(extra, module)` checks at a command's
+OpenSpiel's bots and the Ray and Slurm backends are extras (pyproject.toml). `require(extra, module)` checks at a command's
 entry that the module is installed -- without importing it, so nothing heavy starts and no import-time side
 effect runs early (sapien reads the Vulkan set-up when it is imported) -- and raises `MissingExtra` otherwise;
 the CLI's error boundary (pipelines/errors.py) prints its message as one line and exits 2. `extra_line` is the
@@ -26,6 +26,7 @@ OPTIONAL_MODULES = {
     "open_spiel": ("openspiel", "open_spiel"),
     "tree": ("openspiel", "dm-tree"),
     "ray": ("ray", "ray"),
+    "submitit": ("slurm", "submitit"),
     "selenium": ("test", "selenium"),
 }
 

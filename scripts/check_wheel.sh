@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # CI: build ncbot's wheel, install it with the BASE dependencies only into a clean venv and run the main job's
-# commands (shortened) from an empty folder. Catches what the editable install of the tests cannot: a module or a
+# commands (shortened) from an empty folder; then add the [ray] extra and run a grid on a local Ray instance from
+# that folder (its nodes must find the installed ncbot, not a checkout). Catches what the editable install of the tests cannot: a module or a
 # data file (configs, weights, URDF, dialogues) missing from the wheel, a base command that imports an optional
 # extra, a dependency the base install lacks.
 #
@@ -95,4 +96,27 @@ env -u PYTHONPATH "$py" -c "import os; os.environ['NCBOT_PROBE'] = '7'; from env
 env -u PYTHONPATH "$py" -c "import gymnasium, ncbot.envs as envs; env = gymnasium.make(envs.GYM_ID); env.reset(seed=0); print(envs.GYM_ID, 'from', envs.__name__)" \
   | tail -1 || fail "the Gymnasium id from ncbot.envs"
 log "import envs gives PyPI's envs; ncbot's is ncbot.envs"
+
+# 7. the [ray] extra on top: a two-run grid on a local Ray instance from the empty folder, its status read back
+ray_from=$(date +%s)
+"$py" -m pip install -q -c "$repo/constraints.txt" "$wheel[ray]"
+log "[ray] installed in $(( $(date +%s) - ray_from ))s"
+cd "$work/empty"
+env -u PYTHONPATH "$ncbot" configs default >default.yaml
+cat >grid.yaml <<'YAML'
+runs_dir: runs
+suites: {wheel: {standard: {config: default.yaml, overrides: [collector.total_frames=1024, collector.init_random_frames=512, eval.games=10, eval.periodic_games=10, train.eval_every_frames=1024, logger.mcap=false]}}}
+grid: {suite: [wheel], game: [standard], agent: [proposed], temporal: [false]}
+YAML
+env -u PYTHONPATH "$ncbot" ablate grid.yaml --seeds 2 --workers 2 --backend ray --json >ray.json 2>ray.log \
+  || { tail -20 ray.log; fail "ncbot ablate --backend ray from the wheel"; }
+env -u PYTHONPATH "$py" - <<'EOF2' || fail "the Ray grid's summary: $(cat ray.json)"
+import json
+summary = json.load(open("ray.json"))
+assert (summary["done"], summary["failed"], summary["unfinished"]) == (2, 0, []), summary
+EOF2
+env -u PYTHONPATH "$ncbot" ablate grid.yaml --seeds 2 --status --json | env -u PYTHONPATH "$py" -c \
+  "import json, sys; status = json.load(sys.stdin); assert status['counts'] == {'finished': 2}, status; print('[check_wheel] status:', status['counts'], 'driver', status['driver']['backend'])" \
+  || fail "ncbot ablate --status after the Ray grid"
+log "a Ray grid from the wheel in an empty folder: 2 runs finished; the [ray] step took $(( $(date +%s) - ray_from ))s"
 log "done in $(stamp)"

@@ -1,6 +1,6 @@
 """The `ncbot` command line: one root Typer app; each area registers its own commands.
 
-Every area module (`env`, `learn`, `logs`, `vision`, `robot`, `play`, `reproduce`) exposes
+Every area module (`env`, `learn`, `grid`, `logs`, `vision`, `robot`, `play`, `reproduce`) exposes
 `register(app)` and imports its heavy dependencies (torch, sapien, cv2) inside the commands, so that
 `ncbot --help` stays fast. Bad input raises `ValueError`/`FileNotFoundError` with a clear message; `main`
 turns it into one line on stderr and exit code 2 (set NCBOT_DEBUG=1 to see the traceback).
@@ -16,6 +16,7 @@ import warnings
 import typer
 
 import ncbot.pipelines.cli.env as cli_env
+import ncbot.pipelines.cli.grid as cli_grid
 import ncbot.pipelines.cli.learn as cli_learn
 import ncbot.pipelines.cli.logs as cli_logs
 import ncbot.pipelines.cli.play as cli_play
@@ -67,7 +68,7 @@ def version() -> None:
     typer.echo(f"ncbot {ncbot_version()}")
 
 
-for area in (cli_env, cli_learn, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
+for area in (cli_env, cli_learn, cli_grid, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
     area.register(app)
 
 

@@ -1,4 +1,4 @@
-"""`ncbot train`, `ncbot eval`, `ncbot ablate`, `ncbot table`: the learning area's commands.
+"""`ncbot train`, `ncbot eval`, `ncbot table`: the learning area's commands (`ncbot ablate`: pipelines/cli/grid.py).
 
 Heavy imports (torch, torchrl) happen inside the commands so `ncbot --help` stays fast. Library errors
 (ValueError / FileNotFoundError) become one line and exit code 2 in `ncbot.pipelines.cli.app.main`.
@@ -171,57 +171,6 @@ def _exhaustive_eval(checkpoint: str, first: str, seed: int, dialogue_seeds: int
             typer.echo(f"... and {len(result.losing_lines) - 10} more lost games ({result.seat}); --json lists all")
 
 
-def ablate_command(
-    config: str = typer.Argument(..., help="Ablation grid YAML: a file or a shipped name (ablation, ablation_paper, screening; ncbot configs lists them)."),
-    overrides: Optional[list[str]] = typer.Argument(None, help="section.key=value overrides applied to every run of "
-                                                    "the grid, e.g. collector.total_frames=20000 (finished runs in the "
-                                                    "runs folder are skipped: give another --out for other values)."),
-    seeds: int = typer.Option(3, "--seeds", help="Seeds per grid cell."),
-    workers: int = typer.Option(2, "--workers", help="Runs in parallel."),
-    backend: str = typer.Option("local", "--backend", help="local (process pool) or ray."),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Runs folder (default from the grid file)."),
-    only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
-    address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
-                                          "(default: a local instance); every node must see the runs folder."),
-    gpus_per_run: float = typer.Option(1.0, "--gpus-per-run", min=0.01, max=8.0,
-                                       help="With --backend ray: GPUs each CUDA run asks for (a fraction shares one)."),
-    status: bool = typer.Option(False, "--status", help="Start nothing: print where every run of the grid stands "
-                                "(finished with its task success, training now, stopped at a checkpoint, not started)."),
-) -> None:
-    """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped."""
-    from collections import Counter
-
-    from ncbot.pipelines.train.ablate import grid_status, run_ablation
-
-    if status:
-        from ncbot.pipelines.progress import duration
-
-        states, left = grid_status(config, seeds=seeds, out=out, only=only, overrides=list(overrides or []))
-        width = max(len(name) for name, _, _ in states)
-        for name, where, detail in states:
-            typer.echo(f"{name:<{width}}  {where}" + (f": {detail}" if detail else ""))
-        counts = Counter(where for _, where, _ in states)
-        typer.echo(f"{len(states)} runs: " + ", ".join(f"{n} {where}" for where, n in counts.items()))
-        if left.estimated:
-            unknown = (f"; {left.unknown} more with no finished seed of their cell to go by" if left.unknown else "")
-            typer.echo(f"left: about {duration(left.seconds)} of training over {left.estimated} runs, about "
-                       f"{duration(left.seconds / workers)} at --workers {workers} (each run at its own pace, else at "
-                       f"the median of its cell's finished seeds){unknown}")
-        elif left.unknown:
-            typer.echo(f"left: {left.unknown} runs, none with a finished seed of its cell to estimate from")
-        return
-    if out is not None:
-        check_writable_dir(out, "--out")
-
-    summary = run_ablation(config, seeds=seeds, workers=workers, backend=backend, out=out, only=only, address=address,
-                           overrides=list(overrides or []), gpus_per_run=gpus_per_run)
-    held = f", {summary['held']} skipped (another ncbot is training them)" if summary["held"] else ""
-    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done){held}, "
-               f"{summary['failed']} failed; runs in {summary['runs_dir']}")
-    if summary["failed"]:
-        raise typer.Exit(1)
-
-
 def table_command(
     runs_dir: str = typer.Argument(..., help="Folder of runs written by ncbot ablate."),
     out: Optional[str] = typer.Option(None, "--out", "-o", help="Markdown table to write (default RUNS_DIR/table.md)."),
@@ -313,7 +262,6 @@ def register(app: typer.Typer) -> None:
     app.command("train")(train_command)
     app.command("eval")(eval_command)
     app.command("train-value")(train_value_command)
-    app.command("ablate")(ablate_command)
     app.command("table")(table_command)
     app.command("compare")(compare_command)
     app.command("configs")(configs_command)

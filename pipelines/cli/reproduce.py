@@ -7,6 +7,9 @@ from typing import Optional
 
 import typer
 
+from ncbot.pipelines.cli.grid import (address_option, backend_option, make_cluster, partition_option, retries_option,
+                                      sbatch_option, summary_lines, time_option)
+
 
 def reproduce_command(
     part: str = typer.Argument("all", help="table | vision | budget | all | games-data (the data each game needed, "
@@ -23,9 +26,12 @@ def reproduce_command(
     out: str = typer.Option("results", "--out", "-o", help="Folder for paper_table.md, paper_claims.md, data_budget.md, vision_experiments.md, games_data.md and PNGs."),
     runs: str = typer.Option("runs/reproduce", "--runs", help="Folder for the training runs (one subfolder per budget): "
                               "a working folder, apart from --out, because runs are large and resumed while reports are small and shared."),
-    backend: str = typer.Option("local", "--backend", help="local (process pool) or ray, as ncbot ablate."),
-    address: Optional[str] = typer.Option(None, "--address", help="With --backend ray: HOST:PORT of a running Ray head "
-                                          "(default: a local instance); every node must see --runs at the same path."),
+    backend: str = backend_option(),
+    retries: int = retries_option(),
+    address: Optional[str] = address_option(),
+    partition: Optional[str] = partition_option(),
+    time_limit: Optional[str] = time_option(),
+    sbatch: Optional[list[str]] = sbatch_option(),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (budget: {vision, dialogues, games})."),
     report_only: bool = typer.Option(False, "--report-only", help="table only: start no run, write the table and "
                                      "claims from the runs finished so far (marked PARTIAL until all are done)."),
@@ -60,8 +66,9 @@ def reproduce_command(
         raise ValueError(f"only games-data and memory take run folders; part {part!r} got {' '.join(run_dirs)}")
     if budget is None:
         raise ValueError(f"part {part!r} needs --budget quick | full")
-    result = reproduce(part, budget, out=out, runs=runs, workers=workers, backend=backend, command=command,
-                       address=address, report_only=report_only)
+    cluster = make_cluster(backend, workers, retries, address, partition=partition, time_limit=time_limit,
+                           sbatch=sbatch)
+    result = reproduce(part, budget, out=out, runs=runs, cluster=cluster, command=command, report_only=report_only)
     if as_json:
         report = result.get("budget_report")
         if part == "budget":
@@ -81,17 +88,16 @@ def reproduce_command(
         return
     summary = result["runs"]
     typer.echo(result["label"])
-    typer.echo(f"{summary['done']} runs finished, {summary['skipped']} skipped (already done), {summary['failed']} "
-               f"failed; runs in {summary['runs_dir']}")
+    typer.echo("\n".join(summary_lines(summary)) + f"; runs in {summary['runs_dir']}")
     dialogue_runs = result.get("dialogue_runs")
     if dialogue_runs:
-        typer.echo(f"dialogue budget: {dialogue_runs['done']} runs finished, {dialogue_runs['skipped']} skipped, "
-                   f"{dialogue_runs['failed']} failed; runs in {dialogue_runs['runs_dir']}")
+        typer.echo("dialogue budget: " + "\n".join(summary_lines(dialogue_runs)) +
+                   f"; runs in {dialogue_runs['runs_dir']}")
     if "table" in result:
         typer.echo(f"wrote {result['table']['table']} and {result['table']['claims_file']}")
     if "budget_report" in result:
         typer.echo(f"wrote {out}/data_budget.md and {', '.join(result['budget_report']['figures'])}")
-    if summary["failed"] or (dialogue_runs or {}).get("failed"):
+    if summary["unfinished"] or (dialogue_runs or {}).get("unfinished"):
         raise typer.Exit(1)
 
 

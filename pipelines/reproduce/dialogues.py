@@ -57,7 +57,7 @@ def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
     from k example dialogues, k in ``budget.dialogue_points``, ``budget.dialogue_subsets`` subsets each; subset s
     also trains with seed s; ``config``: the 3x3 paper config (`ncbot.pipelines.reproduce.grid.row_config`). Runs go to RUNS_DIR/kNN/seedS
     (resumable like the table's)."""
-    from ncbot.pipelines.train.ablate import PlannedRun
+    from ncbot.pipelines.grid.plan import PlannedRun
     from ncbot.pipelines.config import load_config
 
     config = Path(config).resolve()
@@ -74,16 +74,16 @@ def plan_dialogue_runs(budget: Any, runs_dir: Path, config: Path) -> list[Any]:
     return planned
 
 
-def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, workers: int, backend: str = "local",
-                        address: str | None = None) -> dict[str, Any]:
-    """Train the unfinished dialogue-budget runs through `ncbot ablate`'s runner (local processes or Ray)."""
-    from ncbot.pipelines.train.ablate import execute_runs
+def run_dialogue_agents(budget: Any, *, runs_dir: Path, config: Path, cluster: Any) -> dict[str, Any]:
+    """Train the unfinished dialogue-budget runs through `ncbot ablate`'s runner on ``cluster`` (a
+    `ncbot.pipelines.grid.runner.Cluster`: local processes, Ray or Slurm)."""
+    from ncbot.pipelines.grid.runner import execute_runs
 
     planned = plan_dialogue_runs(budget, Path(runs_dir), config)
     todo = [run for run in planned if not run.finished]
-    failed = execute_runs(todo, workers=workers, backend=backend, address=address, runs_dir=runs_dir, desc="dialogues")
-    return {"done": len(todo) - len(failed), "skipped": len(planned) - len(todo), "failed": len(failed),
-            "failed_runs": failed, "runs_dir": str(runs_dir)}
+    summary = execute_runs(todo, cluster=cluster, runs_dir=runs_dir, desc="dialogues")
+    return {**summary, "skipped": len(planned) - len(todo), "planned": len(planned),
+            "unfinished": sorted(run.name for run in planned if not run.finished)}
 
 
 def agent_budget(runs_dir: Path | None) -> dict[int, dict[str, Any]]:

@@ -2,13 +2,13 @@
 
 Why one command: the paper's findings need dozens of runs with the faithful options on (pipelines/configs/paper/)
 and a fixed protocol (seeds, games, test games). `table` writes an ablation grid for the budget and runs it
-through the same runner as `ncbot ablate` (pipelines/train/ablate.py: parallel processes, finished runs skipped, a
-killed run resumed from its checkpoint), then `ncbot.pipelines.reproduce.table.write_report` writes the table and the claims.
+through the same runner as `ncbot ablate` (pipelines/grid/: parallel processes, finished runs skipped, a killed
+run resumed from its checkpoint, on this machine, a Ray cluster or Slurm), then `ncbot.pipelines.reproduce.table.write_report` writes the table and the claims.
 `budget` reads the data budgets off those runs and the example dialogues, and trains the dialogue-budget agents
 (pipelines/reproduce/budget.py). `vision` trains the cell classifier on N labelled cells and runs the paper's
 vision experiments (pipelines/reproduce/vision.py); it needs no RL runs. `--backend ray [--address HOST:PORT]`
-runs every run as a Ray task (pipelines/train/ray_backend.py: the runs folder must be shared by every node, checked
-before any run starts).
+runs every run as a Ray task, `--backend slurm` as a Slurm job (pipelines/grid/: the runs folder must be shared by
+every node; a run whose worker or node dies is retried from its checkpoint, `--retries`).
 
 Budgets: `full` is the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games, every game row);
 `quick` is a smoke version that fits in < 30 min on 2 cores, and says so in every file it writes.
@@ -22,6 +22,7 @@ from typing import Any
 import yaml
 
 from ncbot.fileio import atomic_write_text
+from ncbot.pipelines.grid.runner import Cluster
 
 PAPER_CONFIGS = Path(__file__).parents[1] / "configs" / "paper"
 PARTS = ("table", "vision", "budget", "all")
@@ -55,8 +56,9 @@ BUDGETS = {
         max_games={"standard": 20_000, "ultimate100": 20_000, "ultimate150": 20_000}, eval_games=3000,
         eval_every_frames={"standard": 5_000, "ultimate100": 20_000, "ultimate150": 20_000},
         game_points=(1_000, 2_000, 5_000, 10_000, 20_000),
-        label="Budget full: the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games per seat); "
-              "dialogue budget: 5 subsets x 5K games per k.",
+        label="Budget full: the paper's protocol (5 seeds a cell, more where a cell's folder holds more: see the "
+              "seeds column; 20K games or 400K steps, 3000 test games per seat); dialogue budget: 5 subsets x 5K "
+              "games per k.",
         dialogue_subsets=5, dialogue_games=5_000,
     ),
     "quick": Budget(
@@ -129,13 +131,12 @@ def runs_progress(budget: Budget, runs_dir: Path) -> tuple[int, int]:
     return finished, budget.seeds * len(budget.rows) * CELLS_PER_ROW
 
 
-def run_grid(budget: Budget, *, runs_dir: Path, workers: int, backend: str,
-             configs: Path = PAPER_CONFIGS, address: str | None = None) -> dict[str, Any]:
+def run_grid(budget: Budget, *, runs_dir: Path, cluster: Cluster, configs: Path = PAPER_CONFIGS) -> dict[str, Any]:
     """Run the budget's grid through `ncbot ablate`'s runner: finished runs skipped, killed ones resumed."""
-    from ncbot.pipelines.train.ablate import run_ablation
+    from ncbot.pipelines.grid.runner import run_ablation
 
     grid = write_grid(budget, runs_dir, configs)
-    return run_ablation(grid, seeds=budget.seeds, workers=workers, backend=backend, out=runs_dir, address=address)
+    return run_ablation(grid, seeds=budget.seeds, cluster=cluster, out=runs_dir)
 
 
 def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: str) -> dict[str, Any]:
@@ -157,12 +158,13 @@ def write_table_report(budget: Budget, *, runs_dir: Path, out: Path, command: st
 
 
 def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "results", runs: str | Path = "runs/reproduce",
-              workers: int = 2, backend: str = "local", command: str = "ncbot reproduce",
-              configs: Path = PAPER_CONFIGS, address: str | None = None, report_only: bool = False) -> dict[str, Any]:
+              cluster: Cluster | None = None, command: str = "ncbot reproduce", configs: Path = PAPER_CONFIGS,
+              report_only: bool = False) -> dict[str, Any]:
     """`ncbot reproduce PART --budget NAME`: the runs, then the table and claims (table), the data budgets
     (budget; its games curve reads the same runs, its dialogue curve trains agents on k example dialogues in
     RUNS/dialogues-NAME), the vision experiments and budget (vision: no RL runs), or all of them (all).
-    ``backend="ray"``: every RL run a Ray task (``address``: a cluster's head). ``report_only`` (table only):
+    ``cluster``: where the RL runs go (`Cluster`: local processes by default, a Ray cluster, Slurm; its workers
+    also train the vision part's classifiers in parallel). ``report_only`` (table only):
     no run starts; the table and claims are written from the runs finished so far (a long `full` can be looked
     at while it runs), marked PARTIAL until every run is done."""
     if part not in PARTS:
@@ -178,21 +180,18 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
                              f"earlier `ncbot reproduce table --budget {budget.name}`)")
         return {"budget": budget.name, "label": budget.label, "command": command,
                 "table": write_table_report(budget, runs_dir=runs_dir, out=Path(out), command=command)}
-    if workers <= 0:
-        raise ValueError(f"--workers must be positive, got {workers}")
-    from ncbot.pipelines.train.ablate import check_backend
-
-    check_backend(backend, workers, address)  # before any folder is written
+    cluster = cluster or Cluster()
+    cluster.check()  # before any folder is written
     out, runs_dir = Path(out), Path(runs) / budget.name
     result: dict[str, Any] = {"budget": budget.name, "label": budget.label, "command": command}
     if part in ("vision", "budget", "all"):  # the vision trainings in parallel; the vision files (vision, all)
         from ncbot.pipelines.reproduce.vision import run_vision_part
 
-        result.update(run_vision_part(part, budget, runs_dir=runs_dir, out=out, command=command, workers=workers))
+        result.update(run_vision_part(part, budget, runs_dir=runs_dir, out=out, command=command,
+                                      workers=cluster.workers))
         if part == "vision":
             return result
-    result["runs"] = run_grid(budget, runs_dir=runs_dir, workers=workers, backend=backend, configs=configs,
-                              address=address)
+    result["runs"] = run_grid(budget, runs_dir=runs_dir, cluster=cluster, configs=configs)
     if part in ("table", "all"):
         result["table"] = write_table_report(budget, runs_dir=runs_dir, out=out, command=command)
     if part in ("budget", "all"):
@@ -201,8 +200,7 @@ def reproduce(part: str, budget_name: str | Budget, *, out: str | Path = "result
 
         dialogue_runs = Path(runs) / f"dialogues-{budget.name}"
         result["dialogue_runs"] = run_dialogue_agents(budget, runs_dir=dialogue_runs,
-                                                      config=row_config("standard", configs), workers=workers,
-                                                      backend=backend, address=address)
+                                                      config=row_config("standard", configs), cluster=cluster)
         result["budget_report"] = write_budget_report(budget, runs_dir=runs_dir, out=out, command=command,
                                                       dialogue_runs=dialogue_runs)
     return result

@@ -173,7 +173,7 @@ def test_ablate_only_that_matches_nothing_is_an_error(tmp_path: Path) -> None:
 
 
 def test_ablate_overrides_apply_to_every_run(tmp_path: Path) -> None:
-    from ncbot.pipelines.train.ablate import plan_runs
+    from ncbot.pipelines.grid.plan import plan_runs
 
     grid = write_grid(tmp_path)
     runs = plan_runs(grid, seeds=2, overrides=["optim.lr=0.002"])
@@ -186,13 +186,13 @@ def test_ablate_overrides_apply_to_every_run(tmp_path: Path) -> None:
 
 def test_ctrl_c_advises_what_fits_the_command(tmp_path: Path, monkeypatch, capsys) -> None:
     import ncbot.pipelines.evaluate.games as evaluate_games
-    import ncbot.pipelines.train.ablate as ablate
+    import ncbot.pipelines.grid.runner as runner
     from ncbot.pipelines.cli.app import main, resume_advice
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(ablate, "run_ablation", interrupted)
+    monkeypatch.setattr(runner, "run_ablation", interrupted)
     monkeypatch.setattr(evaluate_games, "evaluate_checkpoint", interrupted)
     checkpoint = agent_checkpoint(tmp_path / "checkpoint.pt")
     for args, expected in ((["eval", str(checkpoint), "--games", "1"], "ncbot: interrupted (Ctrl-C)"),

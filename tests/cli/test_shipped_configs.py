@@ -49,7 +49,7 @@ def test_an_unknown_name_lists_the_shipped_ones(tmp_path: Path, monkeypatch) -> 
 
 
 def test_ablate_plans_a_shipped_grid_by_name(tmp_path: Path, monkeypatch) -> None:
-    from ncbot.pipelines.train.ablate import plan_runs
+    from ncbot.pipelines.grid.plan import plan_runs
 
     monkeypatch.chdir(tmp_path)
     runs = plan_runs("ablation", seeds=1, runs_dir=tmp_path / "runs")
@@ -90,7 +90,7 @@ def test_every_shipped_grid_plans_runs_whose_configs_load(tmp_path: Path, monkey
     hours into a grid. Every run of every shipped grid loads with its overrides now."""
     import yaml
 
-    from ncbot.pipelines.train.ablate import plan_runs
+    from ncbot.pipelines.grid.plan import plan_runs
 
     monkeypatch.chdir(tmp_path)
     grids = [name for name in shipped_configs()

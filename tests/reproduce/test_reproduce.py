@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from ncbot.pipelines.grid.runner import Cluster
 from ncbot.pipelines.reproduce.grid import BUDGETS, Budget, reproduce, row_config, write_grid
 from ncbot.pipelines.reproduce.dialogues import filter_agreement, plan_dialogue_runs
 from tests.learning_helpers import ncbot, write_paper_configs
@@ -19,7 +20,7 @@ TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4
 
 def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path) -> None:
     configs, out, runs = write_paper_configs(tmp_path, 256), tmp_path / "results", tmp_path / "runs"
-    result = reproduce("all", TINY, out=out, runs=runs, workers=2, command="ncbot reproduce all --budget tiny",
+    result = reproduce("all", TINY, out=out, runs=runs, cluster=Cluster(workers=2), command="ncbot reproduce all --budget tiny",
                        configs=configs)
     assert (result["runs"]["done"], result["runs"]["failed"]) == (5, 0), result["runs"]
     for name in ("paper_table.md", "paper_claims.md", "data_budget.md"):
@@ -49,7 +50,7 @@ def test_reproduce_runs_the_grid_once_and_writes_labelled_reports(tmp_path: Path
         # the budget's games cap or the config's frames, whichever first; the budget's test games
         assert (saved["episodes"] >= 4 or saved["frames"] >= 256) and saved["frames"] <= 256 + 64
         assert saved["first"]["games"] == 20
-    again = reproduce("budget", TINY, out=out, runs=runs, workers=1, configs=configs)
+    again = reproduce("budget", TINY, out=out, runs=runs, cluster=Cluster(workers=1), configs=configs)
     assert (again["runs"]["done"], again["runs"]["skipped"]) == (0, 5)  # resumable: finished runs skipped
     assert (again["dialogue_runs"]["done"], again["dialogue_runs"]["skipped"]) == (0, 2)
     # --report-only: no run starts; all 5 of the budget's runs are done, so the table is not PARTIAL

@@ -121,37 +121,6 @@ def test_cpu_adapters_change_nothing() -> None:
     assert torch.allclose(torch.from_numpy(reader(x.numpy())), qnet.module(x).detach(), atol=1e-6)
 
 
-# --- Ray asks for what a run uses ------------------------------------------------------------------------------------
-
-def test_ray_tasks_ask_for_the_runs_threads_and_a_gpu_when_it_runs_on_cuda() -> None:
-    from ncbot.pipelines.train.ray_backend import RAY_MAX_RETRIES, task_resources
-
-    assert RAY_MAX_RETRIES == 0
-    assert task_resources(4, "cpu", cluster_gpus=2) == {"num_cpus": 4.0, "num_gpus": 0.0}
-    assert task_resources(1, "cuda", cluster_gpus=2) == {"num_cpus": 1.0, "num_gpus": 1.0}
-    assert task_resources(2, "cuda:0", cluster_gpus=2, gpus_per_run=0.25) == {"num_cpus": 2.0, "num_gpus": 0.25}
-    assert task_resources(1, "auto", cluster_gpus=1) == {"num_cpus": 1.0, "num_gpus": 1.0}
-    assert task_resources(1, "auto", cluster_gpus=0) == {"num_cpus": 1.0, "num_gpus": 0.0}
-
-
-def test_a_run_no_node_can_hold_is_refused_before_it_waits_forever() -> None:
-    from ncbot.pipelines.train.ray_backend import check_fits
-
-    nodes = [{"CPU": 16.0, "GPU": 1.0}, {"CPU": 64.0}]
-    check_fits([("a", {"num_cpus": 64.0, "num_gpus": 0.0}), ("b", {"num_cpus": 8.0, "num_gpus": 1.0})], nodes)
-    with pytest.raises(ValueError, match=r"run big asks for 32 CPUs \(train.num_threads\) and 1 GPUs"):
-        check_fits([("big", {"num_cpus": 32.0, "num_gpus": 1.0})], nodes)
-
-
-def test_planned_runs_report_their_threads_and_device(tmp_path: Path) -> None:
-    from ncbot.pipelines.train.ablate import PlannedRun
-
-    config = write_tiny_config(tmp_path)
-    run = PlannedRun("x/seed0", tmp_path / "x", config, ["train.num_threads=3", "train.device=cpu"])
-    assert run.settings() == ("x/seed0", 3, "cpu")
-    assert PlannedRun("y", tmp_path / "y", config).settings() == ("y", 1, "auto")
-
-
 # --- on a CUDA GPU (scripts/device_check.sh) ---------------------------------------------------------------------
 
 ULTIMATE = {"env": {"game": "ultimate", "batch_size": 32}, "agent": {"hidden": [64, 64]},

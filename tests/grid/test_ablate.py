@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ncbot.pipelines.train.ablate import plan_runs, run_ablation
+from ncbot.pipelines.grid.plan import plan_runs
+from ncbot.pipelines.grid.runner import Cluster, run_ablation
 from ncbot.pipelines.reproduce.table import write_table
 from tests.learning_helpers import write_tiny_config
 
@@ -43,14 +44,14 @@ def test_bad_grid_is_a_clear_error(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="'agent.name' must be one of"):
         plan_runs(path, seeds=1)
     with pytest.raises(ValueError, match="backend"):
-        run_ablation(path, backend="slurm")
+        run_ablation(path, cluster=Cluster(backend="k8s"))
 
 
 def test_grid_runs_in_parallel_skips_finished_and_tabulates(tmp_path: Path) -> None:
     grid = _grid(tmp_path)
-    summary = run_ablation(grid, seeds=1, workers=2, only="proposed")
-    assert (summary["done"], summary["failed"]) == (2, 0), summary
-    again = run_ablation(grid, seeds=1, workers=2, only="proposed")
+    summary = run_ablation(grid, seeds=1, cluster=Cluster(workers=2), only="proposed")
+    assert (summary["done"], summary["failed"], summary["unfinished"]) == (2, 0, []), summary
+    again = run_ablation(grid, seeds=1, cluster=Cluster(workers=2), only="proposed")
     assert (again["done"], again["skipped"]) == (0, 2)
 
     text = write_table(tmp_path / "runs", tmp_path / "table.md")
@@ -94,8 +95,10 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
     skipped and counted as held, not started a second time and not failed; `--status` names each run's state."""
     import json
 
+    from ncbot.pipelines.grid.attempt import Outcome, run_attempt
+    from ncbot.pipelines.grid.plan import PlannedRun
+    from ncbot.pipelines.grid.status import grid_status
     from ncbot.pipelines.run_folder import RunLock
-    from ncbot.pipelines.train.ablate import HELD, PlannedRun, _run_local, grid_status
     from tests.learning_helpers import ncbot
 
     grid = _grid(tmp_path)
@@ -108,13 +111,14 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
     (stopped / "checkpoints" / "step-000050000.pt").write_bytes(b"")
     lock = RunLock(held)  # another ncbot train, as far as the folder can tell
     try:
-        states = {name.split("/")[2]: (where, detail) for name, where, detail in grid_status(grid, seeds=1)[0]}
+        states = {status.name.split("/")[2]: (status.state, status.detail) for status in grid_status(grid, seeds=1)[0]}
         assert states["proposed-notemporal"] == ("finished", "task success 0.9900 robot first, 0.9000 robot second")
         assert states["proposed-temporal"] == ("stopped", "resumes from the checkpoint at 50,000 frames")
         assert states["dqn_variant-notemporal"][0] == "training now"
         assert f"pid {os.getpid()}" in states["dqn_variant-notemporal"][1]
-        assert _run_local(PlannedRun("held", held, tmp_path / "grid.yaml")) == ("held", HELD)
-        assert _run_local(PlannedRun("done", finished, tmp_path / "grid.yaml")) == ("done", 0)
+        assert run_attempt(PlannedRun("held", held, tmp_path / "grid.yaml"), backend="local").kind == "held"
+        assert run_attempt(PlannedRun("done", finished, tmp_path / "grid.yaml"), backend="local") == \
+            Outcome("done", "finished", "finished by another process")
         assert not (held / "train.log").exists() and not (finished / "train.log").exists()  # nothing was started
         result = ncbot("ablate", str(grid), "--seeds", "1", "--status")
         assert result.returncode == 0, result.stderr
@@ -123,13 +127,14 @@ def test_status_says_where_every_run_stands_and_a_held_run_is_not_started_twice(
             "left: 2 runs, none with a finished seed of its cell to estimate from"]
     finally:
         lock.release()
-    assert grid_status(grid, seeds=1)[0][0][1] == "not started"  # the lock is gone with its holder, no checkpoint
+    assert grid_status(grid, seeds=1)[0][0].state == "not started"  # the lock is gone with its holder, no checkpoint
 
 
 def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The two newest checkpoints' frames and times give the rate; the run's config.yaml its total frames."""
+    from ncbot.pipelines.grid.plan import PlannedRun
+    from ncbot.pipelines.grid.status import run_state
     from ncbot.pipelines.run_folder import RunLock
-    from ncbot.pipelines.train.ablate import PlannedRun
 
     run_dir = tmp_path / "seed0"
     (run_dir / "checkpoints").mkdir(parents=True)
@@ -144,29 +149,29 @@ def test_status_gives_a_running_run_its_pace_and_time_left(tmp_path: Path, monke
     lock = RunLock(run_dir)
     try:
         os.utime(run_dir / ".lock", (now - 700, now - 700))  # the training started before both checkpoints
-        where, detail = run.state()
+        where, detail = run_state(run)
         # 250,000 frames at 250 frames/s is 1,000 s from the newer checkpoint, 400 s of which have passed
         assert (where, detail.split(", ", 1)[1]) == \
             ("training now", "checkpoint at 150,000 frames, 250 frames/s, about 10:00 left of 400,000 frames")
         # resumed 500 s ago from the older checkpoint: its pace is from then (50,000 frames in 100 s), not the
         # earlier process's, whose stop before the resume would make the estimate hours long
         os.utime(run_dir / ".lock", (now - 500, now - 500))
-        assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 1:40 left of 400,000 frames")
+        assert run_state(run)[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 1:40 left of 400,000 frames")
         os.utime(run_dir / ".lock", (now - 300, now - 300))  # resumed after both: nothing of its own yet
-        assert run.state()[1].endswith("checkpoint at 150,000 frames")
+        assert run_state(run)[1].endswith("checkpoint at 150,000 frames")
         # checkpoints every 50,000 frames: 400 s after the newer one (200 s of frames at 500 frames/s) the run cannot
         # be past 200,000 frames, or it would have written that checkpoint: 200,000 frames left, 6:40, not 0:00
         (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\ncheckpoint:\n  every_frames: 50000\n")
         os.utime(run_dir / ".lock", (now - 500, now - 500))
-        assert run.state()[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 6:40 left of 400,000 frames")
+        assert run_state(run)[1].endswith("checkpoint at 150,000 frames, 500 frames/s, about 6:40 left of 400,000 frames")
         (run_dir / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
         os.utime(run_dir / ".lock", (now - 300, now - 300))
         last = run_dir / "checkpoints" / "step-000400000.pt"
         last.write_bytes(b"")
-        assert run.state()[1].endswith("every frame trained: the final evaluation")
+        assert run_state(run)[1].endswith("every frame trained: the final evaluation")
         last.unlink()
         (run_dir / "config.yaml").write_text("collector: {}\n")  # no total: no estimate, still the checkpoint
-        assert run.state()[1].endswith("checkpoint at 150,000 frames")
+        assert run_state(run)[1].endswith("checkpoint at 150,000 frames")
     finally:
         lock.release()
 
@@ -176,7 +181,7 @@ def test_status_sums_the_training_time_left_from_each_cells_finished_seeds(tmp_p
     left; a cell with no finished seed is counted apart, not guessed."""
     import json
 
-    from ncbot.pipelines.train.ablate import grid_status
+    from ncbot.pipelines.grid.status import grid_status
     from tests.learning_helpers import ncbot
 
     grid = _grid(tmp_path)
@@ -189,10 +194,10 @@ def test_status_sums_the_training_time_left_from_each_cells_finished_seeds(tmp_p
     (stopped / "checkpoints").mkdir(parents=True)
     (stopped / "config.yaml").write_text("collector:\n  total_frames: 400000\n")
     (stopped / "checkpoints" / "step-000100000.pt").write_bytes(b"")  # a quarter trained: 150 s left
-    states, left = grid_status(grid, seeds=5, only="proposed-temporal")
-    assert [where for _, where, _ in states] == ["finished"] * 3 + ["stopped", "not started"]
+    states, left, _ = grid_status(grid, seeds=5, only="proposed-temporal")
+    assert [status.state for status in states] == ["finished"] * 3 + ["stopped", "not started"]
     assert (left.seconds, left.estimated, left.unknown) == (150.0 + 200.0, 2, 0)
-    _, everything = grid_status(grid, seeds=5)  # the other cells have no finished seed
+    _, everything, _ = grid_status(grid, seeds=5)  # the other cells have no finished seed
     assert (everything.seconds, everything.estimated, everything.unknown) == (350.0, 2, 10)
     result = ncbot("ablate", str(grid), "--seeds", "5", "--only", "proposed-temporal", "--status", "--workers", "2")
     assert result.returncode == 0, result.stderr
