@@ -9,7 +9,7 @@ Run by hand (figures go to docs/ultimate.md, "A faster search"):
 The robot has 0.2 CPU s per move on one core; the stronger the search within that budget, the better
 it plays against ``mcts:10000``. Positions come from seeded random openings of 4 to 40 moves (Ultimate), the same
 for every row. The "torch reads" row reads both networks through ``nn.Module`` instead of the search's numpy
-reader (``ncbot.modules.qnet.MLPReader``): the two rows' ratio is the reader's gain on this machine, measured in one run.
+reader (``ncbot.modules.networks.qnet.MLPReader``): the two rows' ratio is the reader's gain on this machine, measured in one run.
 Several checkpoints are timed on the same positions in one run (e.g. an agent without and one with the env's threat
 planes, whose search builds the planes at every expansion): their rows' ratio is what the planes cost.
 """

@@ -9,7 +9,7 @@ Every figure is measured per CPU second of this process (`time.process_time`), w
 with other jobs far better than wall time; the learners take turns over `--rounds` rounds and the median round is
 reported, so a burst of load hits both sides alike. Updates are timed on a full replay buffer that takes a fresh
 collected batch every `optim.updates_per_batch` updates (untimed), as in training. Rows for ncbot: the update the
-training loop runs (`Learner.update`: `loss_module(td)`, backward, Adam, target updater) at the config's precision,
+training loop runs (`Learner.update`: `objective(td)`, backward, Adam, target updater) at the config's precision,
 the same update at the other precision (`optim.precision`), and the whole loop (collect + updates).
 To compare with another commit, run this script from each tree in turn (docs/learner-speed.md gives the command).
 OpenSpiel is a bench-time install only (`pip install open-spiel dm-tree`); without it the script says so and
@@ -60,14 +60,15 @@ class Ours:
     """The default pipeline's env, Collector, replay buffer and learners (one per precision, same start weights)."""
 
     def __init__(self, config_path: str) -> None:
-        from ncbot.modules.policy import make_policies
-        from ncbot.modules.qnet import make_qnet, seeded_init
-        from ncbot.modules.symmetry import make_symmetries
-        from ncbot.modules.transitions import make_multistep, prepare_transitions
+        from ncbot.modules.policies.policy import make_policies
+        from ncbot.modules.networks.qnet import make_qnet, seeded_init
+        from ncbot.modules.replay.symmetry import make_symmetries
+        from ncbot.modules.replay.transitions import make_multistep, prepare_transitions
         from ncbot.pipelines.config import load_config
-        from ncbot.modules.learner import Learner, make_replay_buffer
+        from ncbot.modules.learner import Learner
+        from ncbot.modules.replay.buffer import make_replay_buffer
         from ncbot.pipelines.run_env import make_run_env
-        from ncbot.pipelines.train.build import frames_per_batch, learner_settings, make_collector
+        from ncbot.pipelines.train.build import frames_per_batch, make_collector, make_objective
 
         config = self.config = load_config(config_path)
         self.env = make_run_env(config.env, batch_size=config.env.batch_size, seed=0)
@@ -79,7 +80,9 @@ class Ours:
             seeded_init(qnet, 0)
             learner_config = load_config(config_path, [f"optim.precision={precision}"])
             symmetries = make_symmetries(config.buffer.augment, self.env, 0)  # buffer.augment: as training runs it
-            self.learners[precision] = Learner.build(qnet, learner_settings(learner_config), symmetries)
+            objective, symmetries = make_objective(learner_config, qnet, symmetries)
+            self.learners[precision] = Learner.build(objective, optim=learner_config.optim, loss=learner_config.loss,
+                                                     symmetries=symmetries)
             if precision == config.optim.precision:  # the collecting policy acts with the default learner's network
                 agent = make_policies(qnet, self.env.action_spec_unbatched, config.lookahead, annealing_frames=10**9)
         self.buffer = make_replay_buffer(config.buffer.size, config.buffer.batch_size)
@@ -168,10 +171,12 @@ def levers(config_path: str, seconds: float, rounds: int, compile_too: bool) -> 
     from torch import nn
 
     from ncbot.pipelines.config import load_config
-    from ncbot.pipelines.train.build import env_sizes
+    from ncbot.pipelines.run_env import make_run_env
 
     config = load_config(config_path)
-    features, actions = env_sizes(config)  # the config's env: its observation features and actions
+    env = make_run_env(config.env, batch_size=1, seed=0)  # the config's env: its observation features and actions
+    features, actions = env.n_features, env.n_actions
+    env.close()
     batch, hidden = config.buffer.batch_size, config.agent.hidden
     torch.manual_seed(0)
     widths = [features, *hidden]

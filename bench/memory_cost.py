@@ -8,7 +8,7 @@ buffer is filled past the burn-in, then each round times, in CPU seconds of this
 robust to a shared machine), `--batches` collected batches (collect + store) and `optim.updates_per_batch`
 updates after each; the settings take turns and the median round is reported as CPU ms per frame.
 `--reference-unroll` adds, for each recurrent setting, a twin whose loss unrolls its slices through TorchRL's
-recurrent mode (`modules.recurrent.unroll_in_recurrent_mode`, the same numbers) instead of on the tensors.
+recurrent mode (`modules.networks.recurrent.unroll_in_recurrent_mode`, the same numbers) instead of on the tensors.
 """
 from __future__ import annotations
 
@@ -26,32 +26,32 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # measure this tre
 
 def _parts(config_path: str, overrides: list[str], memory: str):
     from ncbot.pipelines.config import load_config
-    from ncbot.pipelines.train.build import build_parts, frames_per_batch, make_collector
+    from ncbot.pipelines.train.build import assemble, check_run, frames_per_batch, make_collector
 
     config = load_config(config_path, [*overrides, f"agent.memory={memory}", "logger.mcap=false"])
-    parts = build_parts(config, config.train.seed, 0)
+    parts = assemble(config, check_run(config), config.train.seed)
     collector = make_collector(parts.env, parts.agent.explore, frames_per_batch(config), -1)
     return config, parts, iter(collector)
 
 
 def _reference_parts(config_path: str, overrides: list[str], memory: str):
     """The parts of `memory` with the loss's unroll swapped for TorchRL's recurrent mode (same numbers, tested)."""
-    from ncbot.modules.recurrent import unroll_in_recurrent_mode
+    from ncbot.modules.networks.recurrent import unroll_in_recurrent_mode
 
     config, parts, batches = _parts(config_path, overrides, memory)
-    loss = parts.learner.loss_module
+    loss = parts.learner.objective
     loss._unroll = lambda observations, states: unroll_in_recurrent_mode(loss.value_network, observations, states)
     return config, parts, batches
 
 
 def _store(config, parts, batch, frames: int) -> None:
-    from ncbot.modules.transitions import prepare_transitions
+    """What the training loop stores of a batch: its transitions, with the recurrent replay hook's keys."""
+    from ncbot.pipelines.train.hooks import RecurrentReplay
 
-    loss = config.loss
-    rows = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward, bootstrap=loss.bootstrap,
-                               lookahead=config.lookahead, multistep=parts.multistep)
-    if parts.sequence_rows is not None:
-        rows = parts.sequence_rows(batch, rows, frames)
+    rows = parts.transitions(batch)
+    for hook in parts.hooks:
+        if isinstance(hook, RecurrentReplay):
+            rows = hook.rows(batch, rows, frames)
     parts.buffer.extend(rows)
 
 

@@ -4,7 +4,7 @@ Run: python bench/readings_uniform.py [--games 1000] [--game ultimate] [--dialog
 Why: whether a reading of taken squares (env.taken_squares), of the fallback when every allowed move is negative
 (agent.all_negative) and of set A (env.win_set) makes games loop to the 100-act cap can be seen before any
 training. Each row plays the first dialogue of ``--games`` env slots, robot first, with
-``ncbot.modules.masks.LookaheadOnlyPolicy`` (the greedy mask of the ``one_step`` rule, uniform inside it), to its end
+``ncbot.modules.policies.masks.LookaheadOnlyPolicy`` (the greedy mask of the ``one_step`` rule, uniform inside it), to its end
 (closing or the cap). Columns: task success (won or drawn), share of games cut at the cap, share of games that
 reached a state where every allowed game move had a negative look-ahead reward (``all_moves_negative``), mean
 dialogue length in acts, refused game moves per game. misread uses the paper configs' rate (0.10).
@@ -30,7 +30,7 @@ class FixedPreference:
     """Greedy over the look-ahead's greedy mask with a fixed random score per (game slot, action)."""
 
     def __init__(self, games: int, n_actions: int, seed: int, all_negative: str) -> None:
-        from ncbot.modules.masks import LookaheadMasks
+        from ncbot.modules.policies.masks import LookaheadMasks
 
         self.masks = LookaheadMasks("one_step", all_negative)
         self.scores = torch.rand(games, n_actions, generator=torch.Generator().manual_seed(seed))
@@ -45,8 +45,8 @@ class FixedPreference:
 def rollout(game: str, dialogues: str, taken_squares: str, all_negative: str, win_set: str, games: int,
             seed: int = 0, chooser: str = "uniform") -> dict[str, float]:
     from ncbot.envs import make_env
-    from ncbot.modules.mask_rules import all_moves_negative
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.mask_rules import all_moves_negative
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     env = make_env(game, batch_size=(games,), seed=seed, first="robot", dialogues=dialogues, win_set=win_set,
                    taken_squares=taken_squares, misread_rate=MISREAD_RATE if taken_squares == "misread" else None)

@@ -180,7 +180,7 @@ def check_search_options(parser: argparse.ArgumentParser, args: argparse.Namespa
         parser.error("--ours-value scores the leaves of the search: give --ours-search N too")
     if not args.ultimate:
         parser.error("--ours-value is for Ultimate (--game ultimate): value networks score Ultimate positions")
-    from ncbot.modules.value_net import load_value_net
+    from ncbot.modules.search.value_net import load_value_net
 
     try:
         load_value_net(args.ours_value, args.free_move)

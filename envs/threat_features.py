@@ -1,7 +1,7 @@
 """Threat planes for the observation (env option ``threat_features``, beyond the paper, off by default).
 
 Why: the value network that makes the Q-guided search perfect against the random user reads these threats
-(``modules/value_net.py``), and without them the same network was much weaker; the Q-network sees marks only and has
+(``modules/search/value_net.py``), and without them the same network was much weaker; the Q-network sees marks only and has
 to compute them from the mark bits. Planes, each 0/1, in this order:
 - robot threats / human threats (cells each): an empty square that would complete a line of that side in its 3x3
   grid (Ultimate: only in subgrids still open);

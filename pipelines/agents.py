@@ -27,11 +27,11 @@ def load_agent(checkpoint_path, *, device: str = "cpu"):
     cuda:N): where its network runs; the evaluation hands it the env's CPU TensorDicts (modules.device.on_device).
 
     An agent with `agent.memory` reads its hidden state from the env: every caller steps its env wrapped by
-    `ncbot.modules.recurrent.memory_env` (evaluation, exact evaluation, `ncbot play`, the robot games), which is
+    `ncbot.modules.networks.recurrent.memory_env` (evaluation, exact evaluation, `ncbot play`, the robot games), which is
     the env unchanged for the MLP."""
     from ncbot.modules.device import resolve_device
-    from ncbot.modules.policy import make_policies
-    from ncbot.modules.recurrent import make_agent_qnet
+    from ncbot.modules.policies.policy import make_policies
+    from ncbot.modules.networks.recurrent import make_agent_qnet
     from ncbot.pipelines.checkpoint import load_agent_checkpoint
     from torchrl.data import Categorical
 
@@ -50,7 +50,7 @@ def load_agent(checkpoint_path, *, device: str = "cpu"):
 def resolve_lookahead(name: str, free_move: str) -> str:
     """A `--lookahead` choice -> the mask rule name for this game's rule variant (`k3` -> `k3_open` on
     `open_subgrids`); ValueError naming the allowed choices otherwise."""
-    from ncbot.modules.masks import LOOKAHEAD_RULES
+    from ncbot.modules.policies.masks import LOOKAHEAD_RULES
 
     rule = name.strip()
     if free_move == "open_subgrids" and rule.startswith("k") and not rule.endswith("_open"):
@@ -70,15 +70,15 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
     acts stay greedy); with both, the search's root skips the moves the k-step rule proves lost (when some
     move survives). ``value``: a value network (``ncbot train-value``) scores the search's leaves.
     """
-    from ncbot.modules.masks import lookahead_rule
-    from ncbot.modules.policy import make_policies
+    from ncbot.modules.policies.masks import lookahead_rule
+    from ncbot.modules.policies.policy import make_policies
 
     if search is not None and search < 1:
         raise ValueError(f"--search must be a positive number of simulations, got {search}")
     check_value_option(value, search)
     config, greedy = load_agent(checkpoint)  # the ladder plays it through evaluate_agent
     if search:
-        from ncbot.modules.recurrent import require_feedforward
+        from ncbot.modules.networks.recurrent import require_feedforward
 
         require_feedforward(config, "--search")
     if lookahead is not None:  # the masks read the env's board keys, not the network: any agent.memory
@@ -86,13 +86,13 @@ def load_robot(checkpoint: str, *, search: int | None = None, lookahead: str | N
         from torch import nn
         from torchrl.data import Categorical
 
-        qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policy.make_policies)
+        qnet = greedy[0]  # the policy chain starts with the Q-network (modules.policies.policy.make_policies)
         n_actions = [layer for layer in qnet.modules() if isinstance(layer, nn.Linear)][-1].out_features  # the head
         greedy = make_policies(qnet, Categorical(n_actions), config.lookahead, all_negative=config.agent.all_negative).greedy
     description = f"greedy Q, masks {config.lookahead}"
     if not search:
         return config, greedy, description
-    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.search.guided_mcts import GuidedMCTSPolicy
 
     mcts = guided_search(config, greedy, search, value=value)  # the loaded Q-network, not a second read of the file
     rule = lookahead_rule(config.lookahead)
@@ -120,11 +120,11 @@ class AgentOpponent:
         import torch
 
         from ncbot.envs.games import make_game
-        from ncbot.modules.guided_mcts import TurnFeatures
-        from ncbot.modules.qnet import make_qnet
+        from ncbot.modules.search.guided_mcts import TurnFeatures
+        from ncbot.modules.networks.qnet import make_qnet
         from ncbot.pipelines.checkpoint import load_agent_checkpoint
 
-        from ncbot.modules.recurrent import require_feedforward
+        from ncbot.modules.networks.recurrent import require_feedforward
 
         config, data = load_agent_checkpoint(checkpoint)
         require_feedforward(config, "opponent 'agent:CHECKPOINT'")
@@ -202,19 +202,11 @@ def register_agent_opponent() -> None:
 def guided_search(config, greedy, simulations: int, free_move: str | None = None, value: str | None = None):
     """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an already
     loaded agent's Q-network."""
-    from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
-    from ncbot.modules.recurrent import require_feedforward
+    from ncbot.modules.networks.recurrent import require_feedforward
+    from ncbot.modules.search.guided_mcts import policy_search
 
     require_feedforward(config, "the Q-guided search")
-    free_move = free_move or config.env.free_move
-    value_net = None
-    if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
-        from ncbot.modules.value_net import load_value_net
-
-        value_net = load_value_net(value, free_move)
-    qnet = greedy[0].module  # the policy chain starts with the Q-network (modules.policy.make_policies)
-    features = TurnFeatures(config.env.game, config.env.temporal, free_move, config.env.threats)
-    return GuidedMCTS(qnet, features, config.env.game, free_move, simulations, value_net=value_net)
+    return policy_search(greedy, config.env, simulations, free_move, value)
 
 
 def load_guided_search(checkpoint: str, simulations: int, free_move: str | None = None):
@@ -225,7 +217,7 @@ def load_guided_search(checkpoint: str, simulations: int, free_move: str | None 
 
 def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0, value: str | None = None):
     """(config, policy) for eval / ladder: the agent's greedy dialogue policy with game moves chosen by the search."""
-    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.search.guided_mcts import GuidedMCTSPolicy
 
     config, greedy = load_agent(checkpoint)
     return config, GuidedMCTSPolicy(greedy, guided_search(config, greedy, simulations, value=value), seed)
@@ -234,7 +226,7 @@ def load_guided_agent(checkpoint: str, simulations: int, seed: int = 0, value: s
 def register_qmcts_opponent() -> None:
     """Make ``qmcts:N:CHECKPOINT`` (MCTS guided by a trained agent's Q-network) a valid opponent name."""
     from ncbot.envs.opponents import register_opponent
-    from ncbot.modules.guided_mcts import QMCTSOpponent, parse_qmcts
+    from ncbot.modules.search.guided_mcts import QMCTSOpponent, parse_qmcts
 
     def factory(arg, *, game, free_move, seed):
         simulations, checkpoint = parse_qmcts(arg)

@@ -1,12 +1,19 @@
-"""Checkpoints: written atomically (`ncbot.fileio.atomic_path`), read back with `weights_only=True`.
+"""Checkpoints: what they hold (this module alone says so), written atomically (`ncbot.fileio.atomic_path`) and read
+back with `weights_only=True`.
 
 Two kinds live in a run folder:
-- `checkpoint.pt`: the final agent (Q-network weights + resolved config): what `ncbot eval` loads.
-- `checkpoints/step-NNNNNNNNN.pt`: periodic training state (network, target network, optimiser, epsilon, replay
-  buffer, counters, RNG, evaluation history) that `ncbot train --resume DIR` continues from.
+- `checkpoint.pt` (`agent_state`): the final agent (Q-network weights + resolved config + counters): what `ncbot
+  eval` loads.
+- `checkpoints/step-NNNNNNNNN.pt` (`training_state`): the periodic training state that `ncbot train --resume DIR`
+  continues from (`restore`): the Q-network, the learner (objective with its target parameters, optimiser, target
+  updater's counter, board-symmetry generator), epsilon, the replay buffer, the hooks' states under their
+  `checkpoint_key` (search targets: `teacher`), RNG, counters, evaluation history and the first MCAP file written
+  after it.
 A crash can leave a stray `.NAME.*.tmp` file but never a half-written checkpoint under its final name; every run
 removes such leftovers once it holds the folder's lock (`ncbot.pipelines.run_folder`). Loaders check keys and weight
 shapes against the stored config (`load_agent_checkpoint`, `check_training_state`) for a one-line reason.
+Checkpoints of the previous layout load: a recurrent objective's state then lacks its value estimator's gamma (a
+plain attribute then), which the run's config gives.
 """
 from __future__ import annotations
 
@@ -25,6 +32,7 @@ from ncbot.fileio import atomic_path
 
 FORMAT = "ncbot-dqn/1"
 FINAL_NAME = "checkpoint.pt"
+MCAP_KEY = "mcap_next_file"  # in a periodic checkpoint: the first log file written after it
 PERIODIC_DIR = "checkpoints"
 PERIODIC_PATTERN = re.compile(r"^step-(\d{9})\.pt$")
 
@@ -144,7 +152,7 @@ def game_actions(game: str) -> int:
 
 
 def qnet_shapes(n_features: int, n_actions: int, hidden: list[int]) -> dict[str, tuple[int, ...]]:
-    """The state-dict shapes `ncbot.modules.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
+    """The state-dict shapes `ncbot.modules.networks.qnet.make_qnet` gives these sizes (checked before any weight is loaded)."""
     widths = [n_features, *hidden, n_actions]
     shapes: dict[str, tuple[int, ...]] = {}
     for layer, (inputs, outputs) in enumerate(zip(widths, widths[1:])):
@@ -163,8 +171,8 @@ def _require(data: dict[str, Any], keys: dict[str, Any], path: Path, expected: s
 
 def check_qnet(data: dict[str, Any], config: Any, path: Path) -> None:
     """The Q-network weights match the sizes the config builds; ValueError naming the first mismatch."""
-    if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/recurrent.py
-        from ncbot.modules.recurrent import recurrent_qnet_shapes
+    if getattr(config.agent, "memory", "none") != "none":  # the recurrent network of modules/networks/recurrent.py
+        from ncbot.modules.networks.recurrent import recurrent_qnet_shapes
 
         expected = recurrent_qnet_shapes(data["n_features"], data["n_actions"], config.agent)
     else:
@@ -242,3 +250,76 @@ def latest_training_state(run_dir: str | os.PathLike) -> dict[str, Any]:
     """The newest resumable training state of a run, read only (`--resume` goes through pipelines.run_folder,
     which also holds the run's lock and checks the run's identity)."""
     return newest_resumable(run_dir)[0]
+
+
+# --- what a run's checkpoints hold ---------------------------------------------------------------------------------
+
+def agent_state(config: Any, parts: Any, run_id: str) -> dict[str, Any]:
+    """The final agent (`checkpoint.pt`): every tensor on the CPU, so a GPU run's agent loads on any machine."""
+    from ncbot.modules.device import to_cpu
+
+    counters = parts.counters
+    return {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
+            "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
+            "updates": counters["updates"], "episodes": counters["episodes"], "run_id": run_id}
+
+
+def training_state(config: Any, parts: Any, run_id: str, wall_time: float, cpu_time: float | None,
+                   log_next: int | None) -> dict[str, Any]:
+    """What a periodic checkpoint holds (see module doc): everything `restore` loads back, every tensor on the CPU."""
+    from ncbot.modules.device import to_cpu
+
+    counters = parts.counters
+    hooks = {hook.checkpoint_key: hook.state_dict() for hook in parts.hooks if hook.checkpoint_key}
+    cuda_rng = {"cuda_rng": torch.cuda.get_rng_state(parts.device)} if parts.device.type == "cuda" else {}
+    return to_cpu({
+        "config": config.to_dict(), "n_features": parts.env.n_features, "n_actions": parts.env.n_actions,
+        "qnet": parts.qnet.state_dict(), "learner": parts.learner.state_dict(),
+        "egreedy": parts.agent.egreedy.state_dict(),
+        "buffer": parts.buffer.state_dict() if config.checkpoint.save_buffer else None, "teacher": None, **hooks,
+        "rng": torch.get_rng_state(), "history": parts.history, "run_id": run_id,
+        "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
+        "wall_time": wall_time, "cpu_time": cpu_time, **cuda_rng, MCAP_KEY: log_next,
+    })
+
+
+def restore(parts: Any, state: dict[str, Any], state_path: Any) -> None:
+    """Load a periodic checkpoint's training state into the run's parts (networks, learner, epsilon, buffer, hooks,
+    RNG, counters, history); a state that does not fit the config is one line naming the checkpoint."""
+    try:
+        parts.qnet.load_state_dict(state["qnet"])
+        parts.learner.load_state_dict(_learner_state(parts.learner, state["learner"]))
+        parts.agent.egreedy.load_state_dict(state["egreedy"])
+        if state.get("buffer") is not None:
+            parts.buffer.load_state_dict(state["buffer"])
+            _storage_to(parts.buffer, parts.device)
+        for hook in parts.hooks:
+            if hook.checkpoint_key and state.get(hook.checkpoint_key) is not None:
+                hook.load_state_dict(state[hook.checkpoint_key])
+        torch.set_rng_state(state["rng"])
+        if state.get("cuda_rng") is not None and parts.device.type == "cuda":
+            torch.cuda.set_rng_state(state["cuda_rng"], parts.device)
+    except (RuntimeError, KeyError, TypeError, ValueError) as error:  # the checkpoint's parts do not fit this config
+        raise ValueError(f"checkpoint {str(state_path)!r} does not fit the run's config "
+                         f"({str(error).splitlines()[0][:160]})") from None
+    parts.counters.update({k: state[k] for k in ("frames", "updates", "episodes")})
+    parts.counters["wall_offset"] = state["wall_time"]
+    parts.counters["cpu_offset"] = state.get("cpu_time")  # None: a checkpoint written before CPU time was kept
+    parts.history = list(state["history"])
+
+
+def _learner_state(learner: Any, state: dict[str, Any]) -> dict[str, Any]:
+    """A learner's state as this layout keeps it: an objective's value-estimator buffers that the previous layout did
+    not store (a recurrent objective's gamma) are the run's own (they come from its config, not from learning)."""
+    objective = state["loss"]
+    missing = {key: value for key, value in learner.objective.state_dict().items()
+               if key.startswith("_value_estimator.") and key not in objective}
+    return {**state, "loss": {**objective, **missing}} if missing else state
+
+
+def _storage_to(buffer: Any, device: torch.device) -> None:
+    """A replay storage loaded from a (CPU) checkpoint onto the run's device: TorchRL fills an empty storage with
+    the checkpoint's own tensors, on the CPU."""
+    storage = buffer.storage
+    if device.type != "cpu" and getattr(storage, "_storage", None) is not None:
+        storage._storage = storage._storage.to(device)

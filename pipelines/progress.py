@@ -88,9 +88,6 @@ class LineProgress:
     def set_postfix_str(self, text: str = "", refresh: bool = True) -> None:
         self.postfix = text
 
-    def set_description(self, desc: str, refresh: bool = True) -> None:
-        self.desc = desc
-
     def close(self) -> None:
         if not self.closed:
             self.closed = True

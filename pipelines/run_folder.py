@@ -5,8 +5,10 @@ old folder resumed the old run's state after a kill. So:
 - `ncbot.pipelines.outputs.check_writable_dir` refuses an output that is a file or cannot be written, before any work;
 - `RunFolder.open` takes an exclusive `flock` on RUN/.lock (a second writer gets one line and exit 2; the kernel
   drops the lock when a run dies, so a killed run's lock is taken over without a stale-pid dance), then either
-  claims a fresh folder (refusing one that holds another run unless `overwrite`), or, to resume, picks the newest
+  checks a fresh folder (refusing one that holds another run unless `overwrite`), or, to resume, picks the newest
   periodic checkpoint of THIS run (run.json's id) that loads, falling back past damaged ones and saying which;
+- `RunFolder.claim` makes the folder the run's (clearing an overwritten run, writing run.json) once training has
+  built its parts: a run refused while it is built (no room on the disk) leaves the folder as it was;
 - stray temp files of killed writers (`ncbot.fileio.TEMP_GLOB`) anywhere in the folder are removed once the lock is ours;
 - the MCAP log is rolled at every checkpoint (`EpisodeLogger.roll`), the checkpoint records the first file written
   after it, and a resume deletes the files from there on: the log keeps exactly the episodes the counters count.
@@ -33,7 +35,6 @@ LOCK_NAME = ".lock"
 RUN_FILES = ("checkpoint.pt", "eval.json", "config.yaml", IDENTITY_NAME, "learning_curve.png")
 RUN_FOLDERS = ("checkpoints", "scalars")
 MCAP_GLOB = "episodes-*.mcap"
-MCAP_KEY = "mcap_next_file"  # in a periodic checkpoint: the first log file written after it
 
 
 def holds_run(path: Path) -> bool:
@@ -143,11 +144,14 @@ class RunFolder:
     state_path: Path | None = None
     notes: list[str] = field(default_factory=list)
     lock: RunLock | None = None
+    fresh: bool = False  # a new run: `claim` writes its identity (and clears an overwritten run first)
+    overwrite: bool = False
 
     @classmethod
     def open(cls, path: str | os.PathLike, *, resume: bool, overwrite: bool,
-             validate: Callable[[dict[str, Any], Path], None] | None = None) -> RunFolder:
-        """Lock the folder and claim it (fresh) or pick the state to resume; one-line errors otherwise."""
+             validate: Callable[[dict[str, Any], Path], None] | None = None, claim: bool = True) -> RunFolder:
+        """Lock the folder and pick the state to resume, or check that a fresh run may take it; one-line errors
+        otherwise. With `claim` (else call `claim()` once the run is built) the folder becomes this run's."""
         path = check_writable_dir(path, "--out" if not resume else "--resume")
         if resume and not path.is_dir():
             raise FileNotFoundError(f"run folder {str(path)!r} not found (expected the --out folder of an earlier "
@@ -160,24 +164,30 @@ class RunFolder:
                 if holds_run(path) and not overwrite:
                     raise ValueError(f"run folder {str(path)!r} holds another run; continue it with --resume "
                                      f"{str(path)!r}, replace it with --overwrite, or choose another --out")
-                if overwrite:
-                    clear_run(path)
-                run = cls(path, uuid.uuid4().hex)
-            if not resume or read_run_id(path) is None:  # a folder of an ncbot older than run ids gets one now
-                atomic_write_text(json.dumps({"run_id": run.run_id, "created": time.time()}) + "\n",
-                                  path / IDENTITY_NAME)
+                run = cls(path, uuid.uuid4().hex, fresh=True, overwrite=overwrite)
             removed = remove_stray_temp_files(path)
             if removed:
                 run.notes.append(f"removed {len(removed)} temp file(s) of an interrupted write")
+            run.lock = lock
+            if claim:
+                run.claim()
         except BaseException:
             lock.release()
             raise
-        run.lock = lock
         return run
+
+    def claim(self) -> None:
+        """Make the folder this run's: an overwritten run's files go, and a fresh run (or a folder of an ncbot
+        older than run ids) gets its identity, run.json."""
+        if self.fresh and self.overwrite:
+            clear_run(self.path)
+        if self.fresh or read_run_id(self.path) is None:
+            atomic_write_text(json.dumps({"run_id": self.run_id, "created": time.time()}) + "\n",
+                              self.path / IDENTITY_NAME)
 
     @classmethod
     def _resume(cls, path: Path, validate: Callable[[dict[str, Any], Path], None] | None) -> RunFolder:
-        from ncbot.pipelines.checkpoint import newest_resumable, periodic_checkpoints
+        from ncbot.pipelines.checkpoint import MCAP_KEY, newest_resumable, periodic_checkpoints
 
         run_id = read_run_id(path)
 

@@ -12,7 +12,7 @@ Modules, each with one job:
 - `localise`: the sheet's pose on the table from a camera frame;
 - `human`: the simulated person (opponent model, drawing with an occluding arm, waits, nudges);
 - `speech`: template speech (espeak-ng optional); without a checkpoint the robot decides with
-  `ncbot.modules.masks.LookaheadOnlyPolicy` (the paper's look-ahead filter alone);
+  `ncbot.modules.policies.masks.LookaheadOnlyPolicy` (the paper's look-ahead filter alone);
 - `game_config`, `report`: what `ncbot robot play` can change, and its per-game records and JSON report;
 - `play`: the closed loop (env + vision recogniser + simulator + MCAP logger), `ncbot robot play`.
 Import the submodules you need; nothing heavy is imported here.

@@ -85,7 +85,7 @@ class RobotGameRunner:
         (serve: a button or typed words) replaces the env's simulated user's reply; its words are then heard
         at confidence 1 (as `ncbot play` does for typed text). `network`: the module behind `policy` when `policy`
         wraps it (serve's locked call); a recurrent one (agent.memory) gets its hidden state carried through each
-        game's dialogue by the env (`modules.recurrent.memory_env`), from zero at every game."""
+        game's dialogue by the env (`modules.networks.recurrent.memory_env`), from zero at every game."""
         config.validate()
         self.human_cell = human_cell
         self.user_reply = user_reply
@@ -286,7 +286,7 @@ class RobotGameRunner:
     # ------------------------------------------------------------------ one game
     def play_game(self, index: int) -> GameRecord:
         from ncbot.envs import make_env
-        from ncbot.modules.recurrent import memory_env
+        from ncbot.modules.networks.recurrent import memory_env
         from torchrl.envs.utils import step_mdp
 
         cfg = self.config
@@ -426,7 +426,7 @@ class RobotGameRunner:
 def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
                      log_mcap: bool = True, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
     """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     config.validate()
     if policy is None:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ncbot.vision.classifier.inference import CellClassifier
 from ncbot.vision.classifier.model import CellCNN
-from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.classifier.train import FitConfig, fit
 from ncbot.vision.data import BUDGET_SEED, N_CLEAN, N_NOISY, TEST_SEED
 from ncbot.vision.data.cells import make_cells, render_cell
 from ncbot.vision.grid import extract_cells
@@ -109,15 +109,15 @@ def training_set(n: int, seed: int = 0, progress: Callable[..., Any] | None = No
     return np.concatenate([clean[0], noisy[0], photo[0]]), np.concatenate([clean[1], noisy[1], photo[1]]), parts
 
 
-def train_config(n: int, seed: int = 0, updates: int | None = None) -> TrainConfig:
-    """The shipped TrainConfig with as many epochs as it takes to make ``updates`` optimiser steps (default:
+def train_config(n: int, seed: int = 0, updates: int | None = None) -> FitConfig:
+    """The shipped FitConfig with as many epochs as it takes to make ``updates`` optimiser steps (default:
     BUDGET_UPDATES; fewer only for tests and smoke runs)."""
     base = _SHIPPED.train
     updates = BUDGET_UPDATES if updates is None else updates
     if updates < 1:
         raise ValueError(f"updates must be at least 1; got {updates}")
     epochs = math.ceil(updates / math.ceil(n / base.batch_size))
-    return TrainConfig(epochs=epochs, batch_size=base.batch_size, lr=base.lr, weight_decay=base.weight_decay,
+    return FitConfig(epochs=epochs, batch_size=base.batch_size, lr=base.lr, weight_decay=base.weight_decay,
                        augment=base.augment, seed=seed)
 
 

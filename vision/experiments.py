@@ -17,7 +17,7 @@ import numpy as np
 
 from ncbot.fileio import atomic_path, atomic_write_bytes, atomic_write_text
 from ncbot.vision.classifier.inference import CellClassifier, load_classifier
-from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.classifier.train import FitConfig, fit
 from ncbot.vision.data import (CLEAN_SEED, HARSH_HELDOUT_SEED, HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, N_CLEAN, N_NOISY,
                          NOISY_SEED, TEST_SEED)
 from ncbot.vision.data.cells import make_cells
@@ -27,7 +27,7 @@ from ncbot.vision.labels import LABELS
 from ncbot.vision.sheet import Grid, grid_label
 from ncbot.vision.strokes import TUNING_STYLES
 
-PAPER_TRAIN = TrainConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)
+PAPER_TRAIN = FitConfig(epochs=40, batch_size=16, lr=3e-3, weight_decay=1e-4, augment=True, seed=0)
 HARSH_SPLITS = ("heldout", "tuning", "tuning-style")  # `harsh_reading`'s photo sets
 
 
@@ -58,7 +58,7 @@ def _result(name: str, truth: np.ndarray, predicted: np.ndarray, **extra) -> Res
     return Result(name, float((truth == predicted).mean()), confusion(truth, predicted), len(truth), extra)
 
 
-def leave_one_out(images: np.ndarray, labels: np.ndarray, config: TrainConfig = PAPER_TRAIN,
+def leave_one_out(images: np.ndarray, labels: np.ndarray, config: FitConfig = PAPER_TRAIN,
                   progress: Callable[..., Any] | None = None) -> np.ndarray:
     """Prediction for each cell by a CNN trained on all the others (exact LOO: n trainings)."""
     predicted = np.empty(len(images), np.int64)
@@ -72,7 +72,7 @@ def leave_one_out(images: np.ndarray, labels: np.ndarray, config: TrainConfig = 
     return predicted
 
 
-def paper_experiments(config: TrainConfig = PAPER_TRAIN, progress: Callable[..., Any] | None = None,
+def paper_experiments(config: FitConfig = PAPER_TRAIN, progress: Callable[..., Any] | None = None,
                       loo_folds: int | None = None) -> list[Result]:
     """LOO on clean, clean -> noisy, noisy -> clean (loo_folds < 109 runs only the first folds: tests)."""
     clean, clean_labels = make_cells(N_CLEAN, CLEAN_SEED)

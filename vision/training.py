@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ncbot.vision.classifier.model import CellCNN
-from ncbot.vision.classifier.train import TrainConfig, fit
+from ncbot.vision.classifier.train import FitConfig, fit
 from ncbot.vision.data import TRAIN_SEED
 from ncbot.vision.data.cells import make_cells
 from ncbot.vision.data.frames import make_frame
@@ -39,7 +39,7 @@ class DefaultTraining:
     cell_styles: tuple[str, ...] = ("pen",)   # handwriting of the generated cells (vision.strokes.TRAINING_STYLES)
     harsh_styles: tuple[str, ...] = ("pen", "hasty")  # ... and of the harsh cells
     seed: int = TRAIN_SEED         # data seed; test data uses vision.data.TEST_SEED and up
-    train: TrainConfig = field(default_factory=lambda: TrainConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
+    train: FitConfig = field(default_factory=lambda: FitConfig(epochs=14, batch_size=64, lr=3e-3, seed=0))
 
 
 def frame_cells(grid: int, n_frames: int, seed: int, progress: Callable[..., Any] | None = None) -> tuple[np.ndarray, np.ndarray]:

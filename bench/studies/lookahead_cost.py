@@ -34,8 +34,8 @@ def collect_positions(game: str, free_move: str, batch: int, steps: int, seed: i
 
 
 def time_rule(rule_name: str, positions: list, cells: int) -> dict:
-    from ncbot.modules.deep_lookahead import KStepLookahead
-    from ncbot.modules.masks import lookahead_rule
+    from ncbot.modules.policies.deep_lookahead import KStepLookahead
+    from ncbot.modules.policies.masks import lookahead_rule
 
     rule = lookahead_rule(rule_name)
     one_step = lookahead_rule("one_step")

@@ -50,7 +50,7 @@ def main() -> None:
     from ncbot.logs import EpisodeLogger
     from ncbot.robot_sim.ik import PositionIK
     from ncbot.robot_sim.pepper_model import ARM_JOINTS
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
     from ncbot.robot_sim.game_config import RobotPlayConfig
     from ncbot.robot_sim.play import RobotGameRunner
     from ncbot.robot_sim.scene import PepperScene, SceneConfig

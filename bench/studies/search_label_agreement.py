@@ -30,8 +30,8 @@ def main() -> None:
 
     import torch
 
-    from ncbot.modules.policy import make_policies
-    from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
+    from ncbot.modules.policies.policy import make_policies
+    from ncbot.modules.search.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher
     from ncbot.pipelines.agents import guided_search, load_agent
     from ncbot.pipelines.run_env import make_run_env
     from ncbot.pipelines.train.build import make_collector

@@ -2,7 +2,7 @@
 
 Reads the lost eval games of an MCAP log (`ncbot eval CKPT --out DIR`), replays each game's moves with the exact
 bitboard engine and, at the robot's last decisions, finds every move after which the user can FORCE a win within
-k plies (k = 1, 3, 5; ``ncbot.modules.deep_lookahead.losing_moves``). Each loss is classed by the robot's LAST decision
+k plies (k = 1, 3, 5; ``ncbot.modules.policies.deep_lookahead.losing_moves``). Each loss is classed by the robot's LAST decision
 that still had a move escaping a 5-ply forced loss ("the last escape"):
 - ``k3``: the chosen move lost by force within 3 plies (a fork) while another move did not;
 - ``k5``: the chosen move lost by force within 5 plies while another move did not;
@@ -20,7 +20,7 @@ from collections import Counter
 
 from ncbot.envs.games import make_game
 from ncbot.logs.reader import read_episode_records, read_episodes
-from ncbot.modules.deep_lookahead import losing_moves
+from ncbot.modules.policies.deep_lookahead import losing_moves
 
 DEPTHS = (1, 3, 5)
 

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import torch
 
-from ncbot.vision.classifier import TrainConfig, fit, load_classifier, save_weights
+from ncbot.vision.classifier import FitConfig, fit, load_classifier, save_weights
 from ncbot.vision.data import HARSH_TUNING_SEED, HARSH_TUNING_STYLE_OFFSET, TEST_SEED
 from ncbot.vision.data.cells import make_cells
 from ncbot.vision.data.frames import make_frame
@@ -191,7 +191,7 @@ def main() -> None:
         images = np.concatenate([cells, base["f3"], f9, harsh])
         targets = np.concatenate([labels, base["l3"], base["l9"], harsh_labels])
         print(f"{len(images)} training cells, data {time.process_time() - start:.0f} CPU s", flush=True)
-        model = fit(images, targets, TrainConfig(epochs=args.epochs, batch_size=64, lr=3e-3, seed=0))
+        model = fit(images, targets, FitConfig(epochs=args.epochs, batch_size=64, lr=3e-3, seed=0))
         save_weights(model, args.dir / f"{args.rest[0]}.pt", {"harsh": args.harsh, "harsh_styles": args.harsh_styles,
                                                               "streak_photo_cells": args.streak_photo_cells,
                                                               "cell_styles": args.cell_styles, "epochs": args.epochs})

@@ -1,7 +1,7 @@
 """Board symmetries as cell maps: row g of a (G, cells) table sends cell c (row-major) to the cell it lands on under g.
 
 Why here: which maps leave a game unchanged is a fact about its rules, so each game answers it
-(``Game.symmetries``); the learner's replay augmentation (``ncbot.modules.symmetry``) only applies them.
+(``Game.symmetries``); the learner's replay augmentation (``ncbot.modules.replay.symmetry``) only applies them.
 """
 from __future__ import annotations
 

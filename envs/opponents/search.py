@@ -3,7 +3,7 @@
 As OpenSpiel's ``MCTSBot`` separates the search from its evaluator, the loop here only walks the tree, asks the
 evaluator for a leaf's value and backs it up. Two child-selection rules: ``UCT`` (UCB1, one random untried move
 expanded per simulation: plain ``mcts:N``) and ``PUCT`` (AlphaZero-style, priors set by the evaluator when it
-expands a node: the Q-guided search of ``ncbot.modules.guided_mcts``). One evaluator lives here, ``RandomRollout``
+expands a node: the Q-guided search of ``ncbot.modules.search.guided_mcts``). One evaluator lives here, ``RandomRollout``
 (a uniformly random playout); the Q-guided one lives in ``modules`` beside the network it reads.
 
 Positions and moves are those of the bitboard engines (``ncbot.envs.opponents.bitboards``): sides 0 / 1 relative to

@@ -125,7 +125,7 @@ def train(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to
           ) -> None:
     """Train the default cell classifier (the shipped vision/weights/cell_cnn.pt) on generated data, or with
     --budget N the same recipe on N labelled cells (109 : 201 clean : noisy, as the paper)."""
-    from ncbot.vision.classifier import DEFAULT_WEIGHTS, TrainConfig, save_weights
+    from ncbot.vision.classifier import DEFAULT_WEIGHTS, FitConfig, save_weights
     from ncbot.vision.data import TRAIN_SEED
     from ncbot.vision.training import DefaultTraining, train_default
 
@@ -156,7 +156,7 @@ def train(out: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to
     config = DefaultTraining(n_cells=cells, n_frames_3=frames3, n_frames_9=frames9, n_harsh_cells=harsh_cells,
                              harsh_styles=styles,
                              seed=TRAIN_SEED if data_seed is None else data_seed,
-                             train=TrainConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
+                             train=FitConfig(epochs=epochs, batch_size=64, lr=3e-3, seed=seed))
     model, meta = train_default(config, progress=progress_bar)
     path = save_weights(model, out or DEFAULT_WEIGHTS, meta)
     typer.echo(f"wrote {path} ({meta['n_training_cells']} training cells)")

@@ -141,15 +141,15 @@ class AgentConfig(Section):
     shows what learning adds (pipelines/train/uniform.py)."""
 
     name: Literal["dqn_original", "dqn_variant", "proposed", "uniform"] = "proposed"
-    lookahead: str | None = None  # mask rule override (modules.masks); None = the agent's own rule
+    lookahead: str | None = None  # mask rule override (modules.policies.masks); None = the agent's own rule
     # where the greedy mask falls back when every action of set A has a negative look-ahead reward (the paper leaves
-    # it open; modules.mask_rules): available = set A | untaken = set A without the squares taken to the robot's
+    # it open; modules.policies.mask_rules): available = set A | untaken = set A without the squares taken to the robot's
     # knowledge ("moves ... allowed from the subset of those not taken yet (to the robot's knowledge)")
     all_negative: Literal["available", "untaken"] = "available"
     # paper: 3 x 100 (or 150 on ultimate)
     hidden: Annotated[list[Annotated[int, Field(gt=0, le=MAX_WIDTH)]], Field(min_length=1, max_length=MAX_LAYERS)] = \
         Field(default_factory=lambda: [100, 100, 100])
-    # a recurrent Q-network (modules/recurrent.py): the MLP of `hidden`, then a GRU or LSTM of `memory_size` units
+    # a recurrent Q-network (modules/networks/recurrent.py): the MLP of `hidden`, then a GRU or LSTM of `memory_size` units
     # whose state runs through each dialogue, learnt from replayed slices of dialogues (buffer.sequence_length);
     # none = the paper's feed-forward network. Why: the paper names recurrent networks as the comparison its
     # temporal features leave open
@@ -173,18 +173,18 @@ class BufferConfig(Section):
 
     size: Annotated[int, Field(gt=0, le=10_000_000)] = 10_000  # paper: 10,000
     batch_size: Annotated[int, Field(gt=0, le=MAX_BATCH)] = 128  # sampled transitions per update (paper: 2)
-    # each sampled transition seen under a random rotation/reflection of the board (modules/symmetry.py): none | d4
+    # each sampled transition seen under a random rotation/reflection of the board (modules/replay/symmetry.py): none | d4
     augment: Literal["none", "d4"] = "none"
-    # prioritised replay (Schaul et al. 2016; modules/prioritized_sampler.py, TorchRL's PrioritizedSampler
-    # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: on
-    # Ultimate a loss to the random user is rare, so a uniform buffer replays its surprising last steps as rarely.
-    # Measured on ultimate.yaml: robot second worse, not better (docs/ultimate.md); on 3x3 it cuts
-    # the mid-training robot-second losses 4-5x and is on in default.yaml (docs/learning.md).
-    # With agent.memory: slices drawn by R2D2's sequence priority (modules/prioritized_slices.py, docs/memory.md).
+    # prioritised replay (Schaul et al. 2016; modules/replay/prioritized_sampler.py, TorchRL's PrioritizedSampler
+    # contract): rows drawn in proportion to |TD error| ** alpha, the loss weighted by (p / p_min) ** -beta. Why: a
+    # lost game is rare late in training, so a uniform buffer replays its surprising last steps as rarely. On in
+    # default.yaml, off in ultimate.yaml: the measurements are in docs/learning.md ("Why prioritised replay") and
+    # docs/search.md.
+    # With agent.memory: slices drawn by R2D2's sequence priority (modules/replay/prioritized_slices.py, docs/memory.md).
     prioritized: bool = False
     alpha: Fraction = 0.6
     beta: Fraction = 0.4
-    # agent.memory only (modules/recurrent.py): slices of this many steps of one dialogue are replayed (batch_size
+    # agent.memory only (modules/networks/recurrent.py): slices of this many steps of one dialogue are replayed (batch_size
     # counts their steps and must be a multiple); the first burn_in steps of a slice that starts inside a dialogue
     # only rebuild the hidden state from the stored one and carry no loss (R2D2's burn-in)
     sequence_length: Annotated[int, Field(gt=0, le=1_000)] = 16
@@ -211,26 +211,44 @@ class ScheduleConfig(Section):
 
 
 class LossConfig(Section):
-    """Competitive DQN target and error."""
+    """The objective (a TorchRL loss), its target and error."""
 
+    # the objective (modules/objectives/): competitive_dqn (the paper's loss, on replayed transitions) |
+    # recurrent_dqn (the same on replayed slices of dialogues, for agent.memory) | a user's TorchRL loss by import
+    # path, pkg.module:NameLoss or path/to/file.py:NameLoss (docs/learning.md); null = recurrent_dqn with
+    # agent.memory, else competitive_dqn
+    objective: str | None = None
+    # TorchRL value estimator of the target: td0 (the paper's; with n_step > 1, n-step returns) | td1 | td_lambda
+    # (whole replayed sequences only: recurrent_dqn)
+    value_estimator: Literal["td0", "td1", "td_lambda"] = "td0"
+    lmbda: Fraction = 0.95  # lambda of td_lambda
     gamma: Fraction = 0.7  # paper: 0.7
-    reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.rewards); metrics use paper
+    reward: Literal["paper", "outcome"] = "paper"  # what the learner trains on (modules.replay.rewards); metrics use paper
     # outcome reward for a lost game (paper scale: -5). Against the random user a -5 loss is worth risking for a
-    # likelier fast win (exact expectimax robot-second: 0.9291 wins, 0.0042 losses); <= -15 makes the optimum
-    # loss-free (0.9164 wins, zero losses), which is what task success 1.000 asks for.
+    # likelier fast win, so only a larger price makes the return-optimal policy loss-free, which is what task
+    # success 1.000 asks for (exact expectimax figures: docs/learning.md, "Why a loss price of -20").
     loss_reward: Annotated[Number, Field(lt=0)] = -5.0  # used with reward: outcome only
     loss_function: Literal["l2", "huber"] = "l2"  # paper: squared error
     double_dqn: bool = False
     target_update: Literal["hard", "soft"] = "hard"  # paper: hard copy every C updates
     target_period: Positive = 50  # C, in gradient updates (hard)
     tau: Fraction = 0.005  # soft update rate
-    # n-step returns (modules/transitions.py, TorchRL's MultiStepTransform): the target sums up to n discounted
+    # n-step returns (modules/replay/transitions.py, TorchRL's MultiStepTransform): the target sums up to n discounted
     # rewards, then bootstraps with gamma**k (k = the steps the window really spans, fewer at a game's end);
     # 1 = the paper's one-step target. Why: Ultimate's outcome reward reaches the opening ~16 decisions back.
     n_step: Annotated[int, Field(gt=0, le=1_000)] = 1
-    # which next actions the TD target maximises over (modules/bootstrap.py): every available one (the paper) or
+    # which next actions the TD target maximises over (modules/replay/bootstrap.py): every available one (the paper) or
     # only the agent's greedy set, the actions it can actually play; untrained actions outside it inflate targets
     bootstrap: Literal["available", "greedy"] = "available"
+
+    @field_validator("objective")
+    @classmethod
+    def _known_objective(cls, objective: str | None) -> str | None:
+        """A built-in name or an import path (imported when the run is built); a file becomes its absolute path, so
+        a run folder's config names the same objective from anywhere."""
+        from ncbot.modules.objectives.names import objective_name
+
+        return None if objective is None else objective_name(objective)
 
 
 class TrainConfig(Section):
@@ -297,14 +315,14 @@ class SelfPlayConfig(Section):
 
 
 class SearchTargetsConfig(Section):
-    """Targets improved by search (section ``search_targets``; modules/search_targets.py): expert iteration into Q.
+    """Targets improved by search (section ``search_targets``; modules/search/search_targets.py): expert iteration into Q.
 
     After ``start_frames``, ``rows_per_batch`` robot game moves of every collected batch are searched by the
     Q-guided MCTS of the current network (``simulations`` each); the searched move is kept as a label and each
     update adds ``weight`` x DQfD's large-margin loss on a batch of labels (Q of the searched move above the moves
-    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: search distilled into the
-    network (AlphaZero / expert iteration distil search into the network). Measured on ultimate.yaml: robot second worse
-    with every teacher tried (docs/ultimate.md)."""
+    the search valued ``gap`` below it, or above every move of the greedy mask, by ``margin``). Why: a search is a
+    stronger player than the network it starts from (AlphaZero / expert iteration distil search into the network).
+    Off by default; its measurements on Ultimate are in docs/search.md."""
 
     enabled: bool = False
     simulations: Annotated[int, Field(gt=0, le=100_000)] = 32
@@ -349,7 +367,7 @@ class RunConfig(Section):
         if self.agent.memory != "none":
             self._check_memory()
         if self.agent.lookahead is not None:
-            from ncbot.modules.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
+            from ncbot.modules.policies.masks import LOOKAHEAD_RULES  # torch: only when an override needs checking
 
             if self.agent.lookahead not in LOOKAHEAD_RULES:
                 raise ValueError(f"config key 'agent.lookahead' must be one of {sorted(LOOKAHEAD_RULES)} or null, "
@@ -380,9 +398,16 @@ class RunConfig(Section):
                 raise ValueError(f"config key '{key}' must be {allowed} with agent.memory={memory} ({why})")
 
     @property
+    def objective(self) -> str:
+        """The objective this run learns with: `loss.objective`, else the default for its network."""
+        from ncbot.modules.objectives.names import default_objective
+
+        return self.loss.objective or default_objective(self.agent.memory)
+
+    @property
     def lookahead(self) -> str:
         """The mask rule this run uses: the override, else the agent's own."""
-        from ncbot.modules.masks import AGENT_LOOKAHEAD
+        from ncbot.modules.policies.masks import AGENT_LOOKAHEAD
 
         return self.agent.lookahead or AGENT_LOOKAHEAD[self.agent.name]
 

@@ -125,7 +125,7 @@ class ExactResult:
 def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactResult:
     """Enumerate every user-move branch with ``first`` (robot | human) opening, under each dialogue draw; see the
     module doc. The result's ``seat`` is the robot's (``run_env.robot_seat``)."""
-    from ncbot.modules.recurrent import memory_env
+    from ncbot.modules.networks.recurrent import memory_env
     from ncbot.pipelines.run_env import make_run_env, robot_seat
 
     from ncbot.envs.games import make_game

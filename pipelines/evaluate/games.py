@@ -13,7 +13,7 @@ from typing import Any
 import torch
 
 from ncbot.envs.core import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_ROBOT_WON  # noqa: F401  (re-exported)
-from ncbot.modules.mask_rules import all_moves_negative
+from ncbot.modules.policies.mask_rules import all_moves_negative
 
 MAX_EVAL_BATCH = 4096
 
@@ -156,7 +156,7 @@ def evaluate_agent(config, policy, *, games: int, first: str, seed: int, opponen
     `alternate` plays half of the games robot-first, then half human-first; `seats` then holds each half under
     "robot_" + its `run_env.robot_seat` name.
     """
-    from ncbot.modules.recurrent import memory_env
+    from ncbot.modules.networks.recurrent import memory_env
     from ncbot.pipelines.run_env import check_first, make_run_env, robot_seat
 
     check_first(first)

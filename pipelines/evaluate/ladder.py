@@ -114,7 +114,7 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
 def load_ladder_robot(checkpoint: str, search: int | None, lookahead: str | None, seed: int, value: str | None,
                       baseline: bool) -> tuple[Any, str, dict[str, Any]]:
     """(config, description of how the robot decides, {"agent": policy[, "look-ahead only": masks alone]})."""
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
     from ncbot.pipelines.agents import load_robot, register_agent_opponent
 
     register_agent_opponent()

@@ -139,7 +139,7 @@ class HeardReplies:
 def _build(game: str | None, checkpoint: str | None, free_move: str | None, first: str, seed: int, human_factory):
     """(env, policy, agent name) from a checkpoint (its own game and features) or the look-ahead policy."""
     from ncbot.envs import make_env
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     if checkpoint is None:
         game = game or "standard"
@@ -175,7 +175,7 @@ def play_dialogue(*, game: str | None = None, checkpoint: str | None = None, fir
     """
     from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
-    from ncbot.modules.recurrent import memory_env
+    from ncbot.modules.networks.recurrent import memory_env
     from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human"))

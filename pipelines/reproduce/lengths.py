@@ -3,7 +3,7 @@
 Run: python -m ncbot.pipelines.reproduce.lengths [--games 400] [--game standard,ultimate]
 Why: the faithful options (env.taken_squares, env.dialogues) are meant to bring our dialogues to the paper's
 shape (3x3 13.9-15.3 acts, Ultimate 52-71); this measures it without training, with each agent's own look-ahead
-masks and a seeded uniform choice inside them (modules.masks.LookaheadOnlyPolicy), robot first (the paper's
+masks and a seeded uniform choice inside them (modules.policies.masks.LookaheadOnlyPolicy), robot first (the paper's
 set-up). A trained agent plays shorter games than its untrained masks (it wins sooner and, with taken squares
 offered, learns to avoid them); docs/reproduction.md gives both.
 """
@@ -21,7 +21,7 @@ MISREAD_RATE = 0.10  # the paper configs' env.misread_rate
 def rollout(game: str, dialogues: str, taken_squares: str, rule: str, games: int, seed: int = 0) -> dict[str, float]:
     """The first dialogue of each of ``games`` env slots, played to its end (closing or the 100-action cap)."""
     from ncbot.envs import make_env
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     rate = MISREAD_RATE if taken_squares == "misread" else None
     env = make_env(game, batch_size=(games,), seed=seed, first="robot", taken_squares=taken_squares, misread_rate=rate,

@@ -34,7 +34,7 @@ SESSION_ID = re.compile(r"^[0-9a-f]{16}$")
 def load_policy(config: ServeConfig) -> tuple[Callable, str]:
     """The robot's policy: a trained checkpoint, or the paper's look-ahead filter alone."""
     if config.checkpoint is None:
-        from ncbot.modules.masks import LookaheadOnlyPolicy
+        from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
         return LookaheadOnlyPolicy(seed=config.seed), "lookahead"
     from ncbot.pipelines.agents import load_agent

@@ -1,6 +1,8 @@
-"""The training loop of one run, as in TorchRL's DQN script: for every Collector batch, store its transitions, learn
-from the replay buffer once past the burn-in, anneal epsilon; evaluate greedily and checkpoint at their periods;
-at the end, the final checkpoint and the evaluation from both seats.
+"""The training loop of one run, as in TorchRL's DQN script: for every Collector batch, extend the replay buffer
+with its transitions, anneal epsilon, and once past the burn-in run N updates (sample, loss, backward, step, target
+update); then the hooks (`ncbot.pipelines.train.hooks`: periodic evaluation, checkpoints, self-play, search targets,
+recurrent replay) and the log. At the end: the final agent (`ncbot.pipelines.checkpoint`) and its evaluation from
+both seats.
 """
 from __future__ import annotations
 
@@ -8,22 +10,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
-from ncbot.pipelines.checkpoint import FINAL_NAME, FORMAT, atomic_save, save_periodic
 from ncbot.pipelines.config import RunConfig
 from ncbot.pipelines.errors import raise_if_terminated
-from ncbot.pipelines.run_folder import MCAP_KEY
-from ncbot.pipelines.train.build import TrainingParts, training_state
 
 SUCCESS_THRESHOLD = 0.995
 EVAL_SEED_OFFSET = 1_000_003  # periodic evaluations play games that training never sees
-
-
-def next_multiple(frames: int, every: int) -> int:
-    """The first multiple of `every` strictly after `frames`: when the next evaluation or checkpoint is due."""
-    return (frames // every + 1) * every
 
 
 def time_to_success(history: list[dict[str, Any]], threshold: float = SUCCESS_THRESHOLD) -> float | None:
@@ -57,8 +50,8 @@ def anneal_epsilon(egreedy: Any, frames: int) -> None:
 class TrainingLoop:
     """One run's loop over its Collector (`run`), then its final checkpoint and evaluation (`finish`)."""
 
-    def __init__(self, config: RunConfig, parts: TrainingParts, *, seed: int, run_id: str, out_dir: Path,
-                 started: float, cpu_started: float, scalar_log: Any = None, mcap_logger: Any = None) -> None:
+    def __init__(self, config: RunConfig, parts: Any, *, seed: int, run_id: str, out_dir: Path, started: float,
+                 cpu_started: float, scalar_log: Any = None, mcap_logger: Any = None) -> None:
         self.config, self.parts, self.seed, self.run_id, self.out_dir = config, parts, seed, run_id, out_dir
         self.started, self.cpu_started = started, cpu_started
         self.scalar_log, self.mcap_logger = scalar_log, mcap_logger
@@ -72,50 +65,28 @@ class TrainingLoop:
     def cpu_time(self) -> float | None:
         return run_cpu_time(self.counters["cpu_offset"], self.cpu_started)
 
-    def recent_loss(self) -> float:
-        return float(np.mean(self.losses)) if self.losses else float("nan")
+    def _call(self, point: str, *args: Any) -> None:
+        for hook in self.parts.hooks:
+            getattr(hook, point)(self, *args)
 
-    def evaluate(self) -> dict[str, Any]:
-        """A periodic greedy evaluation, recorded in the history (and the scalar log)."""
-        from ncbot.pipelines.evaluate.games import evaluate_agent
-        from ncbot.pipelines.scalars import eval_scalars
-
-        config, counters, agent = self.config, self.counters, self.parts.agent
-        result = evaluate_agent(config, agent.greedy, games=config.eval.periodic_games, first="alternate",
-                                seed=self.seed + EVAL_SEED_OFFSET)
-        record = {"frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
-                  "wall_time": round(self.wall_time(), 3),
-                  "train_loss": self.recent_loss(), "epsilon": float(agent.egreedy.eps), **result.to_dict()}
-        self.parts.history.append(record)
-        if self.scalar_log is not None:
-            self.scalar_log.log(eval_scalars(record), step=counters["frames"])
-        return record
-
-    def store(self, batch: Any) -> None:
+    def extend(self, batch: Any) -> None:
         """A collected batch into the replay buffer (learning reward, bootstrap mask and n-step windows under their
-        own keys: modules/transitions.py), the search teacher, the MCAP log; then epsilon and self-play move on."""
-        from ncbot.modules.transitions import prepare_transitions
-
+        own keys, `ncbot.modules.replay.transitions`; what the hooks add), the MCAP log; then epsilon moves on."""
         config, parts, counters = self.config, self.parts, self.counters
-        loss = config.loss
-        transitions = prepare_transitions(batch, reward=loss.reward, loss_reward=loss.loss_reward,
-                                          bootstrap=loss.bootstrap, lookahead=config.lookahead,
-                                          multistep=parts.multistep)
-        if parts.sequence_rows is not None:  # agent.memory: + dialogue id, step, is_init and hidden state
-            transitions = parts.sequence_rows(batch, transitions, counters["frames"] - batch.numel())
+        transitions = parts.transitions(batch)
+        for hook in parts.hooks:
+            transitions = hook.on_transitions(self, batch, transitions)
         parts.buffer.extend(transitions)
-        if parts.teacher is not None and counters["frames"] >= config.search_targets.start_frames:
-            parts.teacher.label(batch)
+        self._call("on_collected", batch)
         if self.mcap_logger is not None:
             self.mcap_logger.record_steps(batch, phase="train", agent=config.agent.name, seed=self.seed,
                                           epsilon=float(parts.agent.egreedy.eps), env_steps=counters["frames"],
                                           env=parts.env)
         anneal_epsilon(parts.agent.egreedy, batch.numel())
-        if parts.selfplay_pool is not None:
-            parts.selfplay_pool.maybe_add(parts.qnet, counters["frames"])
 
     def learn(self) -> bool:
-        """Several updates per collected batch once the burn-in is in the buffer; False before that."""
+        """`optim.updates_per_batch` updates (sample, loss, backward, step, target update: `Learner.update_many`)
+        once the burn-in is in the buffer; False before that."""
         from ncbot.modules.learner import scheduled_lr
 
         config, learner = self.config, self.parts.learner
@@ -142,68 +113,53 @@ class TrainingLoop:
             counters["frames"] >= config.collector.total_frames
         return done or (config.train.max_games is not None and counters["episodes"] >= config.train.max_games)
 
-    def checkpoint(self) -> None:
-        """A periodic checkpoint; the log rolls here: its finished files hold exactly the episodes it counts."""
-        log_next = self.mcap_logger.roll() if self.mcap_logger is not None else None
-        state = training_state(self.config, self.parts, self.run_id, self.wall_time(), self.cpu_time())
-        save_periodic({**state, MCAP_KEY: log_next}, self.out_dir, self.counters["frames"],
-                      self.config.checkpoint.keep)
-
-    def run(self, collector: Any) -> None:
-        """Collect, store, learn, evaluate and checkpoint until the run's frames (or games) are done."""
-        from ncbot.pipelines.progress import progress_bar
-
+    def run(self) -> None:
+        """Collect, store, learn and call the hooks until the run's frames (or games) are done."""
         config, counters, agent = self.config, self.counters, self.parts.agent
-        next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
-        next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
-        bar = progress_bar(total=config.train.episodes if self.stop_on_episodes else config.collector.total_frames,
-                           initial=counters["episodes"] if self.stop_on_episodes else counters["frames"],
-                           unit="game" if self.stop_on_episodes else "frame", unit_scale=not self.stop_on_episodes,
-                           disable=not config.logger.progress, desc=f"train {config.env.game} {config.agent.name}")
+        self._call("on_training_start")
+        collector = self.parts.collector()  # built now: its first reset already plays what the hooks set up
+        bar = self._progress_bar()
         batch_started = time.monotonic()
-        last_eval = self.parts.history[-1] if self.parts.history else None
         for batch in collector if collector is not None else ():  # bool(collector) calls len(): inf when open-ended
             raise_if_terminated()  # a SIGTERM whose exception a finaliser swallowed still stops the run here
             frames, episodes_ended = batch.numel(), int(batch.get(("next", "done")).sum())
             counters["frames"] += frames
             counters["episodes"] += episodes_ended
-            self.store(batch)
+            self.extend(batch)
             updated = self.learn()
             if self.scalar_log is not None:
                 now = time.monotonic()
                 seconds, batch_started = max(now - batch_started, 1e-9), now
                 self.log_scalars(frames, seconds, updated)
-            finished = self.finished()
-            if counters["frames"] >= next_eval or finished:
-                last_eval = self.evaluate()
-                self.losses.clear()
-                next_eval = next_multiple(counters["frames"], config.train.eval_every_frames)
-            if counters["frames"] >= next_ckpt:
-                self.checkpoint()
-                next_ckpt = next_multiple(counters["frames"], config.checkpoint.every_frames)
+            self._call("on_batch_end")
+            last_eval = self.parts.history[-1] if self.parts.history else None
             bar.update(episodes_ended if self.stop_on_episodes else frames)
             bar.set_postfix(eps=f"{float(agent.egreedy.eps):.3f}", upd=counters["updates"],
                             success=f"{last_eval['task_success']:.3f}" if last_eval else "-", refresh=False)
-            if finished:
+            if self.finished():
                 break
         bar.close()
         if collector is not None:
             collector.shutdown()
+        self._call("on_collection_end")
+
+    def _progress_bar(self) -> Any:
+        from ncbot.pipelines.progress import progress_bar
+
+        config, counters = self.config, self.counters
+        return progress_bar(total=config.train.episodes if self.stop_on_episodes else config.collector.total_frames,
+                            initial=counters["episodes"] if self.stop_on_episodes else counters["frames"],
+                            unit="game" if self.stop_on_episodes else "frame", unit_scale=not self.stop_on_episodes,
+                            disable=not config.logger.progress, desc=f"train {config.env.game} {config.agent.name}")
 
     def finish(self) -> dict[str, Any]:
         """The final agent (checkpoint.pt) and its evaluation from both seats; returns the run's report."""
+        from ncbot.pipelines.checkpoint import FINAL_NAME, agent_state, atomic_save
         from ncbot.pipelines.evaluate.games import evaluate_agent
         from ncbot.pipelines.run_env import robot_seat
 
-        config, parts, counters, history = self.config, self.parts, self.counters, self.parts.history
-        if not history or history[-1]["frames"] != counters["frames"]:
-            self.evaluate()
-        from ncbot.modules.device import to_cpu
-
-        final = {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
-                 "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
-                 "updates": counters["updates"], "episodes": counters["episodes"], "run_id": self.run_id}
-        atomic_save(final, self.out_dir / FINAL_NAME)
+        config, counters, history = self.config, self.counters, self.parts.history
+        atomic_save(agent_state(config, self.parts, self.run_id), self.out_dir / FINAL_NAME)
         report: dict[str, Any] = {
             "frames": counters["frames"], "updates": counters["updates"], "episodes": counters["episodes"],
             "seed": self.seed, "run_id": self.run_id,
@@ -211,16 +167,10 @@ class TrainingLoop:
             "time_to_0995_s": time_to_success(history),
         }
         for first in ("robot", "human"):
-            result = evaluate_agent(config, parts.agent.greedy, games=config.eval.games, first=first,
+            result = evaluate_agent(config, self.parts.agent.greedy, games=config.eval.games, first=first,
                                     seed=self.seed + 2 * EVAL_SEED_OFFSET, logger=self.mcap_logger,
                                     agent_name=config.agent.name)
             report[robot_seat(first)] = result.to_dict()
-        if parts.teacher is not None:
-            report["search_targets"] = {"searched": parts.teacher.searched, "labels": parts.teacher.kept,
-                                        "search_cpu_s": round(parts.teacher.cpu_seconds, 2)}
-        if parts.selfplay_pool is not None:
-            from ncbot.pipelines.train.selfplay import pool_summary
-
-            report["selfplay"] = pool_summary(parts.selfplay_pool)
+        self._call("on_training_end", report)
         report["history"] = history
         return report

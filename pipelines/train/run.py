@@ -1,9 +1,10 @@
 """The whole training story of one run, top to bottom (TorchRL sota-dqn style):
 
-config -> batched dialogue env -> Q-network + look-ahead policies -> Collector -> replay buffer -> competitive DQN
-loss + target updater -> periodic greedy evaluation and checkpoints -> MCAP log -> final checkpoint, eval.json and
-learning-curve PNG. Building the run's objects and restoring them: `ncbot.pipelines.train.build`; the loop:
-`ncbot.pipelines.train.loop`.
+config -> batched dialogue env -> Q-network + look-ahead policies -> objective (a TorchRL loss) + target updater ->
+replay buffer -> hooks -> Collector -> the loop -> final checkpoint, eval.json and learning-curve PNG. Building the
+run's parts and restoring them: `ncbot.pipelines.train.build`; the loop: `ncbot.pipelines.train.loop`; periodic
+evaluation, checkpoints, self-play, search targets and recurrent replay: `ncbot.pipelines.train.hooks`; what a
+checkpoint holds: `ncbot.pipelines.checkpoint`.
 
 Resuming (`resume=True`) reloads the newest periodic checkpoint, which holds the networks, optimiser, epsilon,
 counters, RNG state, evaluation history AND the replay buffer (config `checkpoint.save_buffer`; when it is off the
@@ -30,8 +31,7 @@ import torch
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.config import RunConfig, config_from_dict, dump_config
 from ncbot.pipelines.machine import machine_record
-from ncbot.pipelines.train.build import (build_parts, check_teacher_value, checkpoint_bytes, env_sizes, frames_per_batch,
-                                   make_collector, restore)
+from ncbot.pipelines.train.build import RunSetup, assemble, check_run, checkpoint_bytes
 from ncbot.pipelines.train.loop import TrainingLoop
 
 
@@ -44,21 +44,19 @@ def seed_everything(seed: int) -> None:
 def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
     """Train one agent into `out_dir`; returns the final evaluation (also written to eval.json).
 
-    Start-up (pipelines/run_folder.py) before any work: the folder is checked (writable, not a file, room for a
-    checkpoint), locked against a second writer, then claimed (a folder holding another run is refused unless
-    `overwrite`) or, with `resume`, its newest checkpoint of this run that loads is picked (and named on stderr).
+    Start-up (pipelines/run_folder.py) before any work: the run's device, objective and options are resolved
+    (`check_run`), the folder is checked (writable, not a file), locked against a second writer, and a fresh run
+    may take it (a folder holding another run is refused unless `overwrite`) or, with `resume`, its newest
+    checkpoint of this run that loads is picked (and named on stderr); the run's parts are built, the disk checked
+    for room for a checkpoint, and only then is the folder claimed.
     """
     from ncbot.pipelines.checkpoint import check_training_state
-    from ncbot.pipelines.outputs import check_free_space, check_writable_dir
+    from ncbot.pipelines.outputs import check_writable_dir
     from ncbot.pipelines.run_folder import RunFolder
 
-    from ncbot.modules.device import resolve_device
-
-    resolve_device(config.train.device)  # before the run folder is claimed: no GPU here is one line, nothing written
-    check_teacher_value(config)  # before the run folder is claimed: a bad path must not leave a started run
+    setup = check_run(config)  # before the run folder is touched: a bad option must not leave a started run
     check_writable_dir(out_dir, "--resume" if resume else "--out")
-    check_free_space(out_dir, checkpoint_bytes(config, *env_sizes(config)), "a checkpoint of this run")
-    run = RunFolder.open(out_dir, resume=resume, overwrite=overwrite,
+    run = RunFolder.open(out_dir, resume=resume, overwrite=overwrite, claim=False,
                          validate=lambda state, path: check_training_state(state, path, config))
     try:
         for note in run.notes:
@@ -66,54 +64,44 @@ def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overw
         if config.agent.name == "uniform":
             from ncbot.pipelines.train.uniform import evaluate_uniform
 
+            run.claim()
             return evaluate_uniform(config, run)
-        return _train(config, run)
+        return _train(config, setup, run)
     finally:
         run.release()
 
 
-def _train(config: RunConfig, run: Any) -> dict[str, Any]:
+def _train(config: RunConfig, setup: RunSetup, run: Any) -> dict[str, Any]:
     """The run itself, in a locked run folder (`run.state`: the training state to resume from, or None)."""
+    from ncbot.pipelines.outputs import check_free_space
     from ncbot.pipelines.plots import plot_learning_curve
     from ncbot.pipelines.scalars import open_scalar_log
 
     logging.getLogger("torchrl").setLevel(logging.WARNING)
     started, cpu_started = time.monotonic(), time.process_time()
-    out_dir, state = run.path, run.state
-    scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
-    atomic_write_text(dump_config(config), out_dir / "config.yaml")
     torch.set_num_threads(config.train.num_threads)
     seed = config.train.seed
     seed_everything(seed)
-
-    parts = build_parts(config, seed, frames_done=state["frames"] if state else 0)
-    if state:
-        restore(parts, state, run.state_path)
-    if parts.selfplay_pool is not None:
-        parts.selfplay_pool.maybe_add(parts.qnet, parts.counters["frames"])
-
-    # --- the Collector: exploratory games with the same masks as at test time -----------------------------------
-    batch_frames = frames_per_batch(config)
-    remaining = -1 if config.train.episodes is not None else \
-        max(0, config.collector.total_frames - parts.counters["frames"])
-    if remaining > 0:  # whole collector batches (TorchRL would round up anyway, with a warning)
-        remaining = -(-remaining // batch_frames) * batch_frames
-    collector = None
-    if remaining != 0:
-        collector = make_collector(parts.env, parts.agent.explore, batch_frames, remaining,
-                                   keeps_views=parts.multistep is not None, device=parts.device)
-
-    mcap_logger = _open_mcap(config, out_dir)
-    loop = TrainingLoop(config, parts, seed=seed, run_id=run.run_id, out_dir=out_dir, started=started,
-                        cpu_started=cpu_started, scalar_log=scalar_log, mcap_logger=mcap_logger)
-    with mcap_logger or nullcontext():
-        loop.run(collector)
-        report = loop.finish()
-    report["machine"] = machine_record()  # which CPU, kernels, threads and versions made these numbers
-    atomic_write_text(json.dumps(report, indent=2) + "\n", out_dir / "eval.json")
-    plot_learning_curve(parts.history, out_dir / "learning_curve.png",
-                        title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")
-    parts.env.close()
+    parts = assemble(config, setup, seed, run.state, run.state_path)
+    try:
+        check_free_space(run.path, checkpoint_bytes(config, parts.env.n_features, parts.env.n_actions),
+                         "a checkpoint of this run")
+        run.claim()
+        out_dir = run.path
+        scalar_log = open_scalar_log(config.logger.backend, out_dir)  # train/... and eval/... scalars (TorchRL logger)
+        atomic_write_text(dump_config(config), out_dir / "config.yaml")
+        mcap_logger = _open_mcap(config, out_dir)
+        loop = TrainingLoop(config, parts, seed=seed, run_id=run.run_id, out_dir=out_dir, started=started,
+                            cpu_started=cpu_started, scalar_log=scalar_log, mcap_logger=mcap_logger)
+        with mcap_logger or nullcontext():
+            loop.run()
+            report = loop.finish()
+        report["machine"] = machine_record()  # which CPU, kernels, threads and versions made these numbers
+        atomic_write_text(json.dumps(report, indent=2) + "\n", out_dir / "eval.json")
+        plot_learning_curve(parts.history, out_dir / "learning_curve.png",
+                            title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")
+    finally:
+        parts.env.close()
     return report
 
 

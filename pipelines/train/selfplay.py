@@ -16,8 +16,8 @@ learnt to see its own moves, so every snapshot plays to win for the user's side.
 
 Each snapshot move: the paper's one-step masks with the exact rules (take a winning cell; never a cell after
 which the robot wins at once, unless every cell is such), then the best Q-value, with ``epsilon`` random moves.
-Wired into ``ncbot.pipelines.train.run`` by the ``selfplay`` config section (see ``SelfPlayConfig``); snapshots live in
-memory, so a resumed run restarts its pool from the resumed weights.
+Wired into a run by the ``selfplay`` config section (see ``SelfPlayConfig``) as the env's opponent and the ``SelfPlay``
+hook; snapshots live in memory, so a resumed run restarts its pool from the resumed weights.
 """
 from __future__ import annotations
 
@@ -26,9 +26,10 @@ import torch
 from torch import nn
 
 from ncbot.envs.opponents.base import Opponent
-from ncbot.modules.deep_lookahead import win_in_one
-from ncbot.modules.guided_mcts import TurnFeatures
+from ncbot.modules.policies.deep_lookahead import win_in_one
+from ncbot.modules.search.guided_mcts import TurnFeatures
 from ncbot.pipelines.config import SelfPlayConfig
+from ncbot.pipelines.train.hooks import TrainingHook
 
 
 class SnapshotPool(Opponent):
@@ -107,18 +108,21 @@ class SnapshotPool(Opponent):
         return allowed
 
 
-def make_selfplay_pool(env_config, settings: SelfPlayConfig, seed: int) -> SnapshotPool:
-    """The (empty) pool for a run's env; it plays uniformly at random until the first ``maybe_add``.
+class SelfPlay(TrainingHook):
+    """The run's side of self-play: the pool snapshots the learning network at the start (the starting or the
+    resumed weights, before the first game is dealt) and every ``snapshot_every_frames``; the report says how many."""
 
-    Built before the Q-network because the network's sizes come from the env, which needs its opponent.
-    """
-    return SnapshotPool(env_config.game, env_config.free_move, env_config.temporal, settings, seed=seed,
-                        threats=env_config.threats)
+    def __init__(self, pool: SnapshotPool) -> None:
+        self.pool = pool
+
+    def on_training_start(self, loop) -> None:
+        self.pool.maybe_add(loop.parts.qnet, loop.counters["frames"])
+
+    def on_collected(self, loop, batch) -> None:
+        self.pool.maybe_add(loop.parts.qnet, loop.counters["frames"])
+
+    def on_training_end(self, loop, report: dict) -> None:
+        report["selfplay"] = {"snapshots_taken": self.pool.added, "snapshots_held": len(self.pool.snapshots)}
 
 
-def pool_summary(pool: SnapshotPool) -> dict:
-    """What a run reports about its self-play: snapshots taken and held."""
-    return {"snapshots_taken": pool.added, "snapshots_held": len(pool.snapshots)}
-
-
-__all__ = ["SelfPlayConfig", "SnapshotPool", "make_selfplay_pool", "pool_summary"]
+__all__ = ["SelfPlay", "SelfPlayConfig", "SnapshotPool"]

@@ -18,7 +18,7 @@ from ncbot.pipelines.train.loop import EVAL_SEED_OFFSET
 
 def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     """eval.json of the uniform-inside-the-masks agent of ``config.lookahead`` (`train.seed` seeds its choices)."""
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
     from ncbot.pipelines.evaluate.games import evaluate_agent
     from ncbot.pipelines.run_env import robot_seat
 

@@ -1,6 +1,6 @@
 """``ncbot train-value``: the value network of the Q-guided search, trained on search results (expert iteration).
 
-Why: the search's leaves were scored by one random playout each (``ncbot.modules.value_net`` says what that cost). Here
+Why: the search's leaves were scored by one random playout each (``ncbot.modules.search.value_net`` says what that cost). Here
 plain UCT (``mcts:N``, random playouts) plays games against itself and, at every position it decides, its root
 value (the visit-weighted score of the mover's moves) becomes the label of that position; a network trained on
 those labels gives a leaf what N playouts would, in one forward pass.
@@ -31,7 +31,7 @@ from ncbot.envs.opponents.bitboards import ONGOING
 from ncbot.envs.opponents.mcts import DEFAULT_EXPLORATION
 from ncbot.envs.opponents.search import UCT, RandomRollout, run_search
 from ncbot.fileio.atomic import atomic_write_text
-from ncbot.modules.value_net import VALUE_GAME, DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
+from ncbot.modules.search.value_net import VALUE_GAME, DEFAULT_HIDDEN, N_FEATURES, feature_symmetries, make_value_net, position_features, \
     value_checkpoint
 from ncbot.pipelines.checkpoint import atomic_save
 

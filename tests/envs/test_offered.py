@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from ncbot.envs import make_env
-from ncbot.modules.masks import LookaheadMasks
+from ncbot.modules.policies.masks import LookaheadMasks
 from tests.envs.helpers import to_robot_move
 
 torch.set_num_threads(1)

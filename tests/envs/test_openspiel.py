@@ -202,7 +202,7 @@ def test_time_to_quality_exact_dqn_score_equals_an_enumeration_with_our_rules() 
 def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
     """`ncbot ladder --opponents openspiel-mcts:N`: a real (untrained) Ultimate checkpoint of the open_subgrids rule."""
     from ncbot.envs import make_env
-    from ncbot.modules.qnet import make_qnet
+    from ncbot.modules.networks.qnet import make_qnet
     from ncbot.pipelines.checkpoint import FORMAT, atomic_save
     from ncbot.pipelines.config import RunConfig
     from ncbot.pipelines.evaluate.ladder import check_goals, run_ladder
@@ -226,7 +226,7 @@ def test_ladder_against_openspiel_mcts_on_open_subgrids(tmp_path) -> None:
 def test_time_to_quality_search_option_errors_stop_before_any_training(tmp_path) -> None:
     """`--ours-search N --ours-value V`: bad options stop before any training with one line, exit 2 (the bench run
     as a script, as it is used)."""
-    from ncbot.modules.value_net import make_value_net, value_checkpoint
+    from ncbot.modules.search.value_net import make_value_net, value_checkpoint
 
     value = tmp_path / "value" / "value.pt"
     value.parent.mkdir()

@@ -10,10 +10,10 @@ import torch
 
 from ncbot.envs import make_env
 from ncbot.envs.core import LINES_3X3
-from ncbot.modules.mask_rules import all_moves_negative, untaken_actions
-from ncbot.modules.masks import LookaheadMasks, LookaheadOnlyPolicy
-from ncbot.modules.policy import make_policies
-from ncbot.modules.qnet import make_qnet
+from ncbot.modules.policies.mask_rules import all_moves_negative, untaken_actions
+from ncbot.modules.policies.masks import LookaheadMasks, LookaheadOnlyPolicy
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.networks.qnet import make_qnet
 from tests.envs.helpers import to_robot_move
 
 torch.set_num_threads(1)

@@ -75,7 +75,7 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
     observation (robot to move), seen from the other side too, and the one-position paths (cell lists, the search's
     bitboards) equal to the batch."""
     from tests.envs.helpers import search_of as make_bits
-    from ncbot.modules.guided_mcts import TurnFeatures
+    from ncbot.modules.search.guided_mcts import TurnFeatures
 
     env = make_env(game, batch_size=(16,), threat_features=True, free_move="open_subgrids", seed=5, first="alternate")
     features = TurnFeatures(game, True, "open_subgrids", threats=True)
@@ -113,8 +113,8 @@ def test_typical_turn_features_carry_the_threat_planes_of_the_position_from_the_
 def test_a_threat_reading_agent_is_searched_and_a_mismatched_reader_is_refused() -> None:
     from ncbot.envs.opponents import make_opponent
     from ncbot.envs.opponents.arena import play_match
-    from ncbot.modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
-    from ncbot.modules.qnet import make_qnet
+    from ncbot.modules.search.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
+    from ncbot.modules.networks.qnet import make_qnet
 
     env = make_env("ultimate", batch_size=(1,), threat_features=True)
     qnet = make_qnet(env.n_features, env.n_actions, [8])

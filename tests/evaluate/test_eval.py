@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from ncbot.pipelines.config import load_config
-from ncbot.modules.mask_rules import all_moves_negative
+from ncbot.modules.policies.mask_rules import all_moves_negative
 from ncbot.pipelines.evaluate.games import GameRecords, evaluate_checkpoint, summarise, wilson_interval
 from ncbot.pipelines.train.run import train
 from tests.learning_helpers import ncbot, write_tiny_config

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from ncbot.modules.policy import make_policies
-from ncbot.modules.qnet import make_qnet
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.networks.qnet import make_qnet
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.evaluate.exact import BranchUser, branch_digits, exact_seat
 from ncbot.pipelines.train.run import train

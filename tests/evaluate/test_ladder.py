@@ -14,7 +14,7 @@ from ncbot.pipelines.evaluate.ladder import check_goals, run_ladder
 def _checkpoint(tmp_path, game: str = "standard"):
     """A checkpoint in the format ncbot train writes (an untrained Q-network: the look-ahead masks still apply)."""
     from ncbot.envs import make_env
-    from ncbot.modules.qnet import make_qnet
+    from ncbot.modules.networks.qnet import make_qnet
     from ncbot.pipelines.checkpoint import FORMAT, atomic_save
     from ncbot.pipelines.config import RunConfig
 

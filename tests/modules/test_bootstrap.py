@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from ncbot.envs import make_env
-from ncbot.modules.bootstrap import BOOTSTRAP_MASK_KEY, NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
-from ncbot.modules.masks import GREEDY_MASK_KEY, LookaheadMasks
+from ncbot.modules.replay.bootstrap import BOOTSTRAP_MASK_KEY, NEXT_LOOKAHEAD_KEYS, bootstrap_keys, set_bootstrap_mask
+from ncbot.modules.policies.masks import GREEDY_MASK_KEY, LookaheadMasks
 
 torch.set_num_threads(1)
 KEYS = ("observation", "action_mask", "action", ("next", "observation"), ("next", "action_mask"), ("next", "reward"))

@@ -8,8 +8,8 @@ from ncbot.envs import make_env
 from ncbot.envs.opponents.bitboards import StandardBits, UltimateBits
 from ncbot.envs.games import make_game
 from ncbot.envs.rules import DRAWN, EMPTY, O, X, State
-from ncbot.modules.deep_lookahead import KStepLookahead, losing_moves, owners_from_order
-from ncbot.modules.masks import LOOKAHEAD_RULES
+from ncbot.modules.policies.deep_lookahead import KStepLookahead, losing_moves, owners_from_order
+from ncbot.modules.policies.masks import LOOKAHEAD_RULES
 
 
 def attacker_wins(rules, state: State, plies: int, attacker: int) -> bool:
@@ -183,7 +183,7 @@ def test_config_selects_k3_and_a_tiny_run_uses_it(tmp_path):
 
 def test_lookahead_only_baseline_accepts_k_rules():
     """`ncbot ladder --baseline` / `ncbot play` without a checkpoint: the masks alone, k5 included."""
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(16,), seed=0, first="human", opponent="minimax")
     policy = LookaheadOnlyPolicy(0, "k5")

@@ -9,10 +9,10 @@ import torch
 
 from ncbot.envs.opponents import make_opponent
 from ncbot.envs.opponents.arena import play_match
-from ncbot.modules.guided_mcts import parse_qmcts
+from ncbot.modules.search.guided_mcts import parse_qmcts
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.evaluate.games import evaluate_agent
-from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+from ncbot.modules.search.guided_mcts import GuidedMCTSPolicy
 from ncbot.pipelines.agents import guided_search, load_agent, load_guided_agent, register_agent_opponent
 from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
@@ -176,8 +176,8 @@ def test_the_search_plays_a_game_given_only_by_its_rules():
 
     from ncbot.envs.games import load_game
     from ncbot.envs.opponents.bitboards import ONGOING
-    from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
-    from ncbot.modules.qnet import make_qnet
+    from ncbot.modules.search.guided_mcts import GuidedMCTS, TurnFeatures
+    from ncbot.modules.networks.qnet import make_qnet
 
     game = load_game(f"{Path(__file__).resolve().parents[2] / 'docs' / 'examples' / 'misere.py'}:Misere")
     features = TurnFeatures(game.id, temporal=True)

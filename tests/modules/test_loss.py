@@ -7,8 +7,9 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torch import nn
 
-from ncbot.modules.loss import CompetitiveDQNLoss, make_target_updater
-from ncbot.modules.qnet import make_qnet
+from ncbot.modules.networks.qnet import make_qnet
+from ncbot.modules.objectives.common import make_target_updater
+from ncbot.modules.objectives.competitive_dqn import CompetitiveDQNLoss
 
 torch.set_num_threads(1)
 N_ACTIONS = 4
@@ -178,12 +179,16 @@ def mlp_transitions(batch: int, n_features: int = 6, seed: int = 0) -> TensorDic
 
 
 def mlp_loss(precision: str = "fp32", double_dqn: bool = False) -> CompetitiveDQNLoss:
-    from ncbot.modules.learner import make_loss
-    from ncbot.modules.qnet import seeded_init
+    """The loss as training builds it: keys wired to the transitions' (`LOSS_KEYS`), TD(0) estimator."""
+    from ncbot.modules.networks.qnet import seeded_init
+    from ncbot.modules.replay.transitions import LOSS_KEYS
 
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
-    return make_loss(qnet, double_dqn=double_dqn, precision=precision, gamma=0.9)
+    loss = CompetitiveDQNLoss(qnet, double_dqn=double_dqn, precision=precision)
+    loss.set_keys(**LOSS_KEYS)
+    loss.make_value_estimator(gamma=0.9)
+    return loss
 
 
 def _expected_target(loss: CompetitiveDQNLoss, td: TensorDict, gamma: float = 0.9) -> torch.Tensor:
@@ -245,7 +250,7 @@ def test_unknown_precision_is_a_clear_error() -> None:
 
 
 def _filled_buffer(size: int = 300, batch: int = 48):
-    from ncbot.modules.learner import make_replay_buffer
+    from ncbot.modules.replay.buffer import make_replay_buffer
 
     buffer = make_replay_buffer(size, batch)
     for seed in range(3):  # 3 x 128 rows into 300 slots: the ring wraps
@@ -254,10 +259,10 @@ def _filled_buffer(size: int = 300, batch: int = 48):
 
 
 def _learner(batch_size: int | None = None, **loss_settings):
-    from ncbot.modules.qnet import seeded_init
     from ncbot.modules.learner import Learner
+    from ncbot.modules.networks.qnet import seeded_init
     from ncbot.pipelines.config import RunConfig
-    from ncbot.pipelines.train.build import learner_settings
+    from ncbot.pipelines.train.build import make_objective
 
     config = RunConfig()
     if batch_size is not None:
@@ -266,12 +271,13 @@ def _learner(batch_size: int | None = None, **loss_settings):
         setattr(config.loss, key, value)
     qnet = make_qnet(6, N_ACTIONS, [16, 16])
     seeded_init(qnet, 0)
-    return Learner.build(qnet, learner_settings(config))
+    objective, _ = make_objective(config, qnet)
+    return Learner.build(objective, optim=config.optim, loss=config.loss)
 
 
 @pytest.mark.parametrize("target_update", ["hard", "soft"])
 def test_learner_update_is_the_torchrl_update_written_out(target_update: str) -> None:
-    """Learner.update = loss_module(td), backward, clip, Adam, target updater: the same weights, update after update,
+    """Learner.update = objective(td), backward, clip, Adam, target updater: the same weights, update after update,
     as those calls written out here (and the target follows the updater)."""
     learner, reference = _learner(target_period=3, target_update=target_update), \
         _learner(target_period=3, target_update=target_update)
@@ -279,16 +285,16 @@ def test_learner_update_is_the_torchrl_update_written_out(target_update: str) ->
     for step in range(8):
         batch = buffer.sample()
         learner.update(batch.clone())
-        loss = reference.loss_module(batch.clone())["loss"]
+        loss = reference.objective(batch.clone())["loss"]
         reference.optimizer.zero_grad(set_to_none=True)
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(reference.loss_module.parameters(), reference.max_grad_norm, foreach=True)
+        torch.nn.utils.clip_grad_norm_(reference.objective.parameters(), reference.max_grad_norm, foreach=True)
         reference.optimizer.step()
         reference.target_updater.step()
-        for a, b in zip(learner.loss_module.parameters(), reference.loss_module.parameters()):
+        for a, b in zip(learner.objective.parameters(), reference.objective.parameters()):
             assert torch.equal(a, b), f"update {step}"
-    targets = list(learner.loss_module.target_value_network_params.values(True, True))
-    online = list(learner.loss_module.value_network_params.values(True, True))
+    targets = list(learner.objective.target_value_network_params.values(True, True))
+    online = list(learner.objective.value_network_params.values(True, True))
     assert not all(torch.equal(a, b) for a, b in zip(targets, online))  # 8 updates: not a copy after the 8th (hard)
 
 
@@ -303,59 +309,51 @@ def test_update_many_draws_once_and_steps_exactly_like_one_draw_per_update(batch
     torch.manual_seed(5)
     expected = [each.update(each_buffer.sample()) for _ in range(7)]
     assert len(losses) == 7 and all(torch.equal(a, b) for a, b in zip(losses, expected))
-    for a, b in zip(once.loss_module.parameters(), each.loss_module.parameters()):
+    for a, b in zip(once.objective.parameters(), each.objective.parameters()):
         assert torch.equal(a, b)
     assert once.update_many(once_buffer, 0) == []
 
 
-def test_bound_target_network_is_the_swapped_in_target_bit_for_bit() -> None:
-    """`target_value_network` (bound once to the target parameters) gives exactly what TorchRL's swap of those
-    parameters into `value_network` gives, through hard updates and after `load_state_dict`; it adds no parameter
-    and no state_dict key."""
-    from torchrl.envs.utils import step_mdp
-
-    def swapped_and_bound(loss: CompetitiveDQNLoss, batch: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
-        next_state = step_mdp(batch, keep_other=False)
-        with torch.no_grad():
-            with loss.target_value_network_params.to_module(loss.value_network, preserve_module_state=False):
-                swapped = loss.value_network(next_state.clone())["bootstrap_value"]
-            bound = loss.target_value_network(next_state.clone())["bootstrap_value"]
-        return swapped, bound
-
-    learner, buffer = _learner(target_period=3), _filled_buffer(batch=8)
-    online = sum(1 for _ in learner.loss_module.parameters())
-    for _ in range(7):  # 7 updates of period 3: the target is 1 update behind the online network
-        learner.update(buffer.sample())
-        swapped, bound = swapped_and_bound(learner.loss_module, buffer.sample())
-        assert torch.equal(swapped, bound)
-    online_value = learner.loss_module.value_network(step_mdp(buffer.sample(), keep_other=False))["bootstrap_value"]
-    assert not torch.equal(swapped_and_bound(learner.loss_module, buffer.sample())[1], online_value)
-    fresh = _learner(target_period=3)
-    fresh.load_state_dict(learner.state_dict())
-    batch = buffer.sample()
-    assert torch.equal(swapped_and_bound(fresh.loss_module, batch)[1], swapped_and_bound(learner.loss_module, batch)[0])
-    assert sum(1 for _ in learner.loss_module.parameters()) == online == 6
-    assert not any("target_value_network." in key for key in learner.loss_module.state_dict())
-
-
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_bootstrap_on_the_tensors_is_the_estimators_target_pass_bit_for_bit(precision: str) -> None:
-    """The loss computes the bootstrap value on the tensors (`_bootstrap_value`) instead of TorchRL's TD(0)
-    `_next_value` (step_mdp, then `target_value_network`): the same bits, under fp32 and bf16, through hard updates,
-    with masks that hide the best action; and so the same loss and TD errors."""
+def test_the_estimator_runs_the_target_network_on_the_target_parameters(precision: str) -> None:
+    """TorchRL's TD(0) estimator runs the target network (the value network bound to the target parameters) on the
+    next states: its target is the hand-written one (target weights, masked max) and the one TorchRL's swap of the
+    target parameters into the value network gives, bit for bit, through hard updates and with masks that hide the
+    best action; the target network adds no parameter and no state_dict key."""
     from torchrl.envs.utils import step_mdp
 
     learner, buffer = _learner(target_period=3), _filled_buffer(batch=8)
-    loss = learner.loss_module
+    loss = learner.objective
     loss.precision = precision  # (optim.precision in a config)
     for _ in range(5):
         learner.update(buffer.sample())
         batch = buffer.sample()
         assert not batch.get(("next", "bootstrap_mask")).all()  # some next actions masked out
         with torch.no_grad(), loss._matmul_precision():
-            direct = loss._bootstrap_value(batch)
-            through = loss.target_value_network(step_mdp(batch, keep_other=False))["bootstrap_value"]
-            estimated = loss.value_estimator.value_estimate(batch.clone())  # TorchRL's own target pass
-            given = loss.value_estimator.value_estimate(batch.clone(), next_value=direct)
-        assert direct.shape == through.shape and torch.equal(direct, through)
-        assert torch.equal(estimated, given)
+            estimated = loss.value_estimator.value_estimate(batch.clone())
+            with loss.target_value_network_params.to_module(loss.value_network):
+                swapped = loss.value_network(step_mdp(batch, keep_other=False))["bootstrap_value"]
+            expected = _expected_target(loss, batch, gamma=0.7)
+        assert torch.equal(estimated, loss.value_estimator.value_estimate(batch.clone(), next_value=swapped))
+        assert torch.allclose(estimated.squeeze(-1), expected, atol=0.05 if precision == "bf16" else 1e-6)
+    online = list(learner.objective.parameters())
+    assert len(online) == 6 and all(p.requires_grad for p in online)
+    assert not any("target" in name for name, _ in learner.objective.named_parameters())
+    assert all(key.startswith(("value_network_params.", "target_value_network_params.", "_value_estimator.gamma"))
+               for key in learner.objective.state_dict())
+
+
+def test_the_target_network_follows_the_target_parameters_when_the_loss_moves() -> None:
+    """Moving the loss (`.double()`, `.to(device)`) gives the target parameters new tensors: the target network
+    runs on them from the next forward on, and its targets stay the hand-written ones."""
+    loss = mlp_loss()
+    td = mlp_transitions(16)
+    with torch.no_grad():
+        for weight in loss.target_value_network_params.values(True, True):
+            weight.add_(0.5)  # targets that differ from the online network's
+    loss.double()
+    batch = td.apply(lambda x: x.double() if x.is_floating_point() else x)
+    out = loss(batch)
+    expected = _expected_target(loss, batch)
+    assert out["target_mean"].dtype == torch.float64
+    assert out["target_mean"].item() == pytest.approx(expected.mean().item(), abs=1e-9)

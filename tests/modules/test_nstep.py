@@ -1,4 +1,4 @@
-"""n-step returns (TorchRL's MultiStepTransform as `ncbot.modules.transitions` configures it): exact against a plain
+"""n-step returns (TorchRL's MultiStepTransform as `ncbot.modules.replay.transitions` configures it): exact against a plain
 per-step loop, across collector batch boundaries, with the done flags of the window's end; and a real run."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from ncbot.modules.transitions import STEPS_KEY, make_multistep
+from ncbot.modules.replay.transitions import STEPS_KEY, make_multistep
 
 torch.set_num_threads(1)
 

@@ -8,8 +8,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.data import Categorical
 
-from ncbot.modules.masks import AGENT_LOOKAHEAD, LookaheadMasks, lookahead_rule, one_step_lookahead, variant_lookahead
-from ncbot.modules.policy import make_policies
+from ncbot.modules.policies.masks import AGENT_LOOKAHEAD, LookaheadMasks, lookahead_rule, one_step_lookahead, variant_lookahead
+from ncbot.modules.policies.policy import make_policies
 
 torch.set_num_threads(1)
 N = 5

@@ -11,8 +11,8 @@ import torch
 from tensordict import TensorDict
 
 from ncbot.pipelines.config import load_config
-from ncbot.modules.learner import make_replay_buffer
-from ncbot.modules.prioritized_sampler import ProportionalSampler
+from ncbot.modules.replay.buffer import make_replay_buffer
+from ncbot.modules.replay.prioritized_sampler import ProportionalSampler
 from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config
 from tests.modules.test_loss import _learner, mlp_loss, mlp_transitions
@@ -76,7 +76,7 @@ def test_learner_sends_each_updated_rows_new_td_error_back_to_the_sampler() -> N
     learner.update_many(buffer, 1)
     torch.manual_seed(0)
     drawn = same.sample(8)  # the rows the update drew (same priorities, same seed)
-    reference.loss_module(drawn)
+    reference.objective(drawn)
     expected = (drawn["td_error"].squeeze(-1).double() + buffer.sampler.eps) ** 0.7
     assert torch.allclose(buffer.sampler._priority[drawn["index"]], expected, rtol=1e-5)
     untouched = torch.ones(64, dtype=torch.bool)

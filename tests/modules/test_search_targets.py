@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from ncbot.modules.guided_mcts import GuidedMCTS, TurnFeatures
-from ncbot.modules.policy import make_policies
-from ncbot.modules.qnet import make_qnet, seeded_init
-from ncbot.modules.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
+from ncbot.modules.search.guided_mcts import GuidedMCTS, TurnFeatures
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.networks.qnet import make_qnet, seeded_init
+from ncbot.modules.search.search_targets import EXPERT_ACTION_KEY, LABEL_MASK_KEY, SearchTeacher, margin_loss
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.run_env import make_run_env
 from ncbot.pipelines.train.build import make_collector
@@ -116,18 +116,24 @@ def test_search_reads_the_network_as_it_is_after_refresh() -> None:
 
 
 def test_learner_adds_the_weighted_margin_loss_to_the_td_loss() -> None:
+    """The teacher is an auxiliary loss of the learner: its weight x the margin loss on the objective's online Q of
+    a batch of labels is added to the TD loss of the same update."""
     from tests.modules.test_loss import _learner, mlp_transitions
     from tensordict import TensorDict
 
+    config, agent, _ = _agent_and_batch(frames=16)
+    teacher = _teacher(config, agent)
+    teacher.weight, teacher.margin = 0.5, 2.0
     learner, reference = _learner(batch_size=8), _learner(batch_size=8)
-    learner.teacher_weight, learner.teacher_margin = 0.5, 2.0
+    learner.auxiliary.append(teacher)
     batch = mlp_transitions(8, seed=2)
     labels = TensorDict({"observation": torch.rand(4, 6), LABEL_MASK_KEY: torch.ones(4, 4, dtype=torch.bool),
                          EXPERT_ACTION_KEY: torch.tensor([0, 1, 2, 3])}, [4])
-    td_loss = reference.loss_module(batch.clone())["loss"]
-    q = reference.loss_module.q_values(labels)
+    td_loss = reference.objective(batch.clone())["loss"]
+    q = reference.objective.q_values(labels)
     expected = td_loss + 0.5 * margin_loss(q, labels[EXPERT_ACTION_KEY], labels[LABEL_MASK_KEY], 2.0)
-    assert float(learner.update(batch.clone(), labels)) == pytest.approx(expected.item(), rel=1e-5)
+    assert float(learner.update(batch.clone(), [labels])) == pytest.approx(expected.item(), rel=1e-5)
+    assert teacher.draw(3) == [None] * 3  # fewer labels than a batch: no term yet
 
 
 def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
@@ -155,7 +161,7 @@ def test_a_real_run_with_search_targets_is_reproducible(tmp_path: Path) -> None:
     (["search_targets.value={value}", "env.free_move=open_subgrids"], "trained on the 'anywhere' free-move rule"),
 ])
 def test_a_bad_teacher_value_network_is_one_line_before_the_run_folder_is_made(tmp_path: Path, overrides, message) -> None:
-    from ncbot.modules.value_net import make_value_net, value_checkpoint
+    from ncbot.modules.search.value_net import make_value_net, value_checkpoint
     from tests.learning_helpers import ncbot
 
     value = tmp_path / "value.pt"

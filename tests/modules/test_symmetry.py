@@ -1,4 +1,4 @@
-"""`buffer.augment: d4` (modules/symmetry.py): the 8 board symmetries are symmetries of the real game engines and of
+"""`buffer.augment: d4` (modules/replay/symmetry.py): the 8 board symmetries are symmetries of the real game engines and of
 the env's observation layout, and a real training run with them is reproducible and resumable."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from tests.envs.helpers import engine_of as make_engine
-from ncbot.modules.symmetry import BoardSymmetries, make_symmetries, square_symmetries
+from ncbot.modules.replay.symmetry import BoardSymmetries, make_symmetries, square_symmetries
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.run_env import make_run_env
 from ncbot.pipelines.train.run import train

@@ -12,9 +12,9 @@ from ncbot.envs.opponents import make_opponent
 from ncbot.envs.opponents.arena import play_match
 from ncbot.envs.opponents.bitboards import CELL_OF, ONGOING, SQUARE_OF, SUBGRID_OF
 from tests.envs.helpers import search_of as make_bits
-from ncbot.modules.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
-from ncbot.modules.symmetry import square_symmetries
-from ncbot.modules.value_net import N_FEATURES, ValueNetEvaluator, feature_symmetries, load_value_net, position_features
+from ncbot.modules.search.guided_mcts import GuidedMCTS, QMCTSOpponent, TurnFeatures
+from ncbot.modules.replay.symmetry import square_symmetries
+from ncbot.modules.search.value_net import N_FEATURES, ValueNetEvaluator, feature_symmetries, load_value_net, position_features
 from ncbot.pipelines.agents import load_agent
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.train.run import train

@@ -143,7 +143,7 @@ def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
 def test_lookahead_policy_is_seeded_and_respects_masks():
     import torch
     from ncbot.envs import make_env
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     env = make_env("standard", batch_size=(1,), seed=0)
     td = env.reset()

@@ -88,7 +88,7 @@ def test_misheard_replies_go_through_the_env_as_user_acts():
     """In loud white noise most replies are heard wrongly or as nothing: the dialogue goes on (the robot asks
     again), every misheard reply is an ordinary user act, and the game still ends within the env's cap."""
     from ncbot.envs import make_env
-    from ncbot.modules.masks import LookaheadOnlyPolicy
+    from ncbot.modules.policies.masks import LookaheadOnlyPolicy
     from ncbot.robot_sim.conditions import ConditionRanges
     from ncbot.robot_sim.speech import GameSpeech
     from torchrl.envs.utils import step_mdp

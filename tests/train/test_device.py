@@ -110,7 +110,7 @@ def test_tiny_run_on_cpu_equals_the_run_on_auto_here(tmp_path: Path) -> None:
 def test_cpu_adapters_change_nothing() -> None:
     """On the CPU the evaluation calls the policy itself and a checkpoint's state is saved as it is."""
     from ncbot.modules.device import on_device, to_cpu
-    from ncbot.modules.qnet import MLPReader, make_qnet
+    from ncbot.modules.networks.qnet import MLPReader, make_qnet
 
     qnet = make_qnet(5, 3, [4])
     assert on_device(qnet) is qnet
@@ -132,23 +132,22 @@ ULTIMATE = {"env": {"game": "ultimate", "batch_size": 32}, "agent": {"hidden": [
 
 @pytest.mark.cuda
 def test_learner_networks_and_replay_storage_live_on_cuda(tmp_path: Path) -> None:
-    from ncbot.pipelines.train.build import build_parts
+    from ncbot.pipelines.train.build import assemble, check_run
 
     config = load_config(write_tiny_config(tmp_path), ["train.device=cuda", "buffer.prioritized=true",
                                                        "buffer.augment=d4", "optim.precision=bf16"])
-    parts = build_parts(config, seed=0, frames_done=0)
+    parts = assemble(config, check_run(config), seed=0)
     try:
         assert parts.device.type == "cuda"
         assert all(p.device.type == "cuda" for p in parts.qnet.parameters())
-        assert all(p.device.type == "cuda" for p in parts.learner.loss_module.parameters())
-        target = parts.learner.loss_module.target_value_network
-        assert all(p.device.type == "cuda" for p in target.parameters())
+        assert all(p.device.type == "cuda" for p in parts.learner.objective.parameters())
+        target = parts.learner.objective.target_value_network_params
+        assert all(p.device.type == "cuda" for p in target.values(True, True))
         assert parts.agent.egreedy.eps.device.type == "cuda"
         assert torch.device(parts.buffer.storage.device).type == "cuda"
         assert parts.learner.symmetries.generator.device.type == "cuda"
-        assert parts.learner.loss_module.autocast_type == "cuda"
         # a few real updates on batches the env made: the state lives on the GPU, the Adam moments too
-        from ncbot.modules.transitions import prepare_transitions
+        from ncbot.modules.replay.transitions import prepare_transitions
         from ncbot.pipelines.train.build import make_collector
 
         collector = make_collector(parts.env, parts.agent.explore, 128, 256, device=parts.device)
@@ -243,7 +242,7 @@ def test_tiny_ultimate_run_on_cuda_completes(tmp_path: Path) -> None:
 @pytest.mark.cuda
 def test_guided_search_reads_a_network_on_cuda(tmp_path: Path) -> None:
     from ncbot.pipelines.agents import guided_search, load_agent
-    from ncbot.modules.guided_mcts import GuidedMCTSPolicy
+    from ncbot.modules.search.guided_mcts import GuidedMCTSPolicy
     from ncbot.pipelines.evaluate.games import evaluate_agent
     from ncbot.pipelines.train.run import train
 

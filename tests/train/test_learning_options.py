@@ -62,7 +62,7 @@ def _transitions(before: list[int], after: list[int], mask_ok: list[bool]) -> "T
 
 
 def test_loss_reward_prices_only_lost_games() -> None:
-    from ncbot.modules.rewards import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, learning_rewards
+    from ncbot.modules.replay.rewards import OUTCOME_DRAW, OUTCOME_HUMAN_WON, OUTCOME_NONE, OUTCOME_ROBOT_WON, learning_rewards
 
     none, won, lost, draw = OUTCOME_NONE, OUTCOME_ROBOT_WON, OUTCOME_HUMAN_WON, OUTCOME_DRAW
     batch = _transitions([none, none, none, none, lost, none], [won, lost, draw, none, lost, none],

@@ -1,4 +1,4 @@
-"""agent.memory (modules/recurrent.py) with real TorchRL parts: the hidden state runs through a dialogue and
+"""agent.memory (modules/networks/recurrent.py) with real TorchRL parts: the hidden state runs through a dialogue and
 restarts with the next, replayed slices stay inside one dialogue, the loss unrolls them as the actor stepped,
 a tiny recurrent run trains, checkpoints and evaluates, and memory none changes nothing."""
 from __future__ import annotations
@@ -12,15 +12,14 @@ import torch
 from tensordict import TensorDict
 
 from ncbot.envs import make_env
-from ncbot.modules.learner import Learner, LearnerSettings
-from ncbot.modules.loss import make_target_updater
-from ncbot.modules.prioritized_slices import sequence_priority
-from ncbot.modules.policy import make_policies
-from ncbot.modules.recurrent import (
-    EPISODE_KEY, IS_INIT_KEY, STEP_KEY, VALID_KEY, SequenceDQNLoss, SequenceRows, make_agent_qnet,
-    make_sequence_buffer, memory_env, unroll_in_recurrent_mode,
-)
-from ncbot.modules.transitions import LOSS_KEYS, prepare_transitions
+from ncbot.modules.learner import Learner
+from ncbot.modules.networks.recurrent import IS_INIT_KEY, make_agent_qnet, memory_env, unroll_in_recurrent_mode
+from ncbot.modules.objectives.common import make_target_updater
+from ncbot.modules.objectives.recurrent_dqn import RecurrentDQNLoss
+from ncbot.modules.policies.policy import make_policies
+from ncbot.modules.replay.prioritized_slices import sequence_priority
+from ncbot.modules.replay.sequences import EPISODE_KEY, STEP_KEY, VALID_KEY, SequenceRows, make_sequence_buffer
+from ncbot.modules.replay.transitions import LOSS_KEYS, prepare_transitions
 from ncbot.pipelines.checkpoint import load_checkpoint
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.train.build import make_collector
@@ -175,7 +174,7 @@ def test_the_loss_unrolls_a_slice_as_the_actor_stepped_it() -> None:
     """Recurrent mode over a slice from its stored state gives the Q-values the acting network gave step by step."""
     qnet, buffer, _ = _filled_buffer(batches=4)
     sample = buffer.sample().reshape(-1, 8)
-    loss = SequenceDQNLoss(qnet, sequence_length=8)
+    loss = RecurrentDQNLoss(qnet, sequence_length=8)
     row = int(torch.nonzero(sample.get(VALID_KEY).all(-1))[0])
     observations = sample.get("observation")[row]
     with torch.no_grad():
@@ -196,7 +195,7 @@ def test_the_loss_unroll_is_torchrls_recurrent_mode_bit_for_bit(memory: str) -> 
     """The loss unrolls on the tensors (the MLP, the recurrent module's torch RNN, the head) for speed; Q-values and
     gradients equal TorchRL's recurrent mode over the same slices from the same stored states, bit for bit."""
     _, qnet = _network(memory)
-    loss = SequenceDQNLoss(qnet, sequence_length=8)
+    loss = RecurrentDQNLoss(qnet, sequence_length=8)
     generator = torch.Generator().manual_seed(3)
     rows, steps = 5, 9
     observations = torch.randn(rows, steps, qnet.module[0].module[0].in_features, generator=generator)
@@ -228,10 +227,11 @@ def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
     draw prefers slices by it and scales their loss by the importance weight."""
     qnet, buffer, _ = _filled_buffer(batches=4, prioritized=True)
     sampler = buffer.sampler
-    settings = LearnerSettings(loss_function="l2", double_dqn=False, precision="fp32", gamma=0.9, target_update="hard",
-                               target_period=10, tau=0.005, lr=1e-3, weight_decay=0.0, max_grad_norm=10.0,
-                               memory="gru", sequence_length=8, burn_in=2)
-    learner = Learner.build(qnet, settings)
+    objective = RecurrentDQNLoss(qnet, sequence_length=8, burn_in=2)
+    objective.set_keys(**LOSS_KEYS)
+    objective.make_value_estimator(gamma=0.9)
+    learner = Learner.build(objective, optim=types.SimpleNamespace(lr=1e-3, weight_decay=0.0, max_grad_norm=10.0),
+                            loss=types.SimpleNamespace(target_update="hard", target_period=10, tau=0.005))
     fresh = sampler._priority[:len(buffer)].clone()
     assert torch.equal(fresh, torch.ones_like(fresh))  # new rows: the largest priority so far (1 at the start)
     torch.manual_seed(0)
@@ -269,6 +269,33 @@ def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
     assert restored.sampler._max_priority == sampler._max_priority
 
 
+def test_the_recurrent_objective_honours_the_value_estimator_asked_for() -> None:
+    """recurrent_dqn's targets come from TorchRL's TD(0), TD(1) or TD(lambda) estimator over each slice: TD(lambda)
+    near lambda 0 is TD(0) and at lambda 1 is TD(1), and TD(1) differs from TD(0) on slices of unfinished dialogues."""
+    from torchrl.objectives import ValueEstimators
+
+    qnet, buffer, _ = _filled_buffer(batches=4)
+    torch.manual_seed(0)
+    batch = buffer.sample()
+
+    def target_mean(value_type, **hyperparams) -> float:
+        loss = RecurrentDQNLoss(qnet, sequence_length=8)
+        loss.set_keys(**LOSS_KEYS)
+        with torch.no_grad():
+            for weight in loss.target_value_network_params.values(True, True):
+                weight.add_(0.3)  # a target network whose values are far from the rewards
+        loss.make_value_estimator(value_type, gamma=0.9, **hyperparams)
+        assert loss.value_type is value_type
+        return float(loss(batch.clone())["target_mean"])
+
+    td0, td1 = target_mean(ValueEstimators.TD0), target_mean(ValueEstimators.TD1)
+    assert target_mean(ValueEstimators.TDLambda, lmbda=1e-6) == pytest.approx(td0, abs=1e-4)
+    assert target_mean(ValueEstimators.TDLambda, lmbda=1.0) == pytest.approx(td1, abs=1e-5)
+    assert td0 != pytest.approx(td1, abs=1e-3)
+    with pytest.raises(ValueError, match="TD\\(0\\), TD\\(1\\) or TD\\(lambda\\)"):
+        RecurrentDQNLoss(qnet, sequence_length=8).make_value_estimator(ValueEstimators.GAE)
+
+
 @pytest.mark.parametrize("game,lookahead,memory,temporal", [
     ("standard", "none", "gru", True), ("standard", "variant", "lstm", False), ("standard", "one_step", "gru", False),
     ("standard", "k2", "lstm", True), ("ultimate", "one_step", "gru", False), ("ultimate", "k2", "lstm", True),
@@ -276,7 +303,7 @@ def test_prioritised_slices_get_r2d2_priorities_after_an_update() -> None:
 def test_updates_run_with_every_mask_game_and_feature_set(game: str, lookahead: str, memory: str,
                                                           temporal: bool) -> None:
     qnet, buffer, _ = _filled_buffer(game, lookahead, memory, batches=3, temporal=temporal)
-    loss = SequenceDQNLoss(qnet, sequence_length=8, burn_in=2, double_dqn=memory == "lstm")
+    loss = RecurrentDQNLoss(qnet, sequence_length=8, burn_in=2, double_dqn=memory == "lstm")
     loss.set_keys(**LOSS_KEYS)
     loss.make_value_estimator(gamma=0.9)
     updater = make_target_updater(loss, "hard", 2)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from ncbot.modules.recurrent import IS_INIT_KEY
+from ncbot.modules.networks.recurrent import IS_INIT_KEY
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.train.run import train
 from tests.learning_helpers import write_tiny_config

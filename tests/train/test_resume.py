@@ -108,3 +108,20 @@ def test_a_sigterm_whose_exception_went_nowhere_still_stops_the_run(tmp_path: Pa
     with pytest.raises(errors.Terminated):
         train(config, tmp_path / "run")
     assert not (tmp_path / "run" / "eval.json").exists()
+
+
+@pytest.mark.parametrize("network", ["mlp", "gru"])
+def test_run_folders_of_the_previous_checkpoint_layout_resume_and_evaluate(tmp_path: Path, network: str) -> None:
+    """A run folder written in the previous layout (tests/train/data/previous_layout: a recurrent objective's state
+    then held no value-estimator gamma) resumes from its periodic checkpoint, and its final agent evaluates."""
+    import shutil
+
+    run = tmp_path / network
+    shutil.copytree(Path(__file__).parent / "data" / "previous_layout" / network, run)
+    result = ncbot("train", "--resume", str(run), "collector.total_frames=640", "--no-progress")
+    assert result.returncode == 0, result.stderr
+    assert "resuming from step-000000512.pt (512 frames)" in result.stderr
+    assert load_checkpoint(run / "checkpoint.pt")["frames"] == 640
+    shutil.copy(Path(__file__).parent / "data" / "previous_layout" / network / "checkpoint.pt", tmp_path / "old.pt")
+    evaluated = ncbot("eval", str(tmp_path / "old.pt"), "--games", "10")
+    assert evaluated.returncode == 0, evaluated.stderr

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from ncbot.envs import make_env
-from ncbot.modules.qnet import make_qnet, seeded_init
+from ncbot.modules.networks.qnet import make_qnet, seeded_init
 from ncbot.pipelines.config import load_config
 from ncbot.pipelines.train.selfplay import SelfPlayConfig, SnapshotPool
 from ncbot.pipelines.train.run import train

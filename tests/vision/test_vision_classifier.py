@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from ncbot.vision.classifier import CellClassifier, CellCNN, TrainConfig, fit, load_classifier, save_weights, svm_loss, to_input
+from ncbot.vision.classifier import CellClassifier, CellCNN, FitConfig, fit, load_classifier, save_weights, svm_loss, to_input
 from ncbot.vision.data import TEST_SEED
 from ncbot.vision.data.cells import make_cells
 from ncbot.vision.experiments import confusion, paper_experiments, write_report
@@ -39,7 +39,7 @@ def test_preprocessing_makes_ink_bright_and_checks_shape() -> None:
 def test_training_is_seeded_and_learns() -> None:
     images, labels = make_cells(150, 21, noisy_fraction=0.3)
     test, test_labels = make_cells(90, 22)
-    config = TrainConfig(epochs=6, batch_size=16, seed=3)
+    config = FitConfig(epochs=6, batch_size=16, seed=3)
     a, b = fit(images, labels, config), fit(images, labels, config)
     for pa, pb in zip(a.parameters(), b.parameters()):
         assert torch.equal(pa, pb)
@@ -77,7 +77,7 @@ def test_shipped_weights_on_unseen_cells(styles, floor) -> None:
 
 
 def test_paper_experiments_small_and_report(tmp_path) -> None:
-    results = paper_experiments(TrainConfig(epochs=10, batch_size=16, seed=0), loo_folds=2)
+    results = paper_experiments(FitConfig(epochs=10, batch_size=16, seed=0), loo_folds=2)
     assert [r.n for r in results] == [2, 201, 109]
     assert results[2].accuracy > 0.9  # trained noisy, tested clean (paper: 98.4%)
     for r in results:

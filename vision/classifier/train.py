@@ -19,8 +19,8 @@ from ncbot.vision.classifier.preprocess import to_input
 
 
 @dataclass
-class TrainConfig:
-    """Hyper-parameters of one training run (defaults: the shipped weights)."""
+class FitConfig:
+    """Hyper-parameters of one fit of the cell classifier (defaults: the shipped weights)."""
 
     epochs: int = 30           # passes over the training cells
     batch_size: int = 64       # cells per update
@@ -39,7 +39,7 @@ def _augment(x: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     return torch.roll(x, shifts=(dy, dx), dims=(2, 3))
 
 
-def fit(images: np.ndarray, labels: np.ndarray, config: TrainConfig = TrainConfig(),
+def fit(images: np.ndarray, labels: np.ndarray, config: FitConfig = FitConfig(),
         progress: Callable[..., Any] | None = None, description: str = "train cells") -> CellCNN:
     """Train a fresh CellCNN on uint8 (N, 40, 40) cells and int labels (N,); same seed -> same weights."""
     if len(images) != len(labels) or len(images) == 0:

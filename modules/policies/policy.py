@@ -1,7 +1,7 @@
 """The agent's policies as TensorDict modules: one greedy (test time) and one epsilon-greedy (for the Collector).
 
 Both run the same chain, so the masks used while learning are the masks used at test time (paper, Algorithm 2):
-Q-network (`ncbot.modules.qnet.QValues`, on the Q-network's own module) -> look-ahead masks -> masked argmax [-> TorchRL
+Q-network (`ncbot.modules.networks.qnet.QValues`, on the Q-network's own module) -> look-ahead masks -> masked argmax [-> TorchRL
 `EGreedyModule`].
 The raw Q-values stay under `action_value` for the logger; the greedy argmax reads `greedy_mask`, exploration
 samples uniformly inside `explore_mask`.
@@ -15,9 +15,9 @@ from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.data import TensorSpec
 from torchrl.modules import EGreedyModule
 
-from ncbot.modules.argmax import MaskedArgmax
-from ncbot.modules.masks import EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LookaheadMasks
-from ncbot.modules.qnet import ACTION_VALUE_KEY, QValues
+from ncbot.modules.networks.argmax import MaskedArgmax
+from ncbot.modules.policies.masks import EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LookaheadMasks
+from ncbot.modules.networks.qnet import ACTION_VALUE_KEY, QValues
 
 CHOSEN_ACTION_VALUE_KEY = "chosen_action_value"
 
@@ -49,7 +49,7 @@ def make_policies(
     """
     greedy = TensorDictSequential(
         # the same network and parameters, without TensorDictModule's per-call overhead; a recurrent network
-        # (modules/recurrent.py, a TensorDictSequential) runs as it is
+        # (modules/networks/recurrent.py, a TensorDictSequential) runs as it is
         qnet if isinstance(qnet, TensorDictSequential) else QValues(qnet),
         LookaheadMasks(lookahead, all_negative),
         MaskedArgmax(ACTION_VALUE_KEY, GREEDY_MASK_KEY, "action", CHOSEN_ACTION_VALUE_KEY),

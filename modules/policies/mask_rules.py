@@ -2,12 +2,12 @@
 
 A rule maps the env's `action_mask` (available actions), `lookahead_reward` (one-step reward of every action) and
 `winning_actions` (the paper's set A when non-empty) to (explore mask, greedy mask). The deeper rules of
-`ncbot.modules.deep_lookahead` build on these keys; `ncbot.modules.masks` names every rule in one table.
+`ncbot.modules.policies.deep_lookahead` build on these keys; `ncbot.modules.policies.masks` names every rule in one table.
 
 When every allowed action has a negative look-ahead reward, the paper leaves the greedy choice open (Algorithm 2
 takes the argmax over A minus A_hat, which is then empty). The option ``agent.all_negative`` decides:
 ``available`` falls back to the whole set A (this project's first reading; with ``env.taken_squares: refused``
-A holds the squares already taken, ~94 % of the fallback on Ultimate), ``untaken`` to A without the squares taken
+A holds the squares already taken, most of the fallback on Ultimate: docs/env.md), ``untaken`` to A without the squares taken
 to the robot's knowledge (the env's ``board`` key), following section 3: "all game moves were allowed from the
 subset of those not taken yet (to the robot's knowledge)". Exploration (epsilon picks in A) is the same in both.
 """

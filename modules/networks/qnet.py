@@ -35,11 +35,11 @@ def make_qnet(n_features: int, n_actions: int, hidden: Sequence[int] = (100, 100
 
 class MLPReader:
     """One-position reads of a Linear/ReLU ``nn.Sequential`` in numpy (``make_qnet``'s network, the value network
-    of ``ncbot.modules.value_net``): ``reader(x)`` for a (F,) float32 array is the network's output as a float32 array.
+    of ``ncbot.modules.search.value_net``): ``reader(x)`` for a (F,) float32 array is the network's output as a float32 array.
 
     Why: the searches read a network once per simulation on one position. At that size torch's per-op dispatch
     (``nn.Module.__call__``, autograd's no-grad guard, ``F.linear``) costs more than the products; numpy's
-    matrix-vector products on the same float32 weights take half the time (docs/ultimate.md).
+    matrix-vector products on the same float32 weights are faster (docs/search.md, "MCTS guided by the Q-network").
     The weights are copied when the reader is made: build it after the network is loaded or trained. Outputs
     agree with the network's to float32 rounding (the sums run in another order), not bit for bit."""
 
@@ -88,9 +88,9 @@ class QValues(TensorDictModuleBase):
     on the same `nn.Module` (same parameters, same ops, same state_dict keys), but sets its output directly.
 
     Why: tensordict 0.14's `TensorDictModule` passes every output through `TensorDict.from_any`, which runs
-    `importlib.util.find_spec("pandas")` on each call: a search of sys.path when pandas is not installed
-    (~60-130 us here), more than the whole MLP at the paper's batch of 2, paid twice per update and once per
-    collector step.
+    `importlib.util.find_spec("pandas")` on each call: a search of sys.path when pandas is not installed, which
+    costs more than the whole MLP at the paper's batch of 2, paid twice per update and once per collector step
+    (docs/learner-speed.md).
     """
 
     def __init__(self, qnet: TensorDictModule | QValues) -> None:

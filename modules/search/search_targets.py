@@ -1,6 +1,6 @@
 """Targets improved by search: the Q-network is also trained towards the moves its own Q-guided search picks.
 
-Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``ncbot.modules.guided_mcts``: priors from the
+Expert iteration (Anthony et al. 2017; AlphaZero) in a DQN: the search (``ncbot.modules.search.guided_mcts``: priors from the
 current Q-network, leaves scored by Q plus random playouts or by a value network) is a better player than the greedy
 network it starts from, so its choices are labels. Each label is (observation, greedy mask, searched move); the learner adds DQfD's
 large-margin loss (Hester et al. 2018) on a batch of labels to the TD loss:
@@ -11,7 +11,7 @@ which is zero once Q ranks the searched move above every other move of the mask 
 values themselves to the TD loss. The mask is DQfD's (every move the greedy policy could play, ``gap=None``) or,
 by default, only the moves the search valued clearly below the searched one (``gap``): on Ultimate most moves
 against the random user are near ties, and the full mask taught the search's tie-breaks and wrecked the agent
-(docs/ultimate.md). Labels come from the robot's game moves of the collected batches (optionally
+(docs/search.md). Labels come from the robot's game moves of the collected batches (optionally
 only robot-second games, the weak seat on Ultimate), searched with the network as it is at that point of training.
 """
 from __future__ import annotations
@@ -20,8 +20,9 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-from ncbot.modules.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
-from ncbot.modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from ncbot.modules.policies.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from ncbot.modules.replay.buffer import draw_batches
+from ncbot.modules.search.guided_mcts import GuidedMCTS, GuidedMCTSPolicy
 
 EXPERT_ACTION_KEY = "expert_action"
 LABEL_MASK_KEY = "label_mask"  # the searched move and the moves the label ranks it above
@@ -41,10 +42,12 @@ class SearchTeacher:
     """Labels robot game moves of collected batches with the moves the Q-guided search picks (see module doc)."""
 
     def __init__(self, greedy: torch.nn.Module, search: GuidedMCTS, *, rows_per_batch: int, seat: str = "both",
-                 gap: float | None = 0.1, buffer_size: int = 50_000, batch_size: int = 128, seed: int = 0) -> None:
+                 gap: float | None = 0.1, buffer_size: int = 50_000, batch_size: int = 128, seed: int = 0,
+                 weight: float = 1.0, margin: float = 1.0, device: torch.device | str = "cpu") -> None:
         if seat not in ("both", "second"):
             raise ValueError(f"seat must be 'both' or 'second', got {seat!r}")
         self.search, self.rows_per_batch, self.seat, self.gap = search, int(rows_per_batch), seat, gap
+        self.weight, self.margin, self.device = weight, margin, torch.device(device)  # of the learner's margin term
         self.policy = GuidedMCTSPolicy(greedy, search, seed)  # root: the greedy mask, priors: the real observation
         self.generator = torch.Generator().manual_seed(int(seed) + 17)
         self.labels = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=batch_size)
@@ -105,6 +108,19 @@ class SearchTeacher:
 
     def ready(self) -> bool:
         return len(self.labels) >= self.labels.batch_size
+
+    def draw(self, count: int) -> list[TensorDictBase | None]:
+        """Label batches for the learner's next `count` updates, drawn in one call (none until enough are kept)."""
+        return draw_batches(self.labels, count) if self.ready() else [None] * count
+
+    def loss(self, objective, labels: TensorDictBase) -> torch.Tensor:
+        """`weight` x the margin loss of the objective's online Q-values on a batch of labels (an auxiliary loss of
+        ``ncbot.modules.learner.Learner``)."""
+        if labels.device != self.device:  # the labels are kept on the CPU
+            labels = labels.to(self.device)
+        q_values = objective.q_values(labels)
+        return self.weight * margin_loss(q_values, labels.get(EXPERT_ACTION_KEY), labels.get(LABEL_MASK_KEY),
+                                         self.margin)
 
     def state_dict(self, keep_labels: bool = True) -> dict:
         """Generators and count (and the labels, unless a run keeps no replay data in its checkpoints)."""

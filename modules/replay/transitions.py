@@ -2,9 +2,9 @@
 call (`prepare_transitions`), so the training loop has one line between the Collector and the buffer.
 
 Keys written (nothing the env wrote changes meaning; the loss reads the new keys through its `set_keys`,
-`LOSS_KEYS`, wired by `ncbot.modules.learner.make_loss`):
-- ("next", "learning_reward"): the reward the learner trains on (modules/rewards.py, `loss.reward`);
-- ("next", "bootstrap_mask"): the next actions the TD target maximises over (modules/bootstrap.py,
+`LOSS_KEYS`, wired by `ncbot.pipelines.train.build.make_objective`):
+- ("next", "learning_reward"): the reward the learner trains on (modules/replay/rewards.py, `loss.reward`);
+- ("next", "bootstrap_mask"): the next actions the TD target maximises over (modules/replay/bootstrap.py,
   `loss.bootstrap`);
 - with `loss.n_step` > 1, TorchRL's `MultiStepTransform`: "next" then holds the state the window ended in,
   ("next", "learning_reward") the discounted sum of the window's learning rewards and `steps_to_next_obs` its
@@ -19,8 +19,8 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs.transforms import MultiStepTransform
 
-from ncbot.modules.bootstrap import BOOTSTRAP_MASK_KEY, bootstrap_keys, set_bootstrap_mask
-from ncbot.modules.rewards import LEARNING_REWARD_KEY, learning_rewards
+from ncbot.modules.replay.bootstrap import BOOTSTRAP_MASK_KEY, bootstrap_keys, set_bootstrap_mask
+from ncbot.modules.replay.rewards import LEARNING_REWARD_KEY, learning_rewards
 
 # what the learning reward and the bootstrap mask are computed from (plus the look-ahead keys `greedy` reads)
 TRANSITION_KEYS = (
@@ -33,6 +33,11 @@ BUFFER_KEYS = ("observation", "action", ("next", "observation"), LEARNING_REWARD
                ("next", "done"), ("next", "terminated"), ("next", "truncated"))
 # the loss's `set_keys` for these transitions (keys under "next" are given by their leaf name)
 LOSS_KEYS = {"reward": LEARNING_REWARD_KEY[1], "bootstrap_mask": BOOTSTRAP_MASK_KEY[1]}
+
+
+def stored_keys(n_step: int) -> tuple:
+    """The keys of a stored transition, which an objective may read (`steps_to_next_obs` with n-step returns)."""
+    return (*BUFFER_KEYS, STEPS_KEY) if n_step > 1 else BUFFER_KEYS
 
 
 def make_multistep(n_step: int, gamma: float) -> MultiStepTransform | None:
@@ -55,8 +60,8 @@ def prepare_transitions(batch: TensorDictBase, *, reward: str, loss_reward: floa
                         multistep: MultiStepTransform | None = None) -> TensorDictBase:
     """(env rows, T) collector batch -> flat transitions with `BUFFER_KEYS` (+ `steps_to_next_obs` with n-step).
 
-    `reward`, `loss_reward`: the learning reward (modules/rewards.py); `bootstrap`, `lookahead`: the bootstrap mask
-    (modules/bootstrap.py); `multistep` is `make_multistep(...)` of the run (it holds the rows' unfinished windows)."""
+    `reward`, `loss_reward`: the learning reward (modules/replay/rewards.py); `bootstrap`, `lookahead`: the bootstrap mask
+    (modules/replay/bootstrap.py); `multistep` is `make_multistep(...)` of the run (it holds the rows' unfinished windows)."""
     if batch.batch_dims != 2:
         raise ValueError(f"prepare_transitions needs collector batches shaped (env rows, time), "
                          f"got {tuple(batch.shape)}")

@@ -6,7 +6,7 @@ evaluator, on the opponents' bitboards, with three inputs from the agent:
   features of a typical game turn seen from that side (``TurnFeatures``);
 - values: a leaf is scored by ``value_weight * v_Q + (1 - value_weight) * random playout``, where
   v_Q = (clip(max Q, -5, 5) / 5 + 1) / 2 maps the paper's reward scale (+5 win / -5 loss) to [0, 1]; or, given a
-  ``value_net`` (Ultimate, ``ncbot.modules.value_net``), by that network alone (no playout);
+  ``value_net`` (Ultimate, ``ncbot.modules.search.value_net``), by that network alone (no playout);
 - the root keeps the paper's one-step masks: a winning cell is taken at once, and cells after which the other
   side wins at once are searched only when every cell is such (Algorithm 2's A and A_hat).
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import random
 import time
+from typing import Any
 
 import numpy as np
 import torch
@@ -32,10 +33,10 @@ from ncbot.envs.opponents.base import Opponent
 from ncbot.envs.games import make_game
 from ncbot.envs.opponents.bitboards import ONGOING
 from ncbot.envs.opponents.search import PUCT, Node, RandomRollout, result_value, run_search, visits_by_move
-from ncbot.modules.deep_lookahead import move_order, owners_from_order, win_in_one
-from ncbot.modules.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
-from ncbot.modules.qnet import ACTION_VALUE_KEY, MLPReader
-from ncbot.modules.value_net import VALUE_GAME, ValueNetEvaluator
+from ncbot.modules.policies.deep_lookahead import move_order, owners_from_order, win_in_one
+from ncbot.modules.policies.mask_rules import AVAILABLE_KEY, GREEDY_MASK_KEY
+from ncbot.modules.networks.qnet import ACTION_VALUE_KEY, MLPReader
+from ncbot.modules.search.value_net import VALUE_GAME, ValueNetEvaluator
 
 ROOT_KEYS = (GREEDY_MASK_KEY, AVAILABLE_KEY)  # what the robot's root is searched over (GuidedMCTSPolicy)
 
@@ -168,7 +169,7 @@ class GuidedMCTS:
         self.simulations, self.c_puct = int(simulations), float(c_puct)
         self.temperature, self.value_weight = float(temperature), float(value_weight)
         # after a search: each visited root move's mean value in [0, 1] for the side to move ({} when the root
-        # rules decided without searching); the search teacher reads it (modules/search_targets.py)
+        # rules decided without searching); the search teacher reads it (modules/search/search_targets.py)
         self.root_values: dict[int, float] = {}
         if value_net is not None and rules.id != VALUE_GAME:
             raise ValueError(f"value networks score Ultimate positions; this agent plays {game} "
@@ -288,7 +289,7 @@ class GuidedMCTSPolicy(TensorDictModuleBase):
 
     def __init__(self, greedy: nn.Module, search: GuidedMCTS, seed: int = 0, prune=None,
                  root_key: str = GREEDY_MASK_KEY) -> None:
-        """``prune``: an optional k-step rule (``ncbot.modules.deep_lookahead.KStepLookahead``); the root then skips the
+        """``prune``: an optional k-step rule (``ncbot.modules.policies.deep_lookahead.KStepLookahead``); the root then skips the
         moves it proves lost by force, so the simulations are spent on moves that can still be saved."""
         super().__init__()
         if root_key not in ROOT_KEYS:
@@ -351,3 +352,18 @@ def parse_qmcts(arg: str | None) -> tuple[int, str]:
         raise ValueError(f"opponent 'qmcts' needs a simulation budget and a checkpoint, e.g. "
                          f"'qmcts:100:runs/default/checkpoint.pt'; got 'qmcts:{arg or ''}'")
     return simulations, checkpoint
+
+
+def policy_search(greedy: nn.Module, env: Any, simulations: int, free_move: str | None = None,
+                  value: str | None = None) -> GuidedMCTS:
+    """A PUCT search whose priors (and values, unless a ``value`` network file is given) come from an agent's greedy
+    policy (its chain starts with the Q-network, ``ncbot.modules.policies.policy.make_policies``); ``env`` is the
+    agent's env config section (game, temporal, free_move, threats)."""
+    free_move = free_move or env.free_move
+    value_net = None
+    if value is not None:  # GuidedMCTS refuses a value network on a 3x3 agent
+        from ncbot.modules.search.value_net import load_value_net
+
+        value_net = load_value_net(value, free_move)
+    features = TurnFeatures(env.game, env.temporal, free_move, env.threats)
+    return GuidedMCTS(greedy[0].module, features, env.game, free_move, simulations, value_net=value_net)

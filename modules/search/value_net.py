@@ -1,8 +1,8 @@
 """A position-value network for Ultimate: the leaf evaluator that lets the Q-guided search drop random playouts.
 
-Why: the Q-guided search (``ncbot.modules.guided_mcts``) scored a leaf by 25 % of the Q-network's value and 75 % of one
-random playout. The Q-values were learnt against a random user, and one playout is a coin toss; against
-``mcts:10000`` (which averages ten thousand playouts a move) that search scored 0.15. This network is trained
+Why: the Q-guided search (``ncbot.modules.search.guided_mcts``) scores a leaf by a mix of the Q-network's value and
+one random playout. The Q-values were learnt against a random user, and one playout is a coin toss, so that search
+is weak against strong searchers (``mcts:10000``, docs/search.md "The value network"). This network is trained
 (``ncbot.pipelines.train.value_training``) to predict the root value a plain UCT search finds from a position, so one
 forward pass gives a leaf what a few hundred playouts would, without their noise (expert iteration's "search
 as the target", with plain UCT as the expert).
@@ -12,9 +12,9 @@ the side to move: its marks and the other side's (81 + 81, subgrid-major: index 
 subgrids each side owns and the drawn ones (3 x 9), the subgrid the mover must play in (9, one-hot), a free-move
 flag, the open subgrids where each side could complete a line with one mark (2 x 9) and whether that would
 complete a line of subgrids (2): ``N_FEATURES`` = 219. The threats are what an MLP finds hard to compute from
-marks: with them the error on held-out games fell from 0.0045 to 0.0028 (docs/ultimate.md). The network's output
+marks: with them the error on held-out games is lower (docs/search.md, "The value network"). The network's output
 is a logit; its sigmoid is the mover's expected score (win 1, draw 0.5, loss 0). The eight symmetries of the
-square act on subgrids and squares alike (``ncbot.modules.symmetry.square_symmetries``), so training sees every
+square act on subgrids and squares alike (``ncbot.modules.replay.symmetry.square_symmetries``), so training sees every
 position in eight orientations.
 """
 from __future__ import annotations
@@ -29,14 +29,14 @@ from torch import nn
 
 from ncbot.envs.opponents.bitboards import COMPLETING, ONGOING
 from ncbot.envs.opponents.search import Node, Rand, RandomRollout, result_value
-from ncbot.modules.qnet import MLPReader
-from ncbot.modules.symmetry import square_symmetries
+from ncbot.modules.networks.qnet import MLPReader
+from ncbot.modules.replay.symmetry import square_symmetries
 
 VALUE_FORMAT = "ncbot-value-v1"
 VALUE_GAME = "ultimate"  # the game whose positions the networks score (features of its bitboards)
 N_FEATURES = 219
 DEFAULT_HIDDEN = (256, 256)
-DEFAULT_PLAYOUT_WEIGHT = 0.0  # the network alone: docs/ultimate.md "A value network for the search" measures the mix
+DEFAULT_PLAYOUT_WEIGHT = 0.0  # the network alone: docs/search.md "The value network" measures the mix
 
 _BITS = tuple(tuple(float(mask >> p & 1) for p in range(9)) for mask in range(512))
 _TARGET = tuple(tuple(1.0 if k == t else 0.0 for k in range(9)) + (0.0,) for t in range(9))

@@ -3,11 +3,10 @@
 Why: the proposed agent never plays outside its greedy set (A minus A_hat: a winning or threat-making move when
 there is one, never a move that hands the user an immediate win), and epsilon explores only inside A. Actions
 outside those sets are therefore (almost) never trained, yet `available` bootstraps from the max over ALL of
-them, so untrained, over-estimated values leak into every target. Measured on 3x3 (seed 0, 300K frames,
-loss_reward -20): the learned Q of the corner reply to an edge opening was 0.36 above its exact value and the
-agent lost 0.48 % of the robot-second games exactly; bootstrapping over the greedy set puts the same Q within
-0.01 of exact and the exact loss at 0.07 % (docs/learning.md). `greedy` is the Bellman target of the masked
-policy the agent actually follows (the expectimax the docs compare with).
+them, so untrained, over-estimated values leak into every target; bootstrapping over the greedy set brings the
+learned Q-values of the moves the agent plays to their exact values (measured on 3x3 in docs/learning.md, "What
+the TD target maximises over"). `greedy` is the Bellman target of the masked policy the agent actually follows
+(the expectimax the docs compare with).
 
 Mechanics: the mask the target maximises over is stored under its own key, ("next", "bootstrap_mask"), which
 `CompetitiveDQNLoss` reads through `set_keys(bootstrap_mask="bootstrap_mask")`: a copy of the env's
@@ -19,7 +18,7 @@ from __future__ import annotations
 
 from tensordict import TensorDictBase
 
-from ncbot.modules.masks import lookahead_rule
+from ncbot.modules.policies.masks import lookahead_rule
 
 BOOTSTRAP_CHOICES = ("available", "greedy")
 NEXT_LOOKAHEAD_KEYS = (("next", "lookahead_reward"), ("next", "winning_actions"))

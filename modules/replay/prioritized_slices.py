@@ -2,7 +2,7 @@
 
 Why our own: TorchRL's `PrioritizedSliceSampler` builds on its `PrioritizedSampler`, whose sum tree lives in the
 compiled extension that does not load against the torch this project pins (see `prioritized_sampler.py`). This
-sampler is TorchRL's `SliceSampler` (fragmented dialogues, padded slices: `modules.recurrent.make_sequence_buffer`)
+sampler is TorchRL's `SliceSampler` (fragmented dialogues, padded slices: `modules.networks.recurrent.make_sequence_buffer`)
 with the slice's start drawn by priority instead of uniformly, priorities kept in one tensor as in
 `ProportionalSampler`.
 
@@ -24,7 +24,7 @@ import torch
 from torchrl.data import SliceSampler
 from torchrl.data.replay_buffers.samplers._trajectory import _FragmentedTrajectoryIndex
 
-from ncbot.modules.prioritized_sampler import WEIGHT_KEY
+from ncbot.modules.replay.prioritized_sampler import WEIGHT_KEY
 
 PRIORITY_ETA = 0.9  # R2D2's max/mean mixture of a sequence's |TD errors|
 

@@ -27,7 +27,7 @@ from tensordict import TensorDictBase
 
 from ncbot.envs.opponents.bitboards import FREE_SQUARES, IS_LINE, ONGOING, StandardBits, UltimateBits
 from ncbot.envs.rules import LINES_3X3, SUBGRID_CELLS, SUBGRID_OF_CELL
-from ncbot.modules.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, fallback, nonempty_or
+from ncbot.modules.policies.mask_rules import AVAILABLE_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY, fallback, nonempty_or
 
 ROBOT, HUMAN = 1, 2
 MAX_PLIES = 5
@@ -150,7 +150,7 @@ class KStepLookahead:
         self.engines = {9: StandardBits(), 81: UltimateBits(free_move)}
 
     def __call__(self, available: torch.Tensor, reward: torch.Tensor, winning: torch.Tensor):
-        raise ValueError(f"look-ahead k{self.plies} reads the board: use it through modules.masks.LookaheadMasks "
+        raise ValueError(f"look-ahead k{self.plies} reads the board: use it through modules.policies.masks.LookaheadMasks "
                          "(or masks_from_tensordict), not as a three-tensor rule")
 
     def masks_from_tensordict(self, td: TensorDictBase, untaken: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:

@@ -15,8 +15,8 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
-from ncbot.modules.deep_lookahead import MAX_PLIES, KStepLookahead
-from ncbot.modules.mask_rules import (  # noqa: F401  (the keys and rules are used from here too)
+from ncbot.modules.policies.deep_lookahead import MAX_PLIES, KStepLookahead
+from ncbot.modules.policies.mask_rules import (  # noqa: F401  (the keys and rules are used from here too)
     ALL_NEGATIVE_CHOICES, AVAILABLE_KEY, BOARD_KEY, EXPLORE_MASK_KEY, GREEDY_MASK_KEY, LOOKAHEAD_REWARD_KEY, WINNING_KEY,
     MaskRule, all_moves_negative, check_all_negative, no_lookahead, one_step_lookahead, untaken_actions,
     variant_lookahead,
@@ -50,7 +50,7 @@ class LookaheadMasks(TensorDictModuleBase):
 
     `all_negative` (`agent.all_negative`): where the greedy mask falls back when every action of set A has a
     negative look-ahead reward: `available` (set A) or `untaken` (set A without the squares taken on the env's
-    `board` key, which it then also reads); see `ncbot.modules.mask_rules`. The variant, one_step and k-step rules use it;
+    `board` key, which it then also reads); see `ncbot.modules.policies.mask_rules`. The variant, one_step and k-step rules use it;
     `none` has no look-ahead and no fallback.
     """
 
@@ -68,7 +68,7 @@ class LookaheadMasks(TensorDictModuleBase):
         untaken = None
         if self.all_negative == "untaken":
             untaken = untaken_actions(tensordict.get(BOARD_KEY), available.shape[-1])
-        if getattr(self.rule, "needs_tensordict", False):  # e.g. k-step look-ahead (modules.deep_lookahead)
+        if getattr(self.rule, "needs_tensordict", False):  # e.g. k-step look-ahead (modules.policies.deep_lookahead)
             explore, greedy = self.rule.masks_from_tensordict(tensordict, untaken)
         else:
             explore, greedy = self.rule(

@@ -4,9 +4,8 @@ Why: Noughts & Crosses is invariant under the 8 symmetries of the square (the di
 Ultimate when the whole 9x9 grid is turned: a turn maps subgrids to subgrids and each cell's place inside its
 subgrid the same way, so the cell that sends the next player to a subgrid still sends them to the turned one.
 The learner sees each sampled transition under a random symmetry, which gives it eight views of every game and
-pulls the values of symmetric moves together. Measured on 3x3 (docs/learning.md): without it the four corner
-openings differed by up to 0.7 in Q and the agent opened in the centre (exact win rate 0.9896 at best) instead
-of a corner (0.9948).
+pulls the values of symmetric moves together (the 3x3 measurements: docs/learning.md, "Why the fast configs differ
+from the paper").
 
 Only the cell-indexed parts move: the robot's and the user's mark features, the temporal features and the game
 moves among the actions (with their masks). Dialogue words and commands name no square, so they stay put; the

@@ -1,0 +1,1 @@
+"""What is replayed and how: collected batches into transitions, samplers, board-symmetry augmentation."""

@@ -1,0 +1,1 @@
+"""Search with the learnt network: the Q-guided MCTS, its value network and the search teacher's labels."""
