@@ -158,6 +158,29 @@ class EpisodeLogger:
         self._maybe_flush()
         return ids
 
+    def cut_off(self, phase: str, agent: str, seed: int, extra: dict[str, Any] | None = None) -> int | None:
+        """End the running episode of batch row 0 that its env never ended (a robot game stopped when the robot's
+        belief and the true board parted): its `/episode` summary with outcome "none", under the id its per-action
+        steps were written with. Returns that id, None when no episode was running."""
+        key = (phase, agent, seed)
+        assembler = self._assemblers.get(key)
+        if assembler is None or len(assembler.length) == 0 or assembler.length[0] == 0:
+            return None
+        running = self._open_episodes.get(key, {}).pop(0, None)
+        episode_id = running[0] if running is not None else self.new_episode_id()
+        summary = {"episode": episode_id, "phase": phase, "game": self._names.game or "standard", "agent": agent,
+                   "seed": int(seed), "seat": "first" if assembler.robot_first[0] else "second", "outcome": "none",
+                   "return": round(float(assembler.total[0]), 4), "length": int(assembler.length[0]),
+                   "task_success": False, "truncated": False, "epsilon": None, "env_steps": None,
+                   "wall_time": round(time.monotonic() - self._opened, 3)}
+        if extra:
+            summary["extra"] = extra
+        assembler.length[0] = 0  # the row's next step starts a new episode
+        self._write_json(schemas.EPISODE_TOPIC, summary)
+        self._maybe_roll()
+        self._maybe_flush()
+        return episode_id
+
     def set_names(self, names: NameTables) -> None:
         """Use these name tables for utterances from now on (also stored as metadata `ncbot.names`)."""
         self._names = names
