@@ -6,9 +6,11 @@ logged.game_transitions`), join the play buffer, and the person's moves refit a 
 (`ncbot.pipelines.online.person_model`); `sim_frames` fresh env steps join the simulation buffer, half against that
 model of the person and half against the run's own simulated user (so the agent keeps what it learnt there); then
 `updates` gradient steps of the run's own update (loss, target network, optimiser, board symmetries), each on a
-batch of which `play_share` comes from play and the rest from simulation. That is the bound on a game's compute. The update is kept only if the agent still does its task against the simulated random
-user: greedy test games from both seats (`gate_games`, the same seeds every time) may lose at most `gate_tolerance`
-more task success than the agent the robot started with; otherwise the weights go back to the last kept ones.
+batch of which `play_share` comes from play and the rest from simulation. That is the bound on a game's compute.
+The update is kept only if it is not worse where it can be checked: greedy test games from both seats (`gate_games`
+each, the same seeds every time) against the random user may lose at most `gate_tolerance` task success against the
+agent the robot started with, and against the model of the person no task success against the agent it would
+replace; otherwise the weights go back to the last kept ones.
 Every kept version is saved as a final checkpoint (`game-NNNN.pt`, loadable by `ncbot robot play` / `ncbot eval`).
 """
 from __future__ import annotations
@@ -40,7 +42,7 @@ class PlayLearning:
     sim_frames: int = 1024        # simulated env steps added per game: half against the person's model
     lr: float = 2e-4
     gate_games: int = 300         # test games against the simulated random user an update must pass
-    gate_tolerance: float = 0.01  # task success it may lose against the starting agent's
+    gate_tolerance: float = 0.0   # task success it may lose against the random user, from the starting agent's
     play_buffer: int = 20_000
     sim_buffer: int = 50_000
     seed: int = 0
@@ -65,6 +67,8 @@ class PlayUpdate:
     kept: bool | None = None
     gate_task_success: float | None = None   # of the updated agent against the random user
     start_task_success: float | None = None  # of the agent the robot started with, same games
+    person_task_success: float | None = None  # of the updated agent against the model of the person
+    kept_person_task_success: float | None = None  # of the agent it would replace, same games, same model
     cpu_seconds: float = 0.0
     weights: str | None = None
 
@@ -131,9 +135,10 @@ class PlayLearner:
         return {"games": self.games, "updates": self.updates, "kept": self.kept, "current": self.current}
 
     # ------------------------------------------------------------------ learning
-    def gate(self) -> float:
-        """Task success of the current greedy agent in the gate's test games against the random user."""
-        result = agent_parts.test_games(self.config, self.policy, self.settings.gate_games, GATE_SEED)
+    def gate(self, opponent: Any = "random") -> float:
+        """Task success of the current greedy agent in the gate's test games against `opponent` (the random user, or
+        the model of the person)."""
+        result = agent_parts.test_games(self.config, self.policy, self.settings.gate_games, GATE_SEED, opponent)
         return float(result.task_success)
 
     def _simulate(self) -> None:
@@ -208,16 +213,17 @@ class PlayLearner:
             torch.manual_seed(self.settings.seed * 100_003 + self.games)
             if self._start_success is None:
                 self._start_success = self.gate()
+            report.kept_person_task_success = self.gate(self.person)
             before = copy.deepcopy(self.learner.state_dict()), copy.deepcopy(self.qnet.state_dict())
             self._simulate()
             generator = torch.Generator().manual_seed(self.settings.seed * 100_003 + self.games)
             for _ in range(self.settings.updates):
                 self.learner.update(self._batch(generator))
             self.updates += 1
-            success = self.gate()
-        report.updated = True
-        report.gate_task_success, report.start_task_success = success, self._start_success
-        report.kept = success >= self._start_success - self.settings.gate_tolerance
+            report.gate_task_success, report.person_task_success = self.gate(), self.gate(self.person)
+        report.updated, report.start_task_success = True, self._start_success
+        report.kept = report.gate_task_success >= self._start_success - self.settings.gate_tolerance and \
+            report.person_task_success >= report.kept_person_task_success
         if not report.kept:
             self.learner.load_state_dict(before[0])  # back to the last kept weights (network, target, optimiser)
             self.qnet.load_state_dict(before[1])
