@@ -87,6 +87,13 @@ def atomic_torch_save(obj: Any, path: str | Path) -> Path:
     return atomic_save(obj, path)
 
 
+def exact_task_success(config: Any, policy: Any, seed: int) -> float:
+    """3x3: task success against the random user over every branch of its moves, mean of both seats."""
+    from ncbot.pipelines.evaluate.exact import exact_seat
+
+    return sum(exact_seat(config, policy, first, [seed]).task_success for first in ("robot", "human")) / 2
+
+
 def save_agent(path: str | Path, config: Any, data: dict[str, Any], qnet: Any, **counters: Any) -> Path:
     """The agent as a final checkpoint (`ncbot robot play CKPT`, `ncbot eval CKPT` load it), written atomically."""
     from ncbot.pipelines.checkpoint import FORMAT, atomic_save

@@ -7,10 +7,11 @@ logged.game_transitions`), join the play buffer, and the person's moves refit a 
 model of the person and half against the run's own simulated user (so the agent keeps what it learnt there); then
 `updates` gradient steps of the run's own update (loss, target network, optimiser, board symmetries), each on a
 batch of which `play_share` comes from play and the rest from simulation. That is the bound on a game's compute.
-The update is kept only if it is not worse where it can be checked: greedy test games from both seats (`gate_games`
-each, the same seeds every time) against the random user may lose at most `gate_tolerance` task success against the
-agent the robot started with, and against the model of the person no task success against the agent it would
-replace; otherwise the weights go back to the last kept ones.
+The update is kept only if it is not worse where it can be checked: against the random user its task success
+(on 3x3 exact, over every branch of the user's moves from both seats; else `gate_games` greedy test games from both
+seats) may be at most `gate_tolerance` below the starting agent's, and against the model of the person (`gate_games`
+test games, the same seeds every time) no lower than the agent's it would replace; otherwise the weights go back to
+the last kept ones.
 Every kept version is saved as a final checkpoint (`game-NNNN.pt`, loadable by `ncbot robot play` / `ncbot eval`).
 """
 from __future__ import annotations
@@ -41,7 +42,8 @@ class PlayLearning:
     play_share: float = 0.25      # of each batch: transitions of the games played
     sim_frames: int = 1024        # simulated env steps added per game: half against the person's model
     lr: float = 2e-4
-    gate_games: int = 300         # test games against the simulated random user an update must pass
+    gate_games: int = 2000        # test games an update must pass (against the model of the person; the random user
+    #                               on games other than 3x3, which is scored exactly)
     gate_tolerance: float = 0.0   # task success it may lose against the random user, from the starting agent's
     play_buffer: int = 20_000
     sim_buffer: int = 50_000
@@ -136,8 +138,11 @@ class PlayLearner:
 
     # ------------------------------------------------------------------ learning
     def gate(self, opponent: Any = "random") -> float:
-        """Task success of the current greedy agent in the gate's test games against `opponent` (the random user, or
-        the model of the person)."""
+        """Task success of the current greedy agent against `opponent`: the random user on 3x3 exactly, over every
+        branch of its moves from both seats (`ncbot.pipelines.evaluate.exact`); else, and against the model of the
+        person, in the gate's test games."""
+        if opponent == "random" and self.config.env.game == "standard":
+            return agent_parts.exact_task_success(self.config, self.policy, GATE_SEED)
         result = agent_parts.test_games(self.config, self.policy, self.settings.gate_games, GATE_SEED, opponent)
         return float(result.task_success)
 
