@@ -162,24 +162,16 @@ class EpisodeLogger:
         """End the running episode of batch row 0 that its env never ended (a robot game stopped when the robot's
         belief and the true board parted): its `/episode` summary with outcome "none", under the id its per-action
         steps were written with. Returns that id, None when no episode was running."""
-        key = (phase, agent, seed)
-        assembler = self._assemblers.get(key)
+        assembler = self._assemblers.get((phase, agent, seed))
         if assembler is None or len(assembler.length) == 0 or assembler.length[0] == 0:
             return None
-        running = self._open_episodes.get(key, {}).pop(0, None)
-        episode_id = running[0] if running is not None else self.new_episode_id()
-        summary = {"episode": episode_id, "phase": phase, "game": self._names.game or "standard", "agent": agent,
-                   "seed": int(seed), "seat": "first" if assembler.robot_first[0] else "second", "outcome": "none",
-                   "return": round(float(assembler.total[0]), 4), "length": int(assembler.length[0]),
-                   "task_success": False, "truncated": False, "epsilon": None, "env_steps": None,
-                   "wall_time": round(time.monotonic() - self._opened, 3)}
-        if extra:
-            summary["extra"] = extra
+        running = self._open_episodes.get((phase, agent, seed), {}).pop(0, None)
+        episode = FinishedEpisode(None, None, [], 0, 0, int(assembler.length[0]),
+                                  "first" if assembler.robot_first[0] else "second", "none", float(assembler.total[0]), False)
         assembler.length[0] = 0  # the row's next step starts a new episode
-        self._write_json(schemas.EPISODE_TOPIC, summary)
-        self._maybe_roll()
-        self._maybe_flush()
-        return episode_id
+        return self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=None, env_steps=None,
+                                   game=self._names.game or "standard", extra=extra,
+                                   episode_id=None if running is None else running[0])
 
     def set_names(self, names: NameTables) -> None:
         """Use these name tables for utterances from now on (also stored as metadata `ncbot.names`)."""

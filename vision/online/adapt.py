@@ -79,7 +79,7 @@ def errors(classifier: CellClassifier, images: np.ndarray, labels: np.ndarray) -
 
 @dataclass
 class ReaderLearner:
-    """A reader that learns from the games it plays; `add_game` after each game, `save`/`resume` across runs."""
+    """A reader that learns from the games it plays; `add_game` after each game, `state` + `resume` across runs."""
 
     model: CellCNN
     meta: dict[str, Any]
