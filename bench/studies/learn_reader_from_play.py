@@ -46,9 +46,9 @@ def play(style: str, weights: Path, games: int, seed: int, out: Path, learn: boo
     return ncbot(args + (["--learn", "--person", style] if learn else []), folder / "report.json")
 
 
-def offline(log: Path, weights: Path, claims: float, folder: Path) -> dict:
+def offline(log: Path, weights: Path, claims: float, check: bool, folder: Path) -> dict:
     return ncbot(["learn", str(log), "--out", str(folder), "--weights", str(weights), "--wrong-claims", str(claims),
-                  "--json", "--no-progress"], folder.parent / f"{folder.name}.json")
+                  "--json", "--no-progress"] + ([] if check else ["--no-label-check"]), folder.parent / f"{folder.name}.json")
 
 
 def per_game(report: dict, key: str) -> list[int]:
@@ -100,15 +100,15 @@ def main() -> None:
         log = args.out / style / "frozen"
         runs["offline"] = {}
         starts = [args.weights] + [Path(w) for w in args.offline_weights.split(",") if w]
-        for index, weights in enumerate(starts):
-            for claims in [0.0] + [float(c) for c in args.wrong_claims.split(",") if c]:
-                if index and claims:  # lies are measured from the study's own start
-                    continue
-                name = f"start{index}-claims{claims}"
-                report = offline(log, weights, claims, args.out / style / "offline" / name)
-                runs["offline"][name] = {"weights": str(weights), "wrong_claims": claims,
-                                         "accuracy": report["learning"]["reader"]["accuracy"],
-                                         "kept": sum(bool((e.get("reader") or {}).get("kept")) for e in report["per_game"])}
+        shares = [float(c) for c in args.wrong_claims.split(",") if c]
+        steps = [(index, 0.0, True) for index in range(len(starts))]  # lies: from the study's own start, with
+        steps += [(0, claims, check) for claims in shares for check in (True, False)]  # and without the ink check
+        for index, claims, check in steps:
+            name = f"start{index}-claims{claims}-{'check' if check else 'nocheck'}"
+            report = offline(log, starts[index], claims, check, args.out / style / "offline" / name)
+            runs["offline"][name] = {"weights": str(starts[index]), "wrong_claims": claims, "label_check": check,
+                                     "accuracy": report["learning"]["reader"]["accuracy"],
+                                     "kept": sum(bool((e.get("reader") or {}).get("kept")) for e in report["per_game"])}
         data["styles"][style] = runs
     (args.out / "learn_reader.json").write_text(json.dumps(data, indent=1))
     draw(data, args.out / "learn_reader.png")

@@ -7,6 +7,7 @@ raises ValueError/FileNotFoundError, which `ncbot.pipelines.cli.app.main` prints
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
@@ -24,6 +25,7 @@ def learn_command(
     seed: int = typer.Option(0, min=0, help="Seed of the updates' batches and of the simulation."),
     wrong_claims: float = typer.Option(0.0, help="Share of the person's moves settled in another cell on purpose (a person who lies; for measuring)."),
     updates: int = typer.Option(100, min=0, help="Gradient steps of the play's update after each game (its compute bound)."),
+    label_check: bool = typer.Option(True, help="Leave out settled cells whose ink contradicts their label (--no-label-check: learn from every label, to measure what the check guards against)."),
     opponent: str = typer.Option("random", help="Also test the play before / after against this opponent (envs.opponents name)."),
     test_games: int = typer.Option(600, min=2, help="Test games per opponent for the play's before / after."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object (per_game, learned_weights, learning)."),
@@ -45,6 +47,8 @@ def learn_command(
 
     torch.set_num_threads(1)
     settings = LearnSettings.default(agent, every, seed, updates)
+    if not label_check:
+        settings = replace(settings, reader=replace(settings.reader, filter_labels=False))
     learning = learn_from_logs(logs, out, settings, weights, agent, wrong_claims,
                                progress_bar if progress else None)
     styles = sorted({entry.get("handwriting") or "pen" for entry in learning.per_game} or {"pen"})
