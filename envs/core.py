@@ -28,8 +28,10 @@ DRAWN = 3  # a drawn subgrid (Ultimate owner grid), and a drawn game in the outc
 #   subset of those not taken yet (to the robot's knowledge)", yet the rewards price "a repeated (already taken)
 #   action" at -5. never: only untaken squares are offered; refused: taken squares are offered too, refused at -5
 #   with nothing changed; misread: the robot's knowledge of the board can be wrong (a misread user move), a square
-#   really taken is refused at -5 and the refusal corrects the robot's knowledge.
-TAKEN_SQUARES_CHOICES = ("never", "refused", "misread")
+#   really taken is refused at -5 and the refusal corrects the robot's knowledge; offered: misread, and every
+#   square the robot knows is taken is offered too (the -5 payable to an agent without look-ahead masks).
+TAKEN_SQUARES_CHOICES = ("never", "refused", "misread", "offered")
+BELIEF_READINGS = ("misread", "offered")  # the readings that keep a believed board beside the true one
 # win_set: what ``winning_actions`` (Algorithm 2's set A when non-empty) holds. wins_and_threats: every +5 move
 #   (wins and "about to win" threats); wins: "action(s) leading to win (legally) the game", the moves that win now.
 WIN_SET_CHOICES = ("wins_and_threats", "wins")

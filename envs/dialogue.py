@@ -51,7 +51,7 @@ TEMPLATES = (
     "It is a draw, good game!",
     "Thank you, goodbye!",
 )
-# The paper's act table gives these two lines (paper-notes section 3); the other acts keep the lines above.
+# The paper's act table gives these two lines; the other acts keep the lines above.
 PAPER_TEMPLATES = tuple({REPLY_YES: "Nice. Let me start.", REQUEST_USER_MOVE: "Your turn."}.get(t, line)
                         for t, line in enumerate(TEMPLATES))
 # The bracketed command of each act type; "draw" (moves) is represented by the move features instead.

@@ -33,7 +33,7 @@ from torchrl.envs import EnvBase
 
 import ncbot.envs.dialogue as dlg
 from ncbot.envs.core import (
-    FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, USER,  # noqa: F401
+    BELIEF_READINGS, FIRST_CHOICES, GAME_CHOICES, HUMAN, REWARD_ILLEGAL, REWARD_WIN, ROBOT, USER,  # noqa: F401
     check_free_move, check_game,
 )
 from ncbot.envs.threat_features import threat_planes
@@ -99,7 +99,8 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         self.game, self.free_move, self.temporal, self.first = game, free_move, bool(temporal), first
         self.asr_low, self.asr_high, self.max_actions = low, high, max_actions
         self.taken_squares, self.misread_rate = taken_squares, misread_rate
-        self._refused, self._misread = taken_squares == "refused", taken_squares == "misread"
+        self._refused, self._misread = taken_squares == "refused", taken_squares in BELIEF_READINGS
+        self._offer_taken = taken_squares == "offered"  # misread, and the squares known taken offered too
         self.dialogues = dlg.dialogue_set(dialogues).name
         self.dialogue_subset = check_subset(dialogue_subset)
         self.engine = make_engine(game, free_move, win_set=win_set, about_to=about_to)
@@ -236,6 +237,8 @@ class DialogueGameEnv(FastProcHooks, MisreadBoard, SimulatedUserTurn, EnvBase):
         if reset_rows is None:
             # a taken square offered (taken_squares="refused") never wins; "misread": the believed board's
             legal = self.d.mask if self._misread else self.d.legal
+            if self._offer_taken:  # "offered": a square known taken is offered, never winning
+                legal = torch.cat([legal[:, :self.cells] & (self.belief.board == 0), legal[:, self.cells:]], dim=1)
             if self._code_wins is not None:  # 3x3: the moves worth +5 (or that win: win_set) are one row per board code
                 winning = legal & self._code_wins.index_select(0, self.belief.codes[:, 0])
             else:  # Ultimate: written with the look-ahead (_refresh)

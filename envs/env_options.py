@@ -4,7 +4,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from ncbot.envs.core import FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
+from ncbot.envs.core import BELIEF_READINGS, FIRST_CHOICES, TAKEN_SQUARES_CHOICES, check_choice
 
 # taken_squares (with misread_rate), win_set, about_to and dialogues: the
 # paper's readings (envs.core, docs/env.md "Readings", docs/reproduction.md)
@@ -14,15 +14,15 @@ OPTION_NAMES = ("first", "opponent", "asr_confidence", "max_actions", "taken_squ
 
 def check_taken_squares(taken_squares: Any, misread_rate: Any) -> tuple[str, float | None]:
     """``taken_squares`` (``ncbot.envs.core.TAKEN_SQUARES_CHOICES``) and its ``misread_rate``: a float in (0, 1), required
-    with ``misread`` (the chance that the robot misreads a user move) and refused with the other readings."""
+    with ``misread`` and ``offered`` (the chance that the robot misreads a user move), refused with the other readings."""
     check_choice("taken_squares", taken_squares, TAKEN_SQUARES_CHOICES)
-    if taken_squares != "misread":
+    if taken_squares not in BELIEF_READINGS:
         if misread_rate is not None:
-            raise ValueError(f"misread_rate is only used with taken_squares=misread (got taken_squares={taken_squares!r}, "
-                             f"misread_rate={misread_rate!r}): leave it unset")
+            raise ValueError(f"misread_rate is only used with taken_squares=misread or offered (got taken_squares="
+                             f"{taken_squares!r}, misread_rate={misread_rate!r}): leave it unset")
         return taken_squares, None
     if isinstance(misread_rate, bool) or not isinstance(misread_rate, (int, float)) or not 0.0 < misread_rate < 1.0:
-        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares=misread, got {misread_rate!r}")
+        raise ValueError(f"misread_rate must be a number in (0, 1) with taken_squares={taken_squares}, got {misread_rate!r}")
     return taken_squares, float(misread_rate)
 
 

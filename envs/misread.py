@@ -1,5 +1,6 @@
 """``taken_squares="misread"``: the robot's knowledge of the board can be wrong (the paper's "not taken yet (to the
-robot's knowledge)"), as the methods of the dialogue env that keep its believed board beside the true one.
+robot's knowledge)"), as the methods of the dialogue env that keep its believed board beside the true one;
+``"offered"``: the same, and every square the robot knows is taken is offered too (refused at -5 with a re-read).
 
 Why a mixin of its own: the reading is one option of ``ncbot.envs.dialogue_env.DialogueGameEnv``, used only by the paper
 configs; its four steps (offer from the belief, play the robot's accepted moves on it, read the user's moves with
@@ -56,6 +57,9 @@ class MisreadBoard:
             if bool((differs & can_move).any()):
                 true_lookahead = torch.where(differs.unsqueeze(1), self._act_lookahead.index_select(0, context), lookahead)
                 self.engine.write_move_rewards(true_lookahead, boards, ROBOT, can_move & differs)
+        if self._offer_taken:  # "offered": the squares known taken too, on the robot's turn (their look-ahead is -5)
+            mask = mask.clone()
+            mask[:, :cells] |= (belief.board != 0) & dialogue_mask[:, :cells] & (boards.outcome == 0).unsqueeze(1)
         self.d.legal, self.d.dialogue_mask, self.d.lookahead, self.d.mask = legal, dialogue_mask, lookahead, mask
         self.d.true_lookahead = true_lookahead
 

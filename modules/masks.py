@@ -80,7 +80,7 @@ class LookaheadMasks(TensorDictModuleBase):
 
 
 class LookaheadOnlyPolicy:
-    """No learning: an agent's look-ahead masks with a seeded uniform choice inside them (paper-notes §6).
+    """No learning: an agent's look-ahead masks with a seeded uniform choice inside them (docs/reproduction.md: what learning adds).
 
     The decision maker of `ncbot play` and `ncbot robot play` without a checkpoint; `ncbot ladder --baseline`
     plays it beside the agent, since a learnt agent must clearly beat its own masks to have learnt anything.

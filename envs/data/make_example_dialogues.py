@@ -2,7 +2,7 @@
 
 ``example_dialogues.yaml`` (set ``compact``, the default): the user answers each robot move at once with its own.
 ``example_dialogues_paper.yaml`` (set ``paper``, env option ``dialogues="paper"``): the shape the paper's act table
-implies (paper-notes section 3): the opening in full (after the user agrees the robot says "Nice. Let me start."
+implies: the opening in full (after the user agrees the robot says "Nice. Let me start."
 (Reply(playGame=yes)) when it opens the game), and before each user move the robot says "your turn"
 (Request(userGameMove)); the user watches the robot's own moves in silence.
 

@@ -75,9 +75,10 @@ class EnvConfig(Section):
     # closest to the text). taken_squares: "moves ... allowed from the subset of those not taken yet (to the robot's
     # knowledge)" vs "-5 ... a repeated (already taken) action": never (only untaken squares offered) | refused
     # (taken squares offered too, refused at -5 with nothing changed) | misread (the robot misreads a user move
-    # with probability misread_rate; a square really taken is refused at -5 and the sheet is read again)
-    taken_squares: Literal["never", "refused", "misread"] = "never"
-    misread_rate: Annotated[Number, Field(gt=0.0, lt=1.0)] | None = None  # required with misread, else unset
+    # with probability misread_rate; a square really taken is refused at -5 and the sheet is read again) | offered
+    # (misread, and the squares the robot knows are taken are offered too: the -5 payable without look-ahead masks)
+    taken_squares: Literal["never", "refused", "misread", "offered"] = "never"
+    misread_rate: Annotated[Number, Field(gt=0.0, lt=1.0)] | None = None  # required with misread / offered, else unset
     # what winning_actions (Algorithm 2's set A) holds: every +5 move | only "action(s) leading to win ... the game"
     win_set: Literal["wins_and_threats", "wins"] = "wins_and_threats"
     # "+5 win or about to win": about to win paid on every move after which a winning square stands | only on the
@@ -123,8 +124,8 @@ class EnvConfig(Section):
         if self.dialogues == "compact" and self.subset is not None and self.subset[0] > 12:
             raise ValueError(f"env.dialogue_subset.k must be <= 12 with env.dialogues: compact (a dozen example "
                              f"dialogues per game; 13-24 exist for dialogues: paper), got {self.subset[0]}")
-        if (self.taken_squares == "misread") != (self.misread_rate is not None):
-            raise ValueError(f"env.misread_rate must be set (a number in (0, 1)) with env.taken_squares: misread and "
+        if (self.taken_squares in ("misread", "offered")) != (self.misread_rate is not None):
+            raise ValueError(f"env.misread_rate must be set (a number in (0, 1)) with env.taken_squares: misread or offered and "
                              f"unset otherwise; got taken_squares {self.taken_squares!r}, misread_rate {self.misread_rate!r}")
         if self.asr_channel is not None and not Path(self.asr_channel).is_file():
             raise ValueError(f"env.asr_channel {self.asr_channel!r} is not a file (an ASR channel model: python -m ncbot.speech.fit)")

@@ -110,7 +110,7 @@ class Comparison:
 
     @cached_property
     def power(self) -> float | None:
-        """Power of these runs to detect ``effect`` at the pooled spread (None without an effect)."""
+        """Power of these runs to detect ``effect`` each side at its own spread, Welch df (None without an effect)."""
         return None if self.effect is None else self.test.power(self.effect)
 
     @property
@@ -167,7 +167,7 @@ class Comparison:
                   f"- P(a run of RUN is {'above' if self.larger else 'below'} a run of against): "
                   f"{interval_text(self.test.improvement)} (percentile bootstrap over runs: describes, the test decides)"]
         if self.power is not None:
-            lines.append(f"- power to detect {self.effect:g} at the pooled spread with these runs: {self.power:.2f}")
+            lines.append(f"- power to detect {self.effect:g} with these runs, each side at its own spread: {self.power:.2f}")
         lines += [f"- verdict: {self.verdict}", ""]
         return "\n".join(lines)
 

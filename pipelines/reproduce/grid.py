@@ -55,8 +55,9 @@ BUDGETS = {
         max_games={"standard": 20_000, "ultimate100": 20_000, "ultimate150": 20_000}, eval_games=3000,
         eval_every_frames={"standard": 5_000, "ultimate100": 20_000, "ultimate150": 20_000},
         game_points=(1_000, 2_000, 5_000, 10_000, 20_000),
-        label="Budget full: the paper's protocol (5 seeds, 20K games or 400K steps, 3000 test games per seat); "
-              "dialogue budget: 5 subsets x 5K games per k.",
+        label="Budget full: the paper's protocol (5 seeds a cell, more where a cell's folder holds more: see the "
+              "seeds column; 20K games or 400K steps, 3000 test games per seat); dialogue budget: 5 subsets x 5K "
+              "games per k.",
         dialogue_subsets=5, dialogue_games=5_000,
     ),
     "quick": Budget(

@@ -152,7 +152,7 @@ class Comparison:
 
     @property
     def power(self) -> float:
-        """Power to detect the paper's difference on this game with these seeds at the pooled spread."""
+        """Power to detect the paper's difference on this game with these seeds, each arm at its own spread (Welch df)."""
         return self.test.power(PAPER_DIFFERENCE[self.better.game])
 
     @property
@@ -257,7 +257,7 @@ def render(arms: list[Arm], found: list[Comparison], command: str) -> str:
               f"{ALPHA}. Difference: first minus second, with its two-sided 95 % Welch interval. Power: the chance "
               "these seeds detect the paper's own claim-(ii) difference on that game ("
               + ", ".join(f"{GAME_LABELS[game]} {difference:.4f}" for game, difference in PAPER_DIFFERENCE.items())
-              + f") at the pooled spread between seeds; below power {POWER} a question is untested, not refuted; "
+              + f") with these seeds, each arm at its own spread between seeds (Welch df); below power {POWER} a question is untested, not refuted; "
               "above it, \"no\" when the first arm did not come out ahead, \"not shown\" when it did but not "
               "significantly; \"at the ceiling\" when every seed of both arms won or drew every test game. Holm p: "
               "adjusted "

@@ -8,7 +8,9 @@ interval), which is wider by √(n + 1).
 Why the logit scale for proportions: with few seeds a raw t-interval of a rate near 1 reaches past 1 (and one of a
 rate near 0 below 0). The interval is computed for logit(p) and mapped back, with each seed's rate pulled off
 0 and 1 by half a game, (p·N + 0.5) / (N + 1) for N test games (the empirical logit), so a seed that won every
-game still has a finite logit. The point estimate stays the plain mean over seeds.
+game still has a finite logit. The point estimate stays the plain mean over seeds; where one seed lies far from the
+others that mean can fall outside the logit-scale interval, which is then marked (`Interval.mean_outside`) rather
+than widened.
 """
 from __future__ import annotations
 
@@ -45,10 +47,18 @@ class Interval:
             return "n<2"
         return "yes" if self.predict_low <= value <= self.predict_high else "no"
 
+    @property
+    def mean_outside(self) -> bool:
+        """The plain mean lies outside the interval: possible for a rate, whose interval is computed on the logit
+        scale (centred on the mean logit) while the point is the plain mean; one seed far from the others pulls the
+        plain mean away. Shown as "†" after the interval, never hidden by widening it."""
+        return self.low is not None and not self.low <= self.mean <= self.high
+
     def text(self, digits: int) -> str:
         if self.low is None:
             return f"{self.mean:.{digits}f} [n<2]"
-        return f"{self.mean:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+        mark = "†" if self.mean_outside else ""
+        return f"{self.mean:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]{mark}"
 
     def prediction_text(self, digits: int) -> str:
         if self.predict_low is None:
@@ -102,36 +112,26 @@ def proportion_interval(values: list[float], games: int, confidence: float = CON
     on_logit = t_interval(logits, confidence)
     bounds = (on_logit.low, on_logit.high, on_logit.predict_low, on_logit.predict_high)
     low, high, predict_low, predict_high = (_expit(b) for b in bounds)
-    return Interval(mean, min(low, mean), max(high, mean), len(values), min(predict_low, mean), max(predict_high, mean))
+    return Interval(mean, low, high, len(values), predict_low, predict_high)
 
 
-def required_seeds(difference: float, std: float, alpha: float = 0.05, power: float = 0.8) -> int:
-    """Seeds per side for a one-sided two-sample t-test to detect ``difference`` with ``power`` when each seed's value
-    spreads by ``std`` (normal approximation n = 2·(z_α + z_β)²·σ²/δ², plus one for the t distribution's tails)."""
-    from scipy.stats import norm
+def power_of(difference: float, std: float, n: int, alpha: float = 0.05, n_other: int | None = None,
+             std_other: float | None = None) -> float:
+    """Power of the one-sided Welch test as it is run, with ``n`` seeds at spread ``std`` on one side and
+    ``n_other`` (default ``n``) at ``std_other`` (default ``std``) on the other, to detect ``difference``.
 
-    if difference <= 0:
-        raise ValueError(f"difference must be positive, got {difference}")
-    if std == 0:
-        return 2
-    z = norm.ppf(1 - alpha) + norm.ppf(power)
-    return max(2, math.ceil(2 * (z * std / difference) ** 2) + 1)
-
-
-def power_of(difference: float, std: float, n: int, alpha: float = 0.05, n_other: int | None = None) -> float:
-    """Power of the one-sided Welch test with ``n`` seeds on one side and ``n_other`` (default ``n``) on the other,
-    equal spreads ``std``, to detect ``difference`` (noncentral t with the Welch-Satterthwaite df; 2n - 2 when the
-    sides are equal)."""
+    Noncentral t with noncentrality difference / sqrt(std²/n + std_other²/n_other) and the Welch-Satterthwaite df
+    of those spreads, the df the test itself uses (with equal spreads and equal sides it is 2n - 2). Why not the
+    pooled spread with df = n + m - 2: when one side spreads more (0.033 against 0.0135), the Welch test has fewer
+    degrees of freedom than that, and the pooled figure overstates its power."""
     from scipy.stats import nct, t as student_t
 
     m = n if n_other is None else n_other
+    other = std if std_other is None else std_other
     if min(n, m) < 2:
         return float("nan")
-    if std == 0:
+    a, b = std ** 2 / n, other ** 2 / m
+    if a + b == 0:
         return 1.0
-    if m == n:
-        df, scale = 2 * n - 2, math.sqrt(2 / n)
-    else:
-        df = (1 / n + 1 / m) ** 2 / ((1 / n) ** 2 / (n - 1) + (1 / m) ** 2 / (m - 1))
-        scale = math.sqrt(1 / n + 1 / m)
-    return float(nct.sf(student_t.ppf(1 - alpha, df), df, difference / (std * scale)))
+    df = (a + b) ** 2 / ((a ** 2 / (n - 1) if a else 0.0) + (b ** 2 / (m - 1) if b else 0.0))
+    return float(nct.sf(student_t.ppf(1 - alpha, df), df, difference / math.sqrt(a + b)))

@@ -19,9 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from ncbot.fileio import atomic_write_text
-from ncbot.pipelines.reproduce.claims import CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims
+from ncbot.pipelines.reproduce.claims import (CELL_LABELS, GAME_LABELS, PAPER, Claim, evaluate_claims, render_claims,
+                                              render_reward_order)
 from ncbot.pipelines.reproduce.pooled import pooled_comparisons, pooled_dict, pooled_scores, render_pooled
 from ncbot.pipelines.reproduce.seed_stats import CONFIDENCE, Interval, proportion_interval, t_interval
+from ncbot.pipelines.reproduce.seeds_csv import is_seeds_csv, read_seeds_csv
 
 GAME_ORDER = list(GAME_LABELS)
 CELL_ORDER = list(CELL_LABELS)
@@ -80,13 +82,19 @@ class Row:
         paper number)."""
         return None if self.paper is None else self.stats["task_success"].holds(self.paper[1])
 
+    @property
+    def paper_reward_inside(self) -> str | None:
+        """The same for the paper's average reward per act."""
+        return None if self.paper is None else self.stats["avg_reward"].holds(self.paper[0])
+
     def to_dict(self) -> dict[str, Any]:
         paper = dict(zip(("avg_reward", "task_success", "avg_length"), self.paper)) if self.paper else None
         return {"suite": self.suite, "game": self.game, "agent": self.cell,
                 "game_label": self.game_label, "agent_label": CELL_LABELS.get(self.cell, self.cell),
                 "seeds": self.stats["task_success"].n, "frames": list(self.frames),
                 **{name: asdict(interval) for name, interval in self.stats.items()},
-                "paper": paper, "paper_inside_ours": self.paper_inside}
+                "paper": paper, "paper_inside_ours": self.paper_inside,
+                "paper_avg_reward_inside_ours": self.paper_reward_inside}
 
 
 def _number(data: dict, where: tuple[str, ...], path: Path) -> float:
@@ -265,8 +273,10 @@ def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims
         "inside [0, 1]; each seed's rate is taken as (p·N + 0.5) / (N + 1) for N test games); the other metrics a "
         "Student t-interval, mean ± t(0.975, n-1)·s/√n. \"one new run\" is the prediction interval of a single "
         "further run of ours (±t·s·√(1 + 1/n), on the logit scale), the interval the paper's single run is held "
-        "against in \"paper inside?\" (\"n<2\": one seed, not tested; \"–\": no paper number). \"[n<2]\" = a "
-        "single seed, no interval. Metrics are robot-first (the paper's set-up) except \"task success, robot second\". "
+        "against in \"paper inside?\" (\"n<2\": one seed, not tested; \"–\": no paper number), and the paper's "
+        "average reward in \"paper avg reward inside?\" (the same interval of our average reward). \"[n<2]\" = a "
+        "single seed, no interval; \"†\": the plain mean over seeds lies outside its logit-scale interval (one seed far "
+        "from the others). Metrics are robot-first (the paper's set-up) except \"task success, robot second\". "
         "Truncated: games cut at the act cap with the game unfinished (counted as not won or drawn). All-negative: "
         "games that reached a state where every offered game move had a negative look-ahead reward, where the "
         "masks fall back. Frames: per seed, in seed order. Train time: mean wall time over seeds. Paper columns: "
@@ -274,8 +284,8 @@ def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims
         "",
         "| game (units) | agent | settings | seeds | frames | avg reward | task success | one new run "
         "| paper task success | paper inside? | truncated | all-negative | dialogue length "
-        "| task success, robot second | train time (s) | paper avg reward | paper length |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| task success, robot second | train time (s) | paper avg reward | paper avg reward inside? | paper length |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         stats = row.stats
@@ -288,7 +298,7 @@ def render_table(rows: list[Row], command: str, claims_name: str = "paper_claims
             _optional(stats, "truncated", 4), _optional(stats, "all_negative", 4),
             stats["avg_length"].text(2), stats["task_success_second"].text(4),
             f"{stats['train_wall_time_s'].mean:.0f}",
-            f"{paper[0]:.4f}" if paper else "–", f"{paper[2]:.2f}" if paper else "–",
+            f"{paper[0]:.4f}" if paper else "–", row.paper_reward_inside or "–", f"{paper[2]:.2f}" if paper else "–",
         ]) + " |")
     return "\n".join(lines) + "\n"
 
@@ -312,16 +322,21 @@ class Report:
 def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out: str | Path | None = None,
                  command: str | None = None) -> Report:
     """Write the table (default RUNS_DIR/table.md), the claims (default paper_claims.md beside it),
-    curves_<suite>_<game>.png and every run's task success as <table>_profiles.png next to the table."""
+    curves_<suite>_<game>.png and every run's task success as <table>_profiles.png next to the table.
+
+    ``runs_dir`` may also be a table's <table>_seeds.csv (`ncbot.pipelines.reproduce.seeds_csv`): the same table,
+    claims, seeds CSV and profiles from the numbers it holds (default out: <table>.md beside it), no curves."""
     from ncbot.pipelines.plots import plot_agent_curves, plot_run_profiles
 
     runs_dir = Path(runs_dir)
-    out = Path(out) if out else runs_dir / "table.md"
+    from_csv = is_seeds_csv(runs_dir)  # a published <table>_seeds.csv in place of the run folders
+    default_out = runs_dir.with_name(runs_dir.stem.removesuffix("_seeds") + ".md") if from_csv else runs_dir / "table.md"
+    out = Path(out) if out else default_out
     claims_out = Path(claims_out) if claims_out else out.parent / "paper_claims.md"
     if out.resolve() == claims_out.resolve():
         raise ValueError(f"the table and the claims would both be written to {str(out)!r}; pass --claims FILE")
     command = command or f"ncbot table {runs_dir} --out {out} --claims {claims_out}"
-    groups = collect_runs(runs_dir)
+    groups = read_seeds_csv(runs_dir) if from_csv else collect_runs(runs_dir)
     seeds_out = out.with_name(f"{out.stem}_seeds.csv")
     samples = seed_samples(groups)
     rows, claims = table_rows(groups, samples), evaluate_claims(samples)
@@ -329,7 +344,8 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
     scores = pooled_scores({key: values for key, values in samples.items() if key in shown}, shown)
     comparisons = pooled_comparisons(samples)
     report = Report(command, rows, claims, render_table(rows, command, claims_out.name, seeds_out.name),
-                    render_claims(claims, command) + render_pooled(scores, comparisons), pooled_dict(scores, comparisons))
+                    render_claims(claims, command) + "\n" + render_reward_order(samples) + render_pooled(scores, comparisons),
+                    pooled_dict(scores, comparisons))
     for path, text in ((out, report.table), (claims_out, report.claims_text), (seeds_out, seeds_csv(groups))):
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(text, path)
@@ -347,7 +363,7 @@ def write_report(runs_dir: str | Path, out: str | Path | None = None, claims_out
         profiles[f"{GAME_LABELS.get(game, game)}, {suite} settings"][CELL_LABELS.get(cell, cell)] = values["task_success"]
     plot_run_profiles(profiles, out.with_name(f"{out.stem}_profiles.png"),
                       title="every run: the share of an agent's seeds above each task success, robot first")
-    for (suite, game) in sorted(set(by_plot) | set(levels)):
+    for (suite, game) in ([] if from_csv else sorted(set(by_plot) | set(levels))):  # a CSV holds no curves
         plot_agent_curves(by_plot.get((suite, game), {}), out.parent / f"curves_{suite}_{game}.png",
                           title=f"{GAME_LABELS.get(game, game)}, {suite} settings: mean over seeds, band min..max",
                           levels=levels.get((suite, game)))

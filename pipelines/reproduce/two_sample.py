@@ -5,7 +5,7 @@ One sample is one run (one seed's evaluation mean over its test games); seeds ar
 The decision is a one-sided Welch's t-test (unequal variances, Welch-Satterthwaite df). Beside it, what the field
 asks of few-seed comparisons (Henderson et al. 2018; Agarwal et al. 2021): the two-sided 95 % interval of the
 difference, the power these runs have to detect a stated difference (the test as run: n seeds on one side, m on
-the other, at the pooled spread), the probability that a run of one side beats a run of the other with its
+the other, each at its own spread, Welch df), the probability that a run of one side beats a run of the other with its
 bootstrap interval, a rank test that assumes no normality, and Holm's adjustment over a family of questions.
 
 The reading ladder: significant at alpha is SHOWN; otherwise, below power 0.8 to detect the stated difference the
@@ -94,14 +94,11 @@ class TwoSampleTest:
 
         return float(mannwhitneyu(self.larger, self.smaller, alternative="greater").pvalue)
 
-    @cached_property
-    def spread(self) -> float:
-        """The pooled standard deviation between runs, sqrt of the mean of the two sample variances."""
-        return math.sqrt((mean_and_variance(list(self.larger))[1] + mean_and_variance(list(self.smaller))[1]) / 2)
-
     def power(self, effect: float) -> float:
-        """Power of this test, with these runs on each side at the pooled spread, to detect ``effect``."""
-        return power_of(effect, self.spread, len(self.larger), self.alpha, len(self.smaller))
+        """Power of this test as run, with these runs on each side at each side's own spread (Welch df), to detect
+        ``effect`` (`ncbot.pipelines.reproduce.seed_stats.power_of`)."""
+        spreads = [math.sqrt(mean_and_variance(list(side))[1]) for side in (self.larger, self.smaller)]
+        return power_of(effect, spreads[0], len(self.larger), self.alpha, len(self.smaller), spreads[1])
 
     def reading(self, effect: float | None = None) -> str:
         """SHOWN, UNTESTED (only with an ``effect`` to power against), NO, NOT_SHOWN or TOO_FEW_RUNS."""

@@ -157,7 +157,7 @@ def plot_curve(recs: list[dict[str, Any]], shipped: dict[str, Any] | None, path:
 # ---- the paper's vision experiments beside ours -----------------------------------------------------------------
 
 LABEL_ORDER = ("nought", "cross", "nothing")
-PAPER_EXPERIMENTS = (  # paper-notes section 2: name, the paper's accuracy
+PAPER_EXPERIMENTS = (  # the paper's vision experiments: name, the paper's accuracy
     ("leave-one-out, clean", "leave-one-out on the 109 clean cells", 0.999),
     ("train clean -> test noisy", "train on the 109 clean -> test on the 201 noisy", 0.74),
     ("train noisy -> test clean", "train on the 201 noisy -> test on the 109 clean", 0.984),

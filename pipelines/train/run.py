@@ -29,6 +29,7 @@ import torch
 
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.config import RunConfig, config_from_dict, dump_config
+from ncbot.pipelines.machine import machine_record
 from ncbot.pipelines.train.build import (build_parts, check_teacher_value, checkpoint_bytes, env_sizes, frames_per_batch,
                                    make_collector, restore)
 from ncbot.pipelines.train.loop import TrainingLoop
@@ -108,6 +109,7 @@ def _train(config: RunConfig, run: Any) -> dict[str, Any]:
     with mcap_logger or nullcontext():
         loop.run(collector)
         report = loop.finish()
+    report["machine"] = machine_record()  # which CPU, kernels, threads and versions made these numbers
     atomic_write_text(json.dumps(report, indent=2) + "\n", out_dir / "eval.json")
     plot_learning_curve(parts.history, out_dir / "learning_curve.png",
                         title=f"{config.env.game} {config.agent.name} temporal={config.env.temporal} seed={seed}")

@@ -12,6 +12,7 @@ from typing import Any
 
 from ncbot.fileio import atomic_write_text
 from ncbot.pipelines.config import RunConfig, dump_config
+from ncbot.pipelines.machine import machine_record
 from ncbot.pipelines.train.loop import EVAL_SEED_OFFSET
 
 
@@ -36,5 +37,6 @@ def evaluate_uniform(config: RunConfig, run: Any) -> dict[str, Any]:
     report["train_cpu_time_s"] = 0.0
     report["eval_wall_time_s"] = round(time.monotonic() - started, 2)
     report["history"] = []
+    report["machine"] = machine_record()  # which CPU, kernels, threads and versions made these numbers
     atomic_write_text(json.dumps(report, indent=2) + "\n", run.path / "eval.json")
     return report

@@ -1,6 +1,6 @@
 """The paper's ambiguous readings as options (envs.core, docs/env.md "Readings"), on the real env, no mocks.
 
-taken_squares (never | refused | misread, with misread_rate), win_set, about_to and the masks' all_negative; the
+taken_squares (never | refused | misread | offered, with misread_rate), win_set, about_to and the masks' all_negative; the
 defaults leave the env bit-identical (tests/test_faithful.py checks the recorded fingerprints).
 """
 from __future__ import annotations
@@ -185,10 +185,10 @@ def test_all_negative_untaken_never_picks_a_taken_square(lookahead: str) -> None
 
 def test_bad_values_are_one_line_errors() -> None:
     cases = [
-        (dict(taken_squares="sometimes"), "taken_squares must be one of never, refused, misread; got 'sometimes'"),
+        (dict(taken_squares="sometimes"), "taken_squares must be one of never, refused, misread, offered; got 'sometimes'"),
         (dict(taken_squares="misread"), "misread_rate must be a number in \\(0, 1\\) with taken_squares=misread"),
         (dict(taken_squares="misread", misread_rate=1.0), "misread_rate must be a number in \\(0, 1\\)"),
-        (dict(taken_squares="refused", misread_rate=0.1), "misread_rate is only used with taken_squares=misread"),
+        (dict(taken_squares="refused", misread_rate=0.1), "misread_rate is only used with taken_squares=misread or offered"),
         (dict(win_set="all"), "win_set must be one of wins_and_threats, wins; got 'all'"),
         (dict(about_to="once"), "about_to must be one of standing, created; got 'once'"),
     ]

@@ -79,7 +79,7 @@ def test_claims_report_pools_the_rows_both_agents_have(tmp_path: Path) -> None:
     assert scores[NOTEMPORAL]["runs"] == 2 and scores[ORIGINAL]["runs"] == 10
     assert scores[ORIGINAL]["iqm"] == pytest.approx(0.80, abs=0.002)
     assert "## Pooled over game rows" in report.claims_text
-    (claim_i,) = [claim for claim in report.claims if claim.claim == "i" and claim.game == "standard"]
+    (claim_i,) = [claim for claim in report.claims if claim.claim == "i.a" and claim.game == "standard"]
     assert claim_i.improvements == ((1.0, 1.0, 1.0), (1.0, 1.0, 1.0))
     assert "1.00 [1.00, 1.00]<br>1.00 [1.00, 1.00]" in report.claims_text
     assert json.dumps(report.to_dict())  # serialisable, pooled included

@@ -46,7 +46,7 @@ def test_the_numbers_are_scipys(tmp_path: Path) -> None:
 
 
 def test_power_decides_between_untested_and_not_shown(tmp_path: Path) -> None:
-    near = cell(tmp_path / "near", [0.912, 0.905, 0.921])
+    near = cell(tmp_path / "near", [0.930, 0.880, 0.925])  # level with paper mode, spread wider
     paper = cell(tmp_path / "paper", PAPER_MODE)
     weak = compare([str(near)], [str(paper)], effect=0.031)
     assert weak.test.welch[2] > 0.05 and weak.power < 0.8 and weak.verdict.startswith("untested: power")

@@ -21,16 +21,25 @@ def test_the_reading_ladder() -> None:
 
 
 def test_the_power_is_the_test_as_run() -> None:
-    """Unequal sides are powered as they are tested (Welch df), and more runs on one side add power."""
+    """Unequal sides and spreads are powered as they are tested (each side's spread, Welch df), more runs on one
+    side add power, and the power is the rate at which the Welch test detects the effect."""
     rng = np.random.default_rng(0)
-    a, b = tuple(rng.normal(0.9, 0.02, 6)), tuple(rng.normal(0.9, 0.02, 10))
+    a, b = tuple(rng.normal(0.9, 0.03, 6)), tuple(rng.normal(0.9, 0.01, 10))
     test = TwoSampleTest(a, b)
-    assert test.power(0.03) == pytest.approx(power_of(0.03, test.spread, 6, 0.05, 10))
+    spread_a, spread_b = float(np.std(a, ddof=1)), float(np.std(b, ddof=1))
+    assert test.power(0.03) == pytest.approx(power_of(0.03, spread_a, 6, 0.05, 10, spread_b))
     assert TwoSampleTest(a, b[:6]).power(0.03) < test.power(0.03) < 1.0
-    # the power it reports is the rate at which the test it runs detects the effect
-    draws = [welch_greater(list(rng.normal(0.93, test.spread, 6)), list(rng.normal(0.9, test.spread, 10)))[2] < 0.05
+    draws = [welch_greater(list(rng.normal(0.93, spread_a, 6)), list(rng.normal(0.9, spread_b, 10)))[2] < 0.05
              for _ in range(4000)]
-    assert abs(np.mean(draws) - power_of(0.03, test.spread, 6, 0.05, 10)) < 0.03
+    assert abs(np.mean(draws) - test.power(0.03)) < 0.03
+
+
+def test_a_pooled_spread_would_overstate_the_power_when_spreads_differ() -> None:
+    """The Ultimate (150) claim (ii) spreads, 5 seeds a side: Welch df 5.3, not 8."""
+    pooled = float(np.sqrt((0.0332 ** 2 + 0.0135 ** 2) / 2))
+    assert power_of(0.0373, 0.0332, 5, std_other=0.0135) == pytest.approx(0.645, abs=0.005)
+    assert power_of(0.0373, pooled, 5) == pytest.approx(0.684, abs=0.005)  # df = 2n - 2: equal spreads only
+    assert power_of(0.0373, 0.02, 5) == power_of(0.0373, 0.02, 5, 0.05, 5, 0.02)
 
 
 def test_holm_keeps_the_order_and_leaves_missing_out() -> None:
