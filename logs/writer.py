@@ -159,6 +159,21 @@ class EpisodeLogger:
         self._maybe_flush()
         return ids
 
+    def cut_off(self, phase: str, agent: str, seed: int, extra: dict[str, Any] | None = None) -> int | None:
+        """End the running episode of batch row 0 that its env never ended (a robot game stopped when the robot's
+        belief and the true board parted): its `/episode` summary with outcome "none", under the id its per-action
+        steps were written with. Returns that id, None when no episode was running."""
+        assembler = self._assemblers.get((phase, agent, seed))
+        if assembler is None or len(assembler.length) == 0 or assembler.length[0] == 0:
+            return None
+        running = self._open_episodes.get((phase, agent, seed), {}).pop(0, None)
+        episode = FinishedEpisode(None, None, [], 0, 0, int(assembler.length[0]),
+                                  "first" if assembler.robot_first[0] else "second", "none", float(assembler.total[0]), False)
+        assembler.length[0] = 0  # the row's next step starts a new episode
+        return self._write_episode(episode, phase=phase, agent=agent, seed=seed, epsilon=None, env_steps=None,
+                                   game=self._names.game or "standard", extra=extra,
+                                   episode_id=None if running is None else running[0])
+
     def set_names(self, names: NameTables) -> None:
         """Use these name tables for utterances from now on (also stored as metadata `ncbot.names`)."""
         self._names = names

@@ -101,6 +101,10 @@ class ConditionRanges:
     #: brightness (fraction of the way per frame in log gain; 0 = a fixed exposure) and the mean grey it aims at.
     auto_exposure_rate: Range = (0.0, 0.0)
     auto_exposure_target: Range = (0.45, 0.45)
+    #: The simulated person's handwriting (`ncbot.vision.strokes.STYLES`; one drawn per game from the game's seed):
+    #: "pen" and "hasty" are what the reader was trained on, "marker" its tuning style, "sketch" and "hershey" held
+    #: out; a person writing in a held-out style is someone whose hand the reader never saw.
+    handwriting: tuple[str, ...] = ("pen",)
 
     def validate(self) -> None:
         for item in dataclasses.fields(self):
@@ -137,6 +141,11 @@ class ConditionRanges:
                              f"[0.05, 0.95]; got {self.auto_exposure_rate}, {self.auto_exposure_target}")
         if self.jpeg_quality is not None and not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
             raise ValueError(f"conditions {self.name!r}: jpeg_quality must be (low, high) in [1, 100]; got {self.jpeg_quality}")
+        from ncbot.vision.strokes import STYLES
+
+        if isinstance(self.handwriting, str) or not self.handwriting or any(s not in STYLES for s in self.handwriting):
+            raise ValueError(f"conditions {self.name!r}: handwriting must be a non-empty list of {', '.join(STYLES)}; "
+                             f"got {self.handwriting!r}")
 
 
 PRESETS: dict[str, ConditionRanges] = {
@@ -239,8 +248,8 @@ def _scaled(colour: tuple[float, float, float], scale: float) -> tuple[float, fl
 
 def sample_conditions(ranges: ConditionRanges, seed: int, sheet_side: float = 0.22, sheet_centre: tuple[float, float] = (0.30, 0.0)) -> SceneConditions:
     """One game's scene drawn from `ranges` with `seed`; `lab` (no colour temperature, no variation) returns the lab."""
-    if ranges.name == "lab" and ranges == PRESETS["lab"]:
-        return SceneConditions(seed=seed)
+    if dataclasses.replace(ranges, name="lab", handwriting=PRESETS["lab"].handwriting) == PRESETS["lab"]:
+        return SceneConditions(seed=seed)  # the lab (a YAML file may only change who writes on the sheet)
     ranges.validate()
     rng = np.random.default_rng([seed, zlib.crc32(ranges.name.encode())])  # presets differ at one seed
     intensity = _uniform(rng, ranges.light_intensity)
@@ -301,6 +310,14 @@ def sample_conditions(ranges: ConditionRanges, seed: int, sheet_side: float = 0.
         bystander_arm_probability=ranges.bystander_arm_probability if bystander else 0.0,
         bystander_colours=bystander_colours, seed=seed)
     return _bend_and_meter(scene, ranges, seed)
+
+
+def sample_handwriting(ranges: ConditionRanges, seed: int) -> str:
+    """The person's handwriting in the game of `seed`, from its own generator (nothing else drawn changes)."""
+    if len(ranges.handwriting) == 1:
+        return ranges.handwriting[0]
+    rng = np.random.default_rng([seed, zlib.crc32(ranges.name.encode()), 23])
+    return ranges.handwriting[int(rng.integers(len(ranges.handwriting)))]
 
 
 def _bend_and_meter(scene: SceneConditions, ranges: ConditionRanges, seed: int) -> SceneConditions:

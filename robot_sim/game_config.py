@@ -54,6 +54,8 @@ class RobotPlayConfig:
     #: The field's conditions (robot_sim.conditions): lab, office, atrium, random, or a YAML file of ranges;
     #: drawn afresh for every game from its seed.
     conditions: str = "lab"
+    #: The cell classifier the move recogniser reads with (`ncbot vision train --out W`); None: the shipped weights.
+    weights: str | None = None
 
     def validate(self) -> None:
         check_game(self.game)

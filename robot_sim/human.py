@@ -47,18 +47,25 @@ class HumanConfig:
     pen_mm: tuple[float, float] = (1.2, 2.0)
     #: Show the human's arm at all (False: marks appear without occlusion, for ablations).
     show_arm: bool = True
+    #: Share of this person's moves they claim to have made in another cell when the game is settled
+    #: (`ncbot.robot_sim.settlement.claim_moves`): wrong labels for a reader that learns from play.
+    wrong_claims: float = 0.0
 
 
 class SimulatedHuman:
     """Chooses moves on the true game state and acts them out in the scene, frame by frame."""
 
-    def __init__(self, scene, game, config: HumanConfig | None = None, seed: int = 0) -> None:
+    def __init__(self, scene, game, config: HumanConfig | None = None, seed: int = 0, handwriting: str = "pen") -> None:
         self.scene = scene
         self.game = game
         self.config = config or HumanConfig()
+        self.handwriting = handwriting  # the stroke model of every mark this person draws
         if self.config.drawing_frames < 1:
             raise ValueError(f"drawing_frames must be at least 1; got {self.config.drawing_frames}")
+        if not 0.0 <= self.config.wrong_claims <= 1.0:
+            raise ValueError(f"wrong_claims must be a share in [0, 1]; got {self.config.wrong_claims}")
         self.rng = np.random.default_rng(seed)
+        self._claims_rng = np.random.default_rng([seed, 31])  # its own stream: the marks drawn stay the same
         self._opponent = self._make_opponent(seed)
 
     def _make_opponent(self, seed: int):
@@ -116,7 +123,7 @@ class SimulatedHuman:
         scene = self.scene
         sheet_mm = 1000.0 * self.scene.sheet_side
         mark = MarkSpec(cell, kind, int(self.rng.integers(2**31)), ink, float(self.rng.uniform(cfg.mark_size[0], cfg.mark_size[1])),
-                        float(self.rng.uniform(cfg.pen_mm[0], cfg.pen_mm[1])) / sheet_mm)
+                        float(self.rng.uniform(cfg.pen_mm[0], cfg.pen_mm[1])) / sheet_mm, self.handwriting)
         yaw = float(self.rng.uniform(-0.35, 0.35))
         if cfg.wait_probability > 0 and self.rng.random() < cfg.wait_probability:
             for _ in range(cfg.wait_frames):
@@ -141,6 +148,12 @@ class SimulatedHuman:
             scene.nudge_sheet(*(self.rng.uniform(-1, 1, 2) * cfg.nudge_metres),
                               float(np.deg2rad(self.rng.uniform(-1, 1) * cfg.nudge_degrees)))
         return mark
+
+    def settle(self, moves: list[tuple[int, int]], cells: int) -> list[tuple[int, int]]:
+        """The game's (cell, player) moves as this person agrees on them at its end (`wrong_claims` of theirs elsewhere)."""
+        from ncbot.robot_sim.settlement import claim_moves
+
+        return claim_moves(moves, cells, self.config.wrong_claims, self._claims_rng)
 
     def draw_for_robot(self, cell: int, kind: str, sink: FrameSink, ink: tuple[int, int, int]) -> MarkSpec:
         """Ultimate game as in the paper: the robot says its move and the human draws it for the robot.

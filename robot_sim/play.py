@@ -27,46 +27,22 @@ from typing import Any
 
 import numpy as np
 
-from ncbot.fileio import atomic_write_bytes
+from ncbot.robot_sim.conditions import sample_handwriting
 from ncbot.robot_sim.game_config import RobotPlayConfig
 from ncbot.robot_sim.human import SimulatedHuman
 from ncbot.robot_sim.localise import localise_sheet
 from ncbot.robot_sim.motion import RobotMotion
+from ncbot.robot_sim.perceived import PerceivedHumanOpponent, rgb_to_bgr as _rgb_to_bgr, write_png_atomic as _write_png_atomic
 from ncbot.robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
 from ncbot.robot_sim.reach import check_reach
 from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, placed_by_hand
+from ncbot.robot_sim.settlement import moves_from_boards
 from ncbot.robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
 from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog
 from ncbot.robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
 
 __all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
-
-
-class PerceivedHumanOpponent:
-    """An env opponent whose moves are whatever the robot perceived the simulated human draw."""
-
-    def __init__(self, perceive: Callable[[np.ndarray], int]) -> None:
-        self.perceive = perceive
-
-    def select(self, boards, last_move, legal, player, generator=None):
-        import torch
-
-        moves = [self.perceive(row.numpy().astype(bool)) for row in legal]
-        return torch.tensor(moves, dtype=torch.int64)
-
-
-def _rgb_to_bgr(frame: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(frame[:, :, ::-1])
-
-
-def _write_png_atomic(path: Path, image_bgr: np.ndarray) -> None:
-    import cv2
-
-    ok, data = cv2.imencode(".png", image_bgr)
-    if not ok:
-        raise ValueError(f"could not encode the snapshot for {path}")
-    atomic_write_bytes(data.tobytes(), path)
 
 
 class RobotGameRunner:
@@ -107,8 +83,12 @@ class RobotGameRunner:
 
         self.rules = make_game(config.game, config.free_move)
         self.grid = check_game(config.game)
-        self.recogniser = MoveRecogniser(grid=self.grid, tau=config.recogniser_tau)
+        from ncbot.vision.classifier import load_classifier
+
+        self.recogniser = MoveRecogniser(grid=self.grid, tau=config.recogniser_tau,
+                                         classifier=load_classifier(config.weights) if config.weights else None)
         self.last_frame: np.ndarray | None = None
+        self.on_view: Callable[[np.ndarray, int], None] | None = None  # (BGR frame, moves made) of every look after a move
 
     def _robot_speaker(self) -> Speaker:
         """The robot's voice: espeak-ng with real speech (or for --audio WAVs when installed), else text only."""
@@ -195,6 +175,7 @@ class RobotGameRunner:
         if not legal[cell]:  # cannot happen (known marks every illegal cell), kept as a guard for the env
             cell = int(np.flatnonzero(legal)[0])
         record.human_turn_seconds.append(time.perf_counter() - started)
+        self._note_view(self.last_frame)
         return cell
 
     def _watch_still(self, watch: Callable[[np.ndarray, float], None], found: list) -> None:
@@ -300,7 +281,8 @@ class RobotGameRunner:
             check_reach(self.scene, self.rules.cell_name)
         self.scene.render = self._timed_render(self.scene.render)  # every frame of the game goes through it
         self.motion = RobotMotion(self.scene, on_frame=self._log_frame, frame_period=cfg.robot_frame_period)
-        self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed)
+        handwriting = sample_handwriting(self._ranges, seed)
+        self.human = SimulatedHuman(self.scene, self.rules, cfg.human, seed=seed, handwriting=handwriting)
         self._mark_rng = np.random.default_rng(seed + 17)
         self._home_frame: np.ndarray | None = None
         opponent = PerceivedHumanOpponent(self._perceive_human_move)
@@ -322,7 +304,7 @@ class RobotGameRunner:
         self._true_boards: list[str] = []
         self._diverged = False
         self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0,
-                                           conditions=self.scene.conditions.summary())
+                                           conditions={**self.scene.conditions.summary(), "handwriting": handwriting})
         if hearing is not None:
             record.conditions = {**record.conditions, "speech": {"voice": hearing.voice.spec, "noise": hearing.kind,
                                                                  "snr_db": hearing.snr_db}}
@@ -361,6 +343,8 @@ class RobotGameRunner:
             if bool(td["next", "done"].item()) or self._diverged:
                 break
             td = step_mdp(td)
+        if self._diverged and self.logger is not None:  # cut off: the env never ended it, so its summary is written here
+            self.logger.cut_off("robot", cfg.agent_name, seed, extra=self._episode_extra(record))
         record.outcome = self._true_outcome()
         record.ik_failures = self.motion.stats.ik_failures
         if self.out_dir is not None and self.last_frame is not None:
@@ -377,12 +361,25 @@ class RobotGameRunner:
 
         frame = self._home_frame = self.scene.render()
         self._log_frame(frame, self.scene.time)
+        self._note_view(frame)
         try:
             reading = read_page(_rgb_to_bgr(frame), self.grid, self.recogniser.classifier)
             missed = reading.cells[cell] == ""
         except ValueError:
             missed = True
         self._record.own_mark_misreads += int(missed)
+
+    def _note_view(self, frame: np.ndarray) -> None:
+        """A look at the sheet after a settled move: its time to the log (`ncbot learn` finds it), frame to `on_view`."""
+        self._record.view_times.append((round(float(self.scene.time), 6), len(self._true_boards)))
+        if self.on_view is not None:
+            self.on_view(_rgb_to_bgr(frame), len(self._true_boards))
+
+    def settle(self) -> list[tuple[int, int]]:
+        """The game's (cell, player) moves as both sides agree on them at its end (`robot_sim.settlement`)."""
+        if self._record.settled_moves is None:
+            self._record.settled_moves = self.human.settle(moves_from_boards(self._true_boards), self.rules.n_cells)
+        return self._record.settled_moves
 
     def _true_outcome(self) -> str:
         if self._diverged:
@@ -401,15 +398,19 @@ class RobotGameRunner:
                 "human_turn_seconds": [round(s, 3) for s in record.human_turn_seconds],
                 "robot_move_seconds": [round(s, 3) for s in record.robot_move_seconds],
                 "robot_move_cpu_seconds": [round(s, 3) for s in record.robot_move_cpu_seconds],
+                "views": [list(v) for v in record.view_times], "settled_moves": [list(m) for m in self.settle()],
                 **({"utterances": record.utterances, "asr_words": record.asr_words,
                     "asr_word_errors": record.asr_word_errors} if self.speech is not None else {}), **self.episode_tags}
 
     # ------------------------------------------------------------------ many games
-    def run(self, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
-        """Play every game; `progress` is a bar factory with tqdm's signature (pipelines.progress.progress_bar)."""
-        bar = progress(total=self.config.games, desc="robot games", unit="game") if progress else None
-        for index in range(self.config.games):
+    def run(self, progress: Callable[..., Any] | None = None, after_game: Callable | None = None, first_game: int = 0) -> dict[str, Any]:
+        """Play the games from `first_game` on; `progress` is a bar factory with tqdm's signature (pipelines.progress.
+        progress_bar); `after_game(runner, record)` runs after each game (`ncbot.pipelines.online` learns from it)."""
+        bar = progress(total=self.config.games, initial=first_game, desc="robot games", unit="game") if progress else None
+        for index in range(first_game, self.config.games):
             self.records.append(self.play_game(index))
+            if after_game is not None:
+                after_game(self, self.records[-1])
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(outcome=self.records[-1].outcome,
@@ -424,8 +425,9 @@ class RobotGameRunner:
 
 
 def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, out_dir: str | Path | None = None,
-                     log_mcap: bool = True, progress: Callable[..., Any] | None = None) -> dict[str, Any]:
-    """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report."""
+                     log_mcap: bool = True, progress: Callable[..., Any] | None = None, attach: Callable | None = None) -> dict[str, Any]:
+    """Play the games, logging to `out_dir` (MCAP + PNG snapshots + report.json) when given; return the report.
+    `attach(runner)` -> (after_game hook, first game): a run that learns from its games (ncbot.pipelines.online)."""
     from ncbot.modules.policies.masks import LookaheadOnlyPolicy
 
     config.validate()
@@ -438,7 +440,8 @@ def play_robot_games(config: RobotPlayConfig, policy: Callable | None = None, ou
         logger = EpisodeLogger(out_dir, run_info={"robot_play": asdict(config)})
     try:
         runner = RobotGameRunner(config, policy, out_dir=out_dir, logger=logger)
-        report = runner.run(progress=progress)
+        after_game, first_game = attach(runner) if attach is not None else (None, 0)
+        report = runner.run(progress=progress, after_game=after_game, first_game=first_game)
     finally:
         if logger is not None:
             logger.close()

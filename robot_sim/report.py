@@ -66,6 +66,12 @@ class GameRecord:
     cells_from_answers: int = 0
     misheard_cells: int = 0
     answer_fallbacks: int = 0
+    #: Looks at the sheet after settled moves: (scene seconds, moves made by then); and the game's (cell, player)
+    #: moves as both sides agreed on them at its end (`robot_sim.settlement`).
+    view_times: list[tuple[float, int]] = field(default_factory=list)
+    settled_moves: list[tuple[int, int]] | None = None
+    #: What the robot learned from this game (`ncbot robot play --learn`), else None.
+    learned: dict[str, Any] | None = None
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -128,7 +134,16 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "snapshots": [r.snapshot for r in records if r.snapshot],
         "evidence": [path for r in records for path in r.evidence],
         "game_conditions": [r.conditions for r in records],
+        "per_game": [per_game(r) for r in records],
+        "learned_weights": None,  # set by a run that learns from play (ncbot.pipelines.online)
     }
+
+
+def per_game(record: GameRecord) -> dict[str, Any]:
+    """One game of the report's `per_game`: its outcome, the moves it misread or missed, what was learned from it."""
+    return {"game": record.index, "outcome": record.outcome, "human_moves": record.human_moves,
+            "misrecognised_moves": record.misrecognised_moves, "unseen_moves": record.unseen_moves,
+            "handwriting": record.conditions.get("handwriting"), "learned": record.learned}
 
 
 def annotated_snapshot(image_bgr: np.ndarray, record: GameRecord) -> np.ndarray:

@@ -33,6 +33,8 @@ class MarkSpec:
     size_fraction: float = 0.62
     #: Pen width as a fraction of the sheet's side (1.5 mm on a 0.22 m sheet is about 0.007).
     width_fraction: float = 0.007
+    #: The hand's stroke model (`ncbot.vision.strokes.STYLES`).
+    style: str = "pen"
 
     def size_px(self, grid: Grid, px: int) -> float:
         return self.size_fraction * cell_size(grid, px, px)
@@ -43,7 +45,10 @@ class MarkSpec:
     def strokes(self, grid: Grid, px: int) -> list[Stroke]:
         """The pen path of this mark in canvas pixels (the same strokes `draw_mark` inks)."""
         centre = np.array(cell_center(grid, self.cell, px, px))
-        strokes = mark_strokes(self.kind, self.size_px(grid, px), np.random.default_rng(self.seed), width=self.width_px(px))
+        # a font glyph ("hershey") has no pen path: the hand follows the pen model's strokes of the same mark
+        style = "pen" if self.style == "hershey" else self.style
+        strokes = mark_strokes(self.kind, self.size_px(grid, px), np.random.default_rng(self.seed), width=self.width_px(px),
+                               style=style)
         return [Stroke(s.points + centre, s.widths) for s in strokes]
 
 
@@ -63,7 +68,8 @@ class SheetCanvas:
 
     def _ink(self, img: np.ndarray, mark: MarkSpec, progress: float) -> None:
         draw_mark(img, mark.kind, cell_center(self.grid, mark.cell, self.px, self.px), mark.size_px(self.grid, self.px),
-                  np.random.default_rng(mark.seed), progress=progress, ink=mark.ink, width=mark.width_px(self.px))
+                  np.random.default_rng(mark.seed), progress=progress, ink=mark.ink, width=mark.width_px(self.px),
+                  style=mark.style)
 
     def draw(self, mark: MarkSpec, progress: float) -> None:
         """Show `mark` drawn up to `progress` (0..1); at 1 it becomes part of the sheet for good.

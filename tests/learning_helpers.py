@@ -45,3 +45,18 @@ def write_paper_configs(folder: Path, total_frames: int) -> Path:
 def ncbot(*args: str, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "ncbot", *args], capture_output=True, text=True,
                           cwd=cwd, timeout=timeout)
+
+
+def ncbot_here(*args: str) -> tuple[int, str, str]:
+    """Run `ncbot ARGS` in this process, through the CLI's error boundary: (exit code, stdout, stderr)."""
+    import contextlib
+    import io
+
+    import pytest
+
+    from ncbot.pipelines.cli.app import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), pytest.raises(SystemExit) as done:
+        main(list(args))
+    return done.value.code, out.getvalue(), err.getvalue()

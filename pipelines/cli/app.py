@@ -19,6 +19,7 @@ import ncbot.pipelines.cli.env as cli_env
 import ncbot.pipelines.cli.grid as cli_grid
 import ncbot.pipelines.cli.learn as cli_learn
 import ncbot.pipelines.cli.logs as cli_logs
+import ncbot.pipelines.cli.online as cli_online
 import ncbot.pipelines.cli.play as cli_play
 import ncbot.pipelines.cli.reproduce as cli_reproduce
 import ncbot.pipelines.cli.robot as cli_robot
@@ -68,7 +69,7 @@ def version() -> None:
     typer.echo(f"ncbot {ncbot_version()}")
 
 
-for area in (cli_env, cli_learn, cli_grid, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
+for area in (cli_env, cli_learn, cli_online, cli_grid, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
     area.register(app)
 
 

@@ -34,6 +34,22 @@ def check_meshes(meshes: Optional[Path]) -> None:
         raise ValueError(f"meshes folder {meshes} holds no .dae/.stl/.obj file; expected meshes named after the links")
 
 
+def check_learning(learn: bool, out: Optional[Path], person: str, wrong_claims: float, weights: Optional[Path]) -> None:
+    """--learn's needs (a log folder, a person's name that makes a folder name), the share and the weights: one line."""
+    import re
+
+    if learn and out is None:
+        raise ValueError("--learn needs --out DIR: each game is learned from its MCAP log, and the learning is kept there")
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}", person):
+        raise ValueError(f"--person must be a name of letters, digits, '_', '.', '-' (at most 64); got {person!r}")
+    if not 0.0 <= wrong_claims <= 1.0:
+        raise ValueError(f"--wrong-claims must be a share in [0, 1]; got {wrong_claims}")
+    if weights is not None:
+        from ncbot.vision.classifier import load_classifier
+
+        load_classifier(weights)  # missing, not a torch file, not a CellCNN's: one line now
+
+
 def _simulator_unavailable(error: Exception) -> None:
     typer.echo(f"ncbot: error: {error}", err=True)
     raise typer.Exit(2)
@@ -90,6 +106,11 @@ def play(
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
     as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
+    weights: Optional[Path] = typer.Option(None, help="Cell classifier weights the robot reads with (ncbot vision train --out W); default: the shipped ones."),
+    learn: bool = typer.Option(False, help="Learn from the games as they are played: the reader after each game, the play too with a checkpoint (needs --out; resumes a run in --out)."),
+    person: str = typer.Option("person", help="Whose learning this is (--learn): its state lives in OUT/learning/PERSON."),
+    learn_every: int = typer.Option(1, min=1, help="Update the reader after every N games (--learn)."),
+    wrong_claims: float = typer.Option(0.0, help="Share of the simulated person's moves they claim in another cell when a game is settled (wrong labels for --learn)."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
     from ncbot.pipelines.run_env import check_first
@@ -104,6 +125,7 @@ def play(
         check_writable_dir(out, "--out")
     if speech not in ("real", "text"):
         raise ValueError(f"--speech must be real or text; got {speech!r}")
+    check_learning(learn, out, person, wrong_claims, weights)
     if robot_frame_period <= 0:
         raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
@@ -129,13 +151,22 @@ def play(
     config = RobotPlayConfig(
         game=game, games=games, seed=seed, first=first, camera_width=width, camera_height=height,
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
-                          nudge_probability=nudge_probability),
+                          nudge_probability=nudge_probability, wrong_claims=wrong_claims),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
-        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech)
+        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech,
+        weights=None if weights is None else str(weights))
     config.validate()
+    bar = progress_bar if progress else None
     try:
-        with torch.no_grad():
-            report = play_robot_games(config, policy, out_dir=out, progress=progress_bar if progress else None)
+        if learn:
+            from ncbot.pipelines.online.learning import LearnSettings
+            from ncbot.pipelines.online.robot_games import play_and_learn
+
+            settings = LearnSettings.default(checkpoint, learn_every, seed)
+            report = play_and_learn(config, checkpoint, out, person, settings, bar)
+        else:
+            with torch.no_grad():
+                report = play_robot_games(config, policy, out_dir=out, progress=bar)
     except SimulatorUnavailable as error:
         _simulator_unavailable(error)
     if rrd and out is not None:
@@ -162,6 +193,9 @@ def serve(
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
     answer_seconds: float = typer.Option(30.0, help="Seconds the robot waits for the person's answer before it hears silence."),
     parallel: bool = typer.Option(True, help="Sessions render at once (--no-parallel: one simulator lock for all)."),
+    weights: Optional[Path] = typer.Option(None, help="Cell classifier weights the robot reads with; default: the shipped ones."),
+    learn: bool = typer.Option(False, help="Learn from each person's games (the reader; the play too with a checkpoint), kept in OUT/learning/PARTICIPANT and resumed when the participant code comes back."),
+    pooled: bool = typer.Option(False, help="With --learn: one learning from everyone's games (OUT/learning/pooled)."),
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
     from ncbot.robot_sim.conditions import load_conditions
@@ -172,6 +206,9 @@ def serve(
     if idle_seconds <= 0:
         raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
     check_writable_dir(out, "--out")
+    check_learning(False, out, "person", 0.0, weights)
+    if pooled and not learn:
+        raise ValueError("--pooled says whose learning --learn keeps; give --learn too")
     require("robot", "sapien", what="ncbot robot serve")
     require("serve", "fastapi", "uvicorn", "websockets", what="ncbot robot serve")
     import torch
@@ -185,7 +222,8 @@ def serve(
     config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
                          camera_width=width, camera_height=height, idle_seconds=idle_seconds,
                          max_sessions=max_sessions, audio=audio, seed=seed, conditions=conditions,
-                         answer_seconds=answer_seconds, parallel=parallel)
+                         answer_seconds=answer_seconds, parallel=parallel,
+                         weights=None if weights is None else str(weights), learn=learn, pooled=pooled)
     def listening() -> None:
         typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})",
                    err=True)

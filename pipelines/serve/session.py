@@ -63,6 +63,11 @@ class ServeConfig:
     answer_seconds: float = 30.0
     #: Sessions render at once (own scenes); False: one simulator lock for the whole process.
     parallel: bool = True
+    #: The cell classifier to read with (None: the shipped one); learn from the games (`ncbot.pipelines.online.
+    #: serving`), per participant or `pooled`.
+    weights: str | None = None
+    learn: bool = False
+    pooled: bool = False
 
 
 @dataclass
@@ -288,7 +293,13 @@ class Session:
         torch.set_num_threads(1)
         config = RobotPlayConfig(game=self.config.game, games=1, seed=self.config.seed, first=self._first,
                                  camera_width=self.config.camera_width, camera_height=self.config.camera_height,
-                                 human=HumanConfig(), agent_name=self.agent_name, conditions=self.config.conditions)
+                                 human=HumanConfig(), agent_name=self.agent_name, conditions=self.config.conditions,
+                                 weights=self.config.weights)
+        from ncbot.pipelines.online.serving import session_learning  # --learn: this person's learning, else None
+
+        learning = session_learning(self.config, self.participant or f"session-{self.id}",
+                                    None if self._sim is SIM_LOCK else POLICY_LOCK)
+        self.policy = learning.policy if learning is not None and learning.policy is not None else self.policy
         tags = {"session": self.id, "participant": self.participant}
         logger = EpisodeLogger(self.dir, run_info={"robot_serve": {**tags, "game": self.config.game,
                                                                    "agent": self.agent_name,
@@ -304,8 +315,10 @@ class Session:
                                          episode_tags=tags, user_reply=self._wait_for_answer, network=self.policy)
                 runner.speaker = BroadcastSpeaker(self.utterance, self.config.audio)
                 self._runner = runner
+                if learning is not None:
+                    learning.attach(runner)
                 while self._command() is not None and not self.closed.is_set():
-                    self._play_one(runner, index)
+                    self._play_one(runner, index, learning)
                     index += 1
         except SessionClosed:
             pass
@@ -334,7 +347,7 @@ class Session:
         finally:
             self._sim.acquire()
 
-    def _play_one(self, runner, index: int) -> None:
+    def _play_one(self, runner, index: int, learning=None) -> None:
         robot_mark = "x" if self._first == "robot" else "o"
         person_mark = "o" if robot_mark == "x" else "x"
         self.snapshot = replace(self.snapshot, screen="game", board=[""] * self.config_cells, outcome=None,
@@ -343,6 +356,8 @@ class Session:
         record = runner.play_game(index)
         self._push_frame(runner, force=True)
         runner.logger.flush()  # the finished game is on disk now, not when the session closes
+        if learning is not None:
+            learning.after_game(runner, record)
         outcome = PERSON_SIDE[record.outcome]
         self.outcomes.append(outcome)
         self._refresh_board(runner)

@@ -40,13 +40,15 @@ def _augment(x: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
 
 
 def fit(images: np.ndarray, labels: np.ndarray, config: FitConfig = FitConfig(),
-        progress: Callable[..., Any] | None = None, description: str = "train cells") -> CellCNN:
-    """Train a fresh CellCNN on uint8 (N, 40, 40) cells and int labels (N,); same seed -> same weights."""
+        progress: Callable[..., Any] | None = None, description: str = "train cells",
+        model: CellCNN | None = None) -> CellCNN:
+    """Train a fresh CellCNN (or go on training `model`, in place) on uint8 (N, 40, 40) cells and int labels (N,);
+    same seed -> same weights."""
     if len(images) != len(labels) or len(images) == 0:
         raise ValueError(f"need as many labels as images (and at least one); got {len(images)} images, {len(labels)} labels")
     torch.manual_seed(config.seed)
     generator = torch.Generator().manual_seed(config.seed)
-    model = CellCNN()
+    model = CellCNN() if model is None else model
     inputs = to_input(images)
     targets = torch.as_tensor(labels, dtype=torch.long)
     optimiser = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)

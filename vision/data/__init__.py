@@ -10,6 +10,11 @@ NOISY_SEED = 201_000      # the "noisy" set (paper: 201 images)
 TRAIN_SEED = 1_000_000    # the large varied set the shipped weights are trained on
 BUDGET_SEED = TRAIN_SEED + 500_000  # data-budget draws (vision.budget): training style, + 10,000 per draw seed
 TEST_SEED = 9_000_000     # held-out cells and frames used by tests and the reading figures
+# the reader that learns from play (vision.online): training-style cells an update is checked on (never trained on),
+# and the cells a person's handwriting is scored on when it is not one of the budget's held-out styles (+ a hash
+# of the style's name); only evaluated
+REHEARSAL_CHECK_SEED = TRAIN_SEED + 800_000
+STYLE_CHECK_SEED = TEST_SEED + 5_000_000
 N_CLEAN, N_NOISY = 109, 201
 # "harsh" photo conditions (vision.data.conditions): the reader was tuned on TUNING photos with "pen" marks
 # only; its figures come from HELDOUT photos (other seeds, so other shadows, casts, lenses) with the held-out

@@ -1,0 +1,114 @@
+"""Play that learns from play, measured: N games against a simulated person, the robot's agent learning after each
+one (`ncbot.pipelines.online`, the games logged to MCAP and read back) against the same games played frozen.
+
+    python bench/studies/learn_play_from_play.py CKPT --person rule --games 50 --seeds 0,1,2,3,4 \
+        --out runs/learn_play [--updates 100] [--test-games 1000] [--json]
+
+Per seed: the frozen agent and the learning one play games 0..N-1 (seats alternating, game g's env seed
+1000 x seed + g: the person's dice are the same for both); afterwards both agents play `--test-games` test games
+against the person and against the random user (both seats, seed 8,000,009). Writes OUT/learn_play.json (every
+game's outcome, per seed and mode, the test games, CPU seconds per learning update) and OUT/learn_play.png (wins
+and losses per game over the sequence, mean over seeds). No rendering: what play learns does not depend on the
+camera (the reader has its own study, bench/studies/learn_reader_from_play.py).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from ncbot.logs import EpisodeLogger  # noqa: E402
+from ncbot.pipelines.online import agent_parts  # noqa: E402
+from ncbot.pipelines.online.learning import LearnSettings, PersonLearning  # noqa: E402
+from ncbot.pipelines.online.play_learner import PlayLearning  # noqa: E402
+from ncbot.pipelines.online.robot_games import last_game  # noqa: E402
+from ncbot.pipelines.online.simulated import play_logged_game  # noqa: E402
+from ncbot.pipelines.online.summary import TEST_SEED  # noqa: E402
+from ncbot.pipelines.plots import pyplot, save_figure  # noqa: E402
+
+
+def run_sequence(checkpoint: Path, person: str, games: int, seed: int, folder: Path, learn: bool,
+                 updates: int) -> tuple[list[str], list[float], object]:
+    """The outcomes of one sequence of games, the CPU seconds of each learning update, and the final policy."""
+    settings = LearnSettings(reader=None, play=PlayLearning(seed=seed, updates=updates))
+    learning = PersonLearning.open(folder / "learning", settings, checkpoint=checkpoint)
+    config, policy = learning.play.config, learning.play.policy
+    outcomes, cpu = [], []
+    with EpisodeLogger(folder / "log") as log:
+        for game in range(games):
+            game_seed = 1000 * seed + game
+            outcome = play_logged_game(config, policy, log, opponent=person, seed=game_seed,
+                                       first="robot" if game % 2 == 0 else "human", agent_name="study")
+            outcomes.append(outcome)
+            if learn:
+                log.flush()
+                learned = learning.learn([], [], True, last_game(folder / "log", game_seed), {"outcome": outcome})
+                cpu.append(learned["play"]["cpu_seconds"])
+    return outcomes, cpu, learning.play
+
+
+def tested(play, person: str, games: int) -> dict:
+    result = {}
+    for opponent in (person, "random"):
+        t = agent_parts.test_games(play.config, play.policy, games, TEST_SEED, opponent=opponent)
+        result[opponent] = {"win": round(t.win, 4), "draw": round(t.draw, 4), "loss": round(t.loss, 4),
+                            "task_success": round(t.task_success, 4)}
+    return result
+
+
+def draw(data: dict, path: Path) -> Path:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharex=True)
+    for mode, colour in (("frozen", "tab:gray"), ("learning", "tab:purple")):
+        for ax, outcome in zip(axes, ("win", "loss")):
+            rows = np.array([[o == outcome for o in run[mode]["outcomes"]] for run in data["runs"]], float)
+            games = np.arange(rows.shape[1])
+            cumulative = rows.cumsum(axis=1)
+            ax.plot(games, cumulative.mean(axis=0), color=colour, label=f"{mode} (mean of {len(rows)} seeds)")
+            ax.fill_between(games, cumulative.min(axis=0), cumulative.max(axis=0), color=colour, alpha=0.2)
+            ax.set_title(f"{outcome}s against the {data['person']} person, so far")
+            ax.set_xlabel("game")
+    axes[0].set_ylabel("games (band: lowest to highest seed)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("checkpoint", type=Path)
+    parser.add_argument("--person", default="rule")
+    parser.add_argument("--games", type=int, default=50)
+    parser.add_argument("--seeds", default="0,1,2,3,4")
+    parser.add_argument("--updates", type=int, default=PlayLearning().updates)
+    parser.add_argument("--test-games", type=int, default=1000)
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    started = time.time()
+    data = {"person": args.person, "games": args.games, "checkpoint": str(args.checkpoint), "updates": args.updates,
+            "settings": PlayLearning(updates=args.updates).__dict__, "runs": []}
+    for seed in [int(s) for s in args.seeds.split(",")]:
+        run = {"seed": seed}
+        for mode in ("frozen", "learning"):
+            outcomes, cpu, play = run_sequence(args.checkpoint, args.person, args.games, seed,
+                                               args.out / f"seed{seed}" / mode, mode == "learning", args.updates)
+            run[mode] = {"outcomes": outcomes, "update_cpu_seconds": cpu, "tests": tested(play, args.person, args.test_games)}
+            print(f"seed {seed} {mode}: {''.join(o[0] for o in outcomes)}", file=sys.stderr, flush=True)
+        data["runs"].append(run)
+    data["wall_seconds"] = round(time.time() - started, 1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "learn_play.json").write_text(json.dumps(data, indent=1))
+    draw(data, args.out / "learn_play.png")
+    print(f"wrote {args.out / 'learn_play.json'} and {args.out / 'learn_play.png'}")
+
+
+if __name__ == "__main__":
+    main()
