@@ -9,7 +9,7 @@ Three measurements, each printed with the figures it produced:
           and evaluations that logging does not touch.
   train   the share of a real training run's wall time spent inside the logger (timed in the same
           process, so machine noise cancels out); with --ab also the same `ncbot train` run with and
-          without `--no-mcap` as separate processes (skip both with --skip-train).
+          without `--no-log` as separate processes (skip both with --skip-train).
   encode  the per-action /step messages written by `env`, re-encoded as protobuf (a schema built at run time with the
           same fields) vs our JSON, both in zstd-chunked MCAP: file size and encode time. Why JSON: see
           logs/README.md.
@@ -108,7 +108,7 @@ def bench_env(game: str, batch: int, steps: int, frames: int, repeats: int) -> P
 
 
 def bench_train(config: str, frames: int, repeats: int) -> None:
-    """`ncbot train` with and without --no-mcap; compares the trainer's own "train wall time" (which
+    """`ncbot train` with and without --no-log; compares the trainer's own "train wall time" (which
     includes its periodic evaluations, also logged) and the whole command's time."""
     import re
 
@@ -121,7 +121,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
             command = [sys.executable, "-m", "ncbot", "train", config, f"collector.total_frames={frames}",
                        "--out", str(out), "--no-progress", "--seed", str(repeat)]
             if variant == "off":
-                command.append("--no-mcap")
+                command.append("--no-log")
             started = time.perf_counter()
             result = subprocess.run(command, check=True, capture_output=True, text=True)
             commands[variant].append(time.perf_counter() - started)
@@ -132,7 +132,7 @@ def bench_train(config: str, frames: int, repeats: int) -> None:
                 summaries.append(summarize(out))
     off, on = statistics.median(timings["off"]), statistics.median(timings["on"])
     print(f"[train] ncbot train {config} collector.total_frames={frames}, {repeats} repeats, seeds 0..{repeats - 1} (medians)")
-    print(f"  train wall time: --no-mcap {off:.1f} s, with MCAP {on:.1f} s -> +{100 * (on - off) / off:.1f} %   "
+    print(f"  train wall time: --no-log {off:.1f} s, with MCAP {on:.1f} s -> +{100 * (on - off) / off:.1f} %   "
           f"(whole command: {statistics.median(commands['off']):.1f} s vs {statistics.median(commands['on']):.1f} s)")
     last = summaries[-1]
     by_phase = {phase: stats["episodes"] for phase, stats in last["by_phase"].items()}
@@ -250,7 +250,7 @@ def main() -> None:
     parser.add_argument("--train-frames", type=int, default=40960, help="collector.total_frames of each training run")
     parser.add_argument("--skip-train", action="store_true")
     parser.add_argument("--skip-env", action="store_true", help="only the [train] measurements")
-    parser.add_argument("--ab", action="store_true", help="also run ncbot train with and without --no-mcap "
+    parser.add_argument("--ab", action="store_true", help="also run ncbot train with and without --no-log "
                                                           "(separate runs: noisy on a shared machine)")
     args = parser.parse_args()
     os.chdir(Path(__file__).resolve().parent.parent)

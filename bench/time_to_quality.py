@@ -119,7 +119,7 @@ def train_ours(config: str, out: Path, cap: float, clock: str, snapshot_frames: 
 
     shutil.rmtree(out, ignore_errors=True)  # snapshots of an earlier run must not count
 
-    command = [sys.executable, "-m", "ncbot", "train", config, "--out", str(out), "--no-mcap", "--no-progress",
+    command = [sys.executable, "-m", "ncbot", "train", config, "--out", str(out), "--no-log", "--no-progress",
                "--seed", str(seed), f"train.eval_every_frames={NEVER_EVALUATE}",
                f"checkpoint.every_frames={snapshot_frames}", "checkpoint.keep=1000", "checkpoint.save_buffer=false",
                "eval.games=10", "eval.periodic_games=10", *(overrides or [])]

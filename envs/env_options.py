@@ -28,7 +28,10 @@ def resolve_opponent(opponent: Any, game: str, free_move: str, seed: int) -> tup
         try:
             opponent = make_opponent(opponent, game=game, free_move=free_move, seed=seed)
         except (KeyError, ValueError) as error:
-            raise ValueError(f"opponent {opponent!r} unknown or invalid ({error}); choices: {', '.join(opponent_choices())}") from None
+            reason = str(error.args[0] if error.args else error)
+            if "choose one of" in reason:  # an unknown name: the message lists the choices already
+                raise ValueError(reason) from None
+            raise ValueError(f"opponent {opponent!r} is invalid ({reason}); choices: {', '.join(opponent_choices())}") from None
     if not callable(getattr(opponent, "select", None)):
         raise ValueError(f"opponent must be a name (e.g. 'random') or an object with a select(...) method, got {opponent!r}")
     params = set(inspect.signature(opponent.select).parameters) & {"owners", "rows"}

@@ -17,6 +17,9 @@ import numpy as np
 from ncbot.envs.core import COLUMN_LETTERS  # light: plain constants
 
 _GRIDLOC = re.compile(r"gridloc=(\d+)")
+#: the paper's spelling of an act name -> what people read; the data, the env and the logs keep the paper's
+#: `Provide(feedback=loose)` (Cuayahuitl 2019 names the act so), everything shown to a person says "lose"
+SHOWN_SPELLING = {"feedback=loose": "feedback=lose"}
 
 
 @dataclass
@@ -69,7 +72,10 @@ class NameTables:
         return self.readable(self.action_names[act])
 
     def readable(self, name: str) -> str:
-        """An act name with its cell as a person reads it: GameMove(gridloc=4) -> GameMove(b2)."""
+        """An act name as a person reads it: GameMove(gridloc=4) -> GameMove(b2), Provide(feedback=loose) ->
+        Provide(feedback=lose) (`SHOWN_SPELLING`)."""
+        for paper, shown in SHOWN_SPELLING.items():
+            name = name.replace(paper, shown)
         return _GRIDLOC.sub(lambda match: self.cell_name(int(match.group(1))), name)
 
     def cell_name(self, cell: int) -> str:

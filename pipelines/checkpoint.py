@@ -71,18 +71,41 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
     if path.suffix != ".pt":
         hint = " (a run config: train it with ncbot train FILE)" if path.suffix in (".yaml", ".yml") else ""
         raise ValueError(f"{str(path)!r} is not a checkpoint{hint}; expected a checkpoint .pt or a run folder")
+    not_torch = _not_a_torch_file(path)
+    if not_torch is not None:
+        raise ValueError(f"checkpoint {str(path)!r} is not a torch file: {not_torch} (expected a .pt file written by "
+                         "ncbot train)")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError:  # weights_only refused a pickled object: never run, never loaded
-        raise ValueError(f"checkpoint {str(path)!r} is corrupt or not ncbot's: it holds Python objects beyond tensors, "
+        raise ValueError(f"checkpoint {str(path)!r} is not ncbot's: it holds Python objects beyond tensors, "
                          "which ncbot never loads (expected a .pt file written by ncbot train)") from None
     except (Exception, MemoryError) as error:  # noqa: BLE001 - torch's unpickler raises anything on a foreign file
         reason = _reason(error)
-        raise ValueError(f"checkpoint {str(path)!r} is corrupt or unreadable ({reason}; expected a .pt file "
+        raise ValueError(f"checkpoint {str(path)!r} is damaged ({reason}; expected a .pt file "
                          "written by ncbot train)") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ValueError(f"checkpoint {str(path)!r} is not an ncbot DQN checkpoint (expected format {FORMAT})")
     return data
+
+
+ZIP_MAGIC = b"PK\x03\x04"  # torch.save's format since torch 1.6
+PICKLE_PROTOCOL = 0x80  # the first byte of a pickle (protocol 2+): torch's legacy format and plain pickles
+
+
+def _not_a_torch_file(path: Path) -> str | None:
+    """What the file is when its first bytes are neither a zip archive nor a pickle (torch's two formats), else None:
+    such a file is empty, text or other bytes, never a checkpoint, whatever torch's unpickler would say of it."""
+    with open(path, "rb") as file:
+        head = file.read(512)
+    if not head:
+        return "it is empty"
+    if head.startswith(ZIP_MAGIC) or head[0] == PICKLE_PROTOCOL:
+        return None
+    text = head.decode("utf-8", errors="ignore")  # a character cut at byte 512 is dropped, not a sign of binary
+    if len(text.encode("utf-8")) >= len(head) - 3 and all(c.isprintable() or c.isspace() for c in text):
+        return "it is a text file"
+    return "its first bytes are neither a zip archive nor a pickle"
 
 
 def _reason(error: BaseException) -> str:

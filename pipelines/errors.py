@@ -44,6 +44,18 @@ class Terminated(BaseException):
 
 
 _termination_requested = False
+_continuation: str | None = None
+
+
+def continue_with(command: str | None) -> None:
+    """Name the command that continues the work in progress (`ncbot train --resume runs/x`), for the CLI's Ctrl-C
+    and SIGTERM line; None once nothing is left to continue."""
+    global _continuation
+    _continuation = command
+
+
+def continuation() -> str | None:
+    return _continuation
 
 
 def request_termination() -> None:

@@ -4,6 +4,10 @@ Why: tqdm redraws with carriage returns; in a piped or logged output every redra
 wrote one redraw per collector batch). When the stream is not a terminal, `progress_bar` returns a `LineProgress`
 that prints one self-contained line each time another tenth of the total is done (and at the end), with the rate
 and the ETA. Both objects offer the tqdm calls ncbot uses: iteration, `update`, `set_postfix(_str)`, `close`, `with`.
+
+Three rules hold for both: the count never reads past 100 % (work that overruns its estimate, such as whole collector
+batches past a frame budget, grows the total instead); a bar left by an error is not drawn again, so the error's one
+line stands alone; and `--no-progress` (`silence()`) turns every bar of the process off.
 """
 from __future__ import annotations
 
@@ -14,6 +18,17 @@ from typing import IO, Any
 
 STEPS = 10  # plain lines per run in line mode: one every 10 %
 UNTIMED_EVERY_S = 60.0  # line mode without a known total: one line a minute
+_silenced = False  # `--no-progress`: no bar anywhere in this process
+
+
+def silence(off: bool = True) -> None:
+    """Turn every progress bar of this process off (`--no-progress`), or back on with `off=False`."""
+    global _silenced
+    _silenced = off
+
+
+def silenced() -> bool:
+    return _silenced
 
 
 def is_terminal(stream: IO[str]) -> bool:
@@ -39,6 +54,13 @@ def _amount(value: float, scale: bool) -> str:
     return f"{value:.0f}"
 
 
+def rate_text(rate: float) -> str:
+    """A rate as people read it: 7.5k, 310, 4.2, 0.35 (never 7.46e+03)."""
+    if rate >= 1000:
+        return _amount(rate, True)
+    return f"{rate:.0f}" if rate >= 100 else f"{rate:.1f}" if rate >= 1 else f"{rate:.2f}"
+
+
 class LineProgress:
     """tqdm's interface, printing one plain line per ~10 % of `total` (rate and ETA) instead of redraws."""
 
@@ -48,6 +70,8 @@ class LineProgress:
         self.iterable = iterable
         if total is None and iterable is not None and hasattr(iterable, "__len__"):
             total = len(iterable)
+        if total and initial > total:  # resumed past its estimate: never more than 100 %
+            total = initial
         self.total, self.desc, self.unit, self.unit_scale = total, desc, unit, unit_scale
         self.n = self.initial = initial
         self.stream = stream if stream is not None else sys.stderr
@@ -69,11 +93,15 @@ class LineProgress:
     def __enter__(self) -> LineProgress:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is not None:  # an error's one line stands alone: no closing progress line before it
+            self.closed = True
         self.close()
 
     def update(self, n: float = 1) -> None:
         self.n += n
+        if self.total and self.n > self.total:  # the work overran its estimate: never more than 100 %
+            self.total = self.n
         now = time.monotonic()
         if self.total:
             if self._step(self.n) > self.printed and self.n < self.total:
@@ -107,7 +135,7 @@ class LineProgress:
         else:
             parts.append(f"{_amount(self.n, self.unit_scale)} {self.unit}")
             timing = f"{duration(elapsed)} elapsed"
-        parts.append(f" [{timing}, {_amount(rate, self.unit_scale) if self.unit_scale else f'{rate:.3g}'} {self.unit}/s]")
+        parts.append(f" [{timing}, {rate_text(rate)} {self.unit}/s]")
         if self.postfix:
             parts.append(f" {self.postfix}")
         return "".join(parts)
@@ -129,12 +157,28 @@ def progress_bar(iterable: Iterable | None = None, *, total: float | None = None
                  stream: IO[str] | None = None):
     """A tqdm bar on a terminal, else a `LineProgress` (one line per ~10 %); `disable` silences both."""
     stream = stream if stream is not None else sys.stderr
-    if disable:
+    if disable or _silenced:
         return _Silent(iterable, total=total, desc=desc, unit=unit, initial=initial, stream=stream)
     if not is_terminal(stream):
         return LineProgress(iterable, total=total, desc=desc, unit=unit, unit_scale=unit_scale, initial=initial,
                             stream=stream)
+    return _terminal_bar()(iterable, total=total, desc=desc, unit=unit, unit_scale=unit_scale, initial=initial,
+                           leave=leave, file=stream, dynamic_ncols=True)
+
+
+def _terminal_bar() -> type:
+    """tqdm with the rules of `LineProgress`: the total grows with overrunning work, and an error clears the bar."""
     from tqdm import tqdm
 
-    return tqdm(iterable, total=total, desc=desc, unit=unit, unit_scale=unit_scale, initial=initial, leave=leave,
-                file=stream, dynamic_ncols=True)
+    class TerminalBar(tqdm):
+        def update(self, n: float = 1) -> bool | None:
+            if self.total and self.n + n > self.total:
+                self.total = self.n + n
+            return super().update(n)
+
+        def __exit__(self, exc_type: Any, *exc: Any) -> None:
+            if exc_type is not None:
+                self.leave = False  # tqdm then erases the bar: the error's line stands alone
+            super().__exit__(exc_type, *exc)
+
+    return TerminalBar

@@ -224,3 +224,46 @@ def read_run_id(path: Path) -> str | None:
         return str(data["run_id"])
     except (ValueError, KeyError, TypeError, UnicodeDecodeError):
         raise ValueError(f"{str(identity)!r} is damaged; expected the JSON ncbot train writes with a 'run_id'") from None
+
+
+def finished_report(config: Any, path: str | os.PathLike) -> dict[str, Any] | None:
+    """The eval.json of a run that has nothing left to train under `config` (the run's own config, logging aside, with
+    its frames, games or game cap reached), else None: `ncbot train --resume` of a finished run shows it instead of
+    evaluating and rewriting it again."""
+    path = Path(path)
+    try:
+        report = json.loads((path / "eval.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not _same_run(config, path):  # overrides that change the run: the checks of a real resume apply
+        return None
+    if not isinstance(report, dict) or not {"frames", "episodes", "first", "second"} <= set(report):
+        return None
+    if report["frames"] == 0:  # no learning (the uniform choice): its evaluation is the whole run
+        return report if config.agent.name == "uniform" else None
+    if not (path / "checkpoint.pt").is_file():
+        return None
+    train = config.train
+    if train.max_games is not None and report["episodes"] >= train.max_games:
+        return report
+    if train.episodes is not None:
+        return report if report["episodes"] >= train.episodes else None
+    return report if report["frames"] >= config.collector.total_frames else None
+
+
+def _same_run(config: Any, path: Path) -> bool:
+    """Whether `config` is the run's own config.yaml, its logging and budget aside."""
+    from ncbot.fileio.yaml_file import read_yaml
+    from ncbot.pipelines.config import config_from_dict
+
+    try:
+        saved = config_from_dict(read_yaml(path / "config.yaml", "run config", "the config.yaml of a run")).to_dict()
+    except (OSError, ValueError):
+        return False
+    mine = config.to_dict()
+    for data in (saved, mine):
+        data.pop("logger", None)
+        data.get("collector", {}).pop("total_frames", None)
+        data.get("train", {}).pop("episodes", None)
+        data.get("train", {}).pop("max_games", None)
+    return saved == mine

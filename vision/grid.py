@@ -169,6 +169,21 @@ def _grid_lines(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarr
     """(xs, ys, ink mask of the page warp) or None: the straight grid first, the lattice bends it later."""
     n_rows, n_cols = grid_shape(grid)
     side = page_gray.shape[0]
+    rows, cols, ink = _page_lines(page_gray, grid)
+    if not rows or not cols:
+        return None
+    sparse = built_in_like(grid) == 3
+    x0, x1 = _framed(cols, n_cols, _edges(rows, cols, n_cols, sparse))
+    y0, y1 = _framed(rows, n_rows, _edges(cols, rows, n_rows, sparse))
+    if x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
+        return None
+    return _snap(x0, x1, n_cols, [c.centre for c in cols]), _snap(y0, y1, n_rows, [r.centre for r in rows]), ink
+
+
+def _page_lines(page_gray: np.ndarray, grid: Grid) -> tuple[list[Line], list[Line], np.ndarray]:
+    """The straight ink lines of a page warp, (horizontal, vertical), and its ink mask."""
+    n_rows, n_cols = grid_shape(grid)
+    side = page_gray.shape[0]
     ink = _ink(flatten(page_gray, side // 16), side // 12)
     min_length = side / 5
     thicken = max(3, side // 50) | 1  # hand-drawn grid lines slant and bow by a few pixels
@@ -189,14 +204,31 @@ def _grid_lines(page_gray: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarr
         rows = lines(True, int(LINE_GAP * side))
     if n_cols == 3 and len(cols) < 2:
         cols = lines(False, int(LINE_GAP * side))
-    if not rows or not cols:
+    return rows, cols, ink
+
+
+def lines_found(frame: np.ndarray, grid: Grid = 3) -> tuple[int, int] | None:
+    """How many straight grid lines (inner and frame) the reader finds across and down the sheet read as `grid`, or
+    None without a sheet: a sheet whose grid is not the one asked for (a 3x3 sheet read as 9x9) shows in them."""
+    found = _page_warp(check_frame(frame), grid)
+    if found is None:
         return None
-    sparse = built_in_like(grid) == 3
-    x0, x1 = _framed(cols, n_cols, _edges(rows, cols, n_cols, sparse))
-    y0, y1 = _framed(rows, n_rows, _edges(cols, rows, n_rows, sparse))
-    if x1 - x0 < 0.25 * side or y1 - y0 < 0.25 * side:
+    rows, cols, _ = _page_lines(found[-1], grid)
+    return len(rows), len(cols)
+
+
+def _page_warp(frame: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(balanced frame, page corners, paper mask, frame -> page warp, grey page warp) or None without a sheet."""
+    frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
+    corners, paper_mask = locate_balanced_page(frame)
+    if corners is None:
         return None
-    return _snap(x0, x1, n_cols, [c.centre for c in cols]), _snap(y0, y1, n_rows, [r.centre for r in rows]), ink
+    page_side = PAGE_SIDE[built_in_like(grid)]
+    square = np.array([[0, 0], [page_side, 0], [page_side, page_side], [0, page_side]], np.float32)
+    to_page = cv2.getPerspectiveTransform(corners, square)
+    page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
+                             cv2.COLOR_BGR2GRAY)
+    return frame, corners, paper_mask, to_page, page_gray
 
 
 def _framed(lines: list[Line], cells: int, ends: tuple[float, float]) -> tuple[float, float]:
@@ -317,15 +349,11 @@ def extract_cells(frame: np.ndarray, grid: Grid = 3, rho: int | None = None) -> 
     rho = rho or DEFAULT_RHO[built_in_like(grid)]
     if rho < 16:
         raise ValueError(f"rho (pixels per cell) must be at least 16; got {rho}")
-    frame = balance_frame(frame)  # a colour cast or dim light: paper neutral and bright again, ink contrast back
-    corners, paper_mask = locate_balanced_page(frame)
-    if corners is None:
+    warped = _page_warp(frame, grid)
+    if warped is None:
         raise ValueError("no paper sheet found in the frame (expected a white page on a darker background)")
-    page_side = PAGE_SIDE[built_in_like(grid)]
-    square = np.array([[0, 0], [page_side, 0], [page_side, page_side], [0, page_side]], np.float32)
-    to_page = cv2.getPerspectiveTransform(corners, square)
-    page_gray = cv2.cvtColor(cv2.warpPerspective(frame, to_page, (page_side, page_side), flags=cv2.INTER_LINEAR),
-                             cv2.COLOR_BGR2GRAY)
+    frame, corners, paper_mask, to_page, page_gray = warped
+    page_side = page_gray.shape[0]
     found = _grid_lines(page_gray, grid)
     if found is None:
         raise ValueError(f"no {grid_label(grid)} grid found on the sheet (expected dark grid lines across the page)")

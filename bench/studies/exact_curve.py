@@ -8,7 +8,7 @@ two learner settings can be compared snapshot by snapshot without evaluation noi
 
 Train with periodic snapshots kept, e.g.
 
-    ncbot train pipelines/configs/default.yaml --out /tmp/c/per_s10 --seed 10 --no-mcap --no-progress \\
+    ncbot train pipelines/configs/default.yaml --out /tmp/c/per_s10 --seed 10 --no-log --no-progress \\
         train.eval_every_frames=10000000000 checkpoint.every_frames=8192 checkpoint.keep=1000 checkpoint.save_buffer=false
 
 (stop it whenever: every snapshot is complete on disk), then

@@ -24,7 +24,9 @@ import ncbot.pipelines.cli.play as cli_play
 import ncbot.pipelines.cli.reproduce as cli_reproduce
 import ncbot.pipelines.cli.robot as cli_robot
 import ncbot.pipelines.cli.vision as cli_vision
-from ncbot.pipelines.errors import Terminated, one_line, request_termination, squeeze  # light: no torch
+from ncbot.pipelines.cli.conventions import json_option, print_json
+from ncbot.pipelines.errors import (Terminated, continuation, continue_with, one_line, request_termination,  # light
+                                    squeeze)
 
 app = typer.Typer(
     name="ncbot",
@@ -64,9 +66,12 @@ def root(
 
 
 @app.command()
-def version() -> None:
+def version(as_json: bool = json_option()) -> None:
     """Print the ncbot version (as ncbot --version)."""
-    typer.echo(f"ncbot {ncbot_version()}")
+    if as_json:
+        print_json({"version": ncbot_version()})
+    else:
+        typer.echo(f"ncbot {ncbot_version()}")
 
 
 for area in (cli_env, cli_learn, cli_online, cli_grid, cli_logs, cli_vision, cli_robot, cli_play, cli_reproduce):
@@ -89,10 +94,13 @@ def main(args: list[str] | None = None) -> None:
 
     if threading_is_main():
         signal.signal(signal.SIGTERM, _on_sigterm)
-    # torch warns about the pickle protocol of a file its safe loader is about to refuse: the refusal is the line
-    warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
+    quiet_library_warnings()
     command = typer.main.get_command(app)
     argv = list(sys.argv[1:] if args is None else args)
+    from ncbot.pipelines.progress import silence
+
+    silence(False)  # `--no-progress` of an earlier main() in this process (tests) does not carry over
+    continue_with(None)
     code = 0
     try:
         with command.make_context("ncbot", argv) as context:
@@ -132,11 +140,21 @@ def main(args: list[str] | None = None) -> None:
     sys.exit(code)
 
 
+def quiet_library_warnings() -> None:
+    """Library warnings that say nothing a user can act on stay off stderr, so a failure's one line stands alone:
+    torch on the pickle protocol of a file its safe loader is about to refuse (the refusal is the line), and SAPIEN
+    on finding no system Vulkan library or ICD file when imported (a render that then fails says why, in one line)."""
+    warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
+    warnings.filterwarnings("ignore", category=UserWarning, module=r"sapien(\.|$)")
+
+
 def resume_advice(argv: list[str]) -> str:
-    """What to run to go on after an interrupted command, for the commands whose work can be continued."""
+    """What to run to go on after an interrupted command, for the commands whose work can be continued: the command
+    a running command named (`ncbot train --resume runs/x`, with its folder), else the same command again."""
+    if continuation() is not None:
+        return f"; continue with {continuation()}"
     command = next((arg for arg in argv if not arg.startswith("-")), "")
     return {
-        "train": "; continue the run with ncbot train --resume DIR",
         "ablate": "; run the same ncbot ablate command again to go on: it skips the finished runs",
         "reproduce": "; run the same ncbot reproduce command again to go on: it skips the finished runs",
     }.get(command, "")

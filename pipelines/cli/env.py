@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import typer
 
+from ncbot.pipelines.cli.conventions import json_option, print_json
+
 env_app = typer.Typer(help="The multimodal dialogue game env: describe its features and actions.", no_args_is_help=True)
 
 
@@ -28,32 +30,37 @@ def describe(
     game: str = typer.Option("standard", help="standard (3x3), ultimate (9x9), a shipped declared game (four, "
                              "connect_four), a game YAML file or a game class (path/to/file.py:Misere; docs/games.md)"),
     temporal: bool = typer.Option(True, "--temporal/--no-temporal", help="include the temporal features"),
+    as_json: bool = json_option(),
 ) -> None:
     """Print the feature table (index, key, meaning) and the action table (index, act, template, command)."""
-    import re
-
     from ncbot.envs import make_env
     from ncbot.envs.games import load_game
+    from ncbot.logs.names import NameTables
 
     rules = load_game(game)
     game = rules.id
     env = make_env(game, temporal=temporal)
-
-    def readable(name: str) -> str:  # GameMove(gridloc=4) -> GameMove(b2): cells as the board names them
-        return re.sub(r"gridloc=(\d+)", lambda match: rules.cell_name(int(match.group(1))), name)
-
+    names = NameTables.from_env(env)  # acts as people read them: GameMove(b2), Provide(feedback=lose)
+    features = [{"index": index, "key": key, "meaning": feature_meaning(key, game)}
+                for index, key in enumerate(env.feature_names)]
+    actions = []
+    for index in range(len(env.action_names)):
+        template, _, command = env.describe_action(index).partition(" [")
+        actions.append({"index": index, "act": names.action_name(index), "template": template,
+                        "command": command.removesuffix("]")})
+    if as_json:
+        print_json({"game": rules.name, "features": features, "actions": actions, "words": list(env.words)})
+        return
     typer.echo(rules.describe())
     typer.echo(f"{rules.name} game: {env.n_features} features, {env.n_actions} actions, vocabulary of {len(env.words)} words\n")
     typer.echo("FEATURES (the sorted key-value memory as a vector)")
     typer.echo(f"{'index':>5}  {'key':<18} meaning")
-    for index, key in enumerate(env.feature_names):
-        typer.echo(f"{index:>5}  {key:<18} {feature_meaning(key, game)}")
+    for feature in features:
+        typer.echo(f"{feature['index']:>5}  {feature['key']:<18} {feature['meaning']}")
     typer.echo("\nACTIONS (dialogue acts)")
     typer.echo(f"{'index':>5}  {'dialogue act':<26} {'template':<40} command")
-    for index, name in enumerate(env.action_names):
-        line = env.describe_action(index)
-        template, _, command = line.partition(" [")
-        typer.echo(f"{index:>5}  {readable(name):<26} {template:<40} [{command}")
+    for action in actions:
+        typer.echo(f"{action['index']:>5}  {action['act']:<26} {action['template']:<40} [{action['command']}]")
 
 
 def register(app: typer.Typer) -> None:

@@ -5,11 +5,11 @@ Light at import (typer only): the grid package is imported inside the command.
 """
 from __future__ import annotations
 
-import json
 from typing import Any, Optional
 
 import typer
 
+from ncbot.pipelines.cli.conventions import json_option, no_progress_option, out_folder, print_json, wrote
 from ncbot.pipelines.outputs import check_writable_dir  # light: os and pathlib only
 
 RETRIES_HELP = ("Times a run whose worker, node or ncbot train died is tried again, each from its last checkpoint "
@@ -80,7 +80,7 @@ def ablate_command(
     seeds: int = typer.Option(3, "--seeds", help="Seeds per grid cell."),
     workers: int = typer.Option(2, "--workers", help="Runs in parallel."),
     backend: str = backend_option(),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Runs folder (default from the grid file)."),
+    out: Optional[str] = out_folder(None, "the grid's runs, one run folder each (default from the grid file)."),
     only: Optional[str] = typer.Option(None, "--only", help="Run only cells whose name contains this text."),
     retries: int = retries_option(),
     address: Optional[str] = address_option(),
@@ -92,8 +92,8 @@ def ablate_command(
     status: bool = typer.Option(False, "--status", help="Start nothing: print where every run of the grid stands "
                                 "(finished, training now, queued, stopped, failed, not started; its tries), whatever "
                                 "backend runs it, and the training time left."),
-    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (the summary, or with --status every "
-                                 "run's state) on stdout; progress stays on stderr."),
+    as_json: bool = json_option(),
+    no_progress: bool = no_progress_option(),
 ) -> None:
     """Run the grid game x agent x temporal x look-ahead x seed in parallel; finished runs are skipped, runs whose
     worker or node died are retried from their last checkpoint."""
@@ -104,7 +104,7 @@ def ablate_command(
             raise ValueError(f"--workers must be a positive number of parallel runs, got {workers}")
         statuses, left, record = grid_status(config, seeds=seeds, out=out, only=only, overrides=list(overrides or []))
         if as_json:
-            typer.echo(json.dumps(status_json(statuses, left, record, workers)))
+            print_json(status_json(statuses, left, record, workers))
         else:
             typer.echo("\n".join(status_lines(statuses, left, record, workers)))
         return
@@ -115,9 +115,10 @@ def ablate_command(
 
     summary = run_ablation(config, seeds=seeds, cluster=cluster, out=out, only=only, overrides=list(overrides or []))
     if as_json:
-        typer.echo(json.dumps(summary))
+        print_json({**summary, "written": [str(summary["runs_dir"])]})
     else:
-        typer.echo("\n".join(summary_lines(summary) + [f"runs in {summary['runs_dir']}"]))
+        typer.echo("\n".join(summary_lines(summary)))
+    wrote(f"the runs to {summary['runs_dir']} (one folder per run; ncbot table {summary['runs_dir']} sums them up)")
     if summary["unfinished"]:
         raise typer.Exit(1)
 

@@ -8,6 +8,8 @@ import typer
 from ncbot.pipelines.agents import LOOKAHEAD_CHOICES  # light: the module imports torch only inside its functions
 from ncbot.pipelines.config import MAX_GAMES, MAX_SEED
 from ncbot.pipelines.agents import check_value_option  # light: pathlib only
+from ncbot.pipelines.cli.conventions import (json_option, listing, no_log_option, no_progress_option, out_folder,
+                                             print_json, wrote)
 from ncbot.pipelines.outputs import check_writable_dir
 
 
@@ -21,8 +23,8 @@ def play_command(
     first: str = typer.Option("robot", "--first", help="Who opens: robot | human (you draw the first mark)."),
     free_move: Optional[str] = typer.Option(None, "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the robot's random choices (look-ahead policy) and the env."),
-    out: str = typer.Option("runs/play", "--out", "-o", help="Folder for the MCAP log of the game."),
-    no_log: bool = typer.Option(False, "--no-log", help="Do not write an MCAP log."),
+    out: str = out_folder("runs/play", "the MCAP log of the game."),
+    no_log: bool = no_log_option(),
 ) -> None:
     """Play noughts & crosses against the robot: answer it in a few words, type cells like b2 (e5 on ultimate)."""
     if game is not None:
@@ -47,8 +49,9 @@ def play_command(
     except KeyboardInterrupt:
         typer.echo("\nGame interrupted (Ctrl-C). Goodbye!")
         raise typer.Exit(130)
-    where = "" if no_log else f"; logged to {out}"
-    typer.echo(f"Result: {summary['outcome']} after {summary['actions']} robot actions{where}.")
+    typer.echo(f"Result: {summary['outcome']} after {summary['actions']} robot actions.")
+    if not no_log:
+        wrote(f"the game's MCAP log to {out} (ncbot logs show {out} ID replays it)")
 
 
 def ladder_command(
@@ -57,8 +60,7 @@ def ladder_command(
     opponents: Optional[str] = typer.Option(None, "--opponents", help="Comma-separated opponent names; default: "
                                             "random,rule,minimax (3x3) or random,rule,mcts:10,mcts:100,mcts:300."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the test games."),
-    out: Optional[str] = typer.Option(None, "--out", "-o", help="Folder for ladder.md, ladder.json and ladder.png "
-                                      "(default: beside the checkpoint)."),
+    out: Optional[str] = out_folder(None, "ladder.md, ladder.json and ladder.png (default: beside the checkpoint)."),
     baseline: bool = typer.Option(False, "--baseline", help="Also play the agent's look-ahead masks alone (random "
                                   "inside them) on the same games: what did learning add?"),
     search: Optional[int] = typer.Option(None, "--search", help="The robot picks game moves by MCTS guided by its "
@@ -72,6 +74,8 @@ def ladder_command(
     game: Optional[str] = typer.Option(None, "--game", help="The run's game class (my_pkg.games:Misere, "
                                        "path/to/file.py:Misere) for a run of your own game: ncbot imports a game's "
                                        "code only when you name it."),
+    as_json: bool = json_option(),
+    no_progress: bool = no_progress_option(),
 ) -> None:
     """Play a trained agent against a ladder of opponents from both seats; write a markdown table and a PNG."""
     from pathlib import Path
@@ -98,9 +102,13 @@ def ladder_command(
     if names is not None and not names:
         raise ValueError(f"--opponents must name at least one opponent (e.g. random,rule,minimax), got {opponents!r}")
     result = run_ladder(checkpoint, games=games, opponents=names, seed=seed, out_dir=out, baseline=baseline,
-                        search=search, lookahead=lookahead, value=value, workers=workers)
-    typer.echo(result["markdown"])
-    typer.echo(f"Wrote {result['files']['markdown']}, {result['files']['json']} and {result['files']['png']}")
+                        search=search, lookahead=lookahead, value=value, workers=workers, progress=not no_progress)
+    written = [result["files"][kind] for kind in ("markdown", "json", "png")]
+    if as_json:
+        print_json({"rows": result["rows"], "goals": result["goals"], "written": written})
+    else:
+        typer.echo(result["markdown"])
+    wrote(listing(written))
 
 
 def match_command(
@@ -110,6 +118,8 @@ def match_command(
     free_move: str = typer.Option("anywhere", "--free-move", help="Ultimate rule: anywhere | open_subgrids."),
     games: int = typer.Option(100, "--games", max=MAX_GAMES, help="Number of games."),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="Seed of the match."),
+    as_json: bool = json_option(),
+    no_progress: bool = no_progress_option(),
 ) -> None:
     """Play two opponents against each other with the exact rules (no dialogue) and print W/D/L and timing."""
     if games < 1:
@@ -127,6 +137,12 @@ def match_command(
     game = load_game(game, free_move).id
     players = [make_opponent(name, game=game, free_move=free_move, seed=seed + i) for i, name in enumerate((first, second))]
     result = play_match(players[0], players[1], games, seed=seed, progress=progress_bar)
+    if as_json:
+        print_json({"game": game, "games": games, "draws": result.draws, "first_score": result.first_score,
+                    "first": {"player": first, "wins": result.first_wins, "seconds_per_game": result.first_seconds / games},
+                    "second": {"player": second, "wins": result.second_wins,
+                               "seconds_per_game": result.second_seconds / games}})
+        return
     typer.echo("| first | second | games | first wins | draws | second wins | first score | s per game (first / second) |")
     typer.echo("|---|---|---|---|---|---|---|---|")
     typer.echo(f"| {first} | {second} | {games} | {result.first_wins} | {result.draws} | {result.second_wins} | "

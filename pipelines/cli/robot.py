@@ -6,12 +6,13 @@ imported inside the commands so `ncbot --help` stays fast.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from ncbot.pipelines.cli.conventions import (json_option, no_progress_option, out_file, out_folder, print_json,
+                                             progress_alias, wrote)
 from ncbot.pipelines.extras import require
 from ncbot.pipelines.outputs import check_writable_dir, check_writable_file
 
@@ -89,7 +90,7 @@ def play(
     game: Optional[str] = typer.Option(None, help=GAME_HELP),
     games: int = typer.Option(1, help="Games to play (1 to 10000)."),
     seed: int = typer.Option(0, help="Seed of the env, the simulated human and the robot's marks."),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Folder for the MCAP log, PNG snapshots and report.json."),
+    out: Optional[Path] = out_folder(None, "the MCAP log, PNG snapshots and report.json (none by default)."),
     rrd: bool = typer.Option(False, help="Also export the run to OUT/run.rrd (rerun)."),
     first: str = typer.Option("robot", "--first", help="Who opens: robot, human, alternate, random."),
     opponent: str = typer.Option("random", help="The simulated human's opponent model (random, rule, minimax, mcts:N)."),
@@ -104,15 +105,16 @@ def play(
     speech: str = typer.Option("real", help="real: the robot speaks (espeak-ng), the person answers (flite) over the conditions' noise and the robot hears it through pocketsphinx, audio in the MCAP log; text: nothing spoken or heard (simulated ASR, quicker)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
-    progress: bool = typer.Option(True, help="Show a progress bar."),
-    as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
+    no_progress: bool = no_progress_option(),
+    _progress: bool = progress_alias(),
+    as_json: bool = json_option(),
     weights: Optional[Path] = typer.Option(None, help="Cell classifier weights the robot reads with (ncbot vision train --out W); default: the shipped ones."),
     learn: bool = typer.Option(False, help="Learn from the games as they are played: the reader after each game, the play too with a checkpoint (needs --out; resumes a run in --out)."),
     person: str = typer.Option("person", help="Whose learning this is (--learn): its state lives in OUT/learning/PERSON."),
     learn_every: int = typer.Option(1, min=1, help="Update the reader after every N games (--learn)."),
     wrong_claims: float = typer.Option(0.0, help="Share of the simulated person's moves they claim in another cell when a game is settled (wrong labels for --learn)."),
 ) -> None:
-    """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints a JSON report."""
+    """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints what happened."""
     from ncbot.pipelines.run_env import check_first
 
     check_first(first, ("robot", "human", "alternate", "random"), "--first")
@@ -156,7 +158,7 @@ def play(
         meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech,
         weights=None if weights is None else str(weights))
     config.validate()
-    bar = progress_bar if progress else None
+    bar = None if no_progress else progress_bar
     try:
         if learn:
             from ncbot.pipelines.online.learning import LearnSettings
@@ -174,7 +176,27 @@ def play(
 
         export_to_rerun(out, out / "run.rrd")
         report["rrd"] = str(out / "run.rrd")
-    typer.echo(json.dumps(report))
+    if as_json:
+        print_json({**report, **({"written": [str(out)]} if out is not None else {})})
+    else:
+        typer.echo(games_text(report))
+    if out is not None:
+        wrote(f"the games' MCAP log, snapshots and report.json to {out}" + (" and the rerun recording run.rrd" if rrd else ""))
+
+
+def games_text(report: dict) -> str:
+    """`robot play`'s headline in a few lines (--json gives every figure)."""
+    turn = report["seconds_per_robot_turn"]
+    lines = [f"{report['games']} game{'s' if report['games'] != 1 else ''} of {report['game']} ({report['agent']}, conditions "
+             f"{report['conditions']}): {report['wins']} won, {report['draws']} drawn, {report['losses']} lost, "
+             f"{report['unfinished']} unfinished",
+             f"moves: {report['human_moves']} by the person, {report['misrecognised_moves']} misrecognised and "
+             f"{report['unseen_moves']} unseen; {report['robot_moves']} by the robot"
+             + (f", {turn:.2f} s a turn" if turn is not None else "")]
+    if report["speech"] == "real" and report["asr_word_error_rate"] is not None:
+        lines.append(f"speech: word error rate {report['asr_word_error_rate']:.3f} over {report['asr_utterances']} "
+                     f"replies heard")
+    return "\n".join(lines)
 
 
 @robot_app.command("serve")
@@ -183,7 +205,7 @@ def serve(
     game: Optional[str] = typer.Option(None, help=GAME_HELP),
     host: str = typer.Option("127.0.0.1", help="Address to listen on (loopback by default; a study on a LAN needs 0.0.0.0)."),
     port: int = typer.Option(8000, min=1, max=65535, help="TCP port."),
-    out: Path = typer.Option(Path("runs/study"), "--out", "-o", help="Folder for the sessions' MCAP logs (one session-<id>/ each)."),
+    out: Path = out_folder(Path("runs/study"), "the sessions' MCAP logs (one session-<id>/ each)."),
     width: int = typer.Option(320, help="Mouth camera width (pixels)."),
     height: int = typer.Option(240, help="Mouth camera height (pixels)."),
     idle_seconds: float = typer.Option(300.0, help="Close a session (and finish its log) after this long without a message."),
@@ -236,7 +258,7 @@ def serve(
 
 @robot_app.command("render")
 def render(
-    output: Path = typer.Option(Path("mouth.png"), "--out", "-o", help="PNG to write."),
+    output: Path = out_file(Path("runs/robot/mouth.png"), "the frame (.png, .jpg or .bmp; default runs/robot/mouth.png)."),
     game: str = typer.Option("standard", help="standard, ultimate, a declared game (a shipped name such as four or "
                              "connect_four, or a YAML file) or a game class (path/to/file.py:Misere): its grid on the sheet."),
     width: int = typer.Option(640, min=16, max=MAX_PIXELS, help="Camera width."),
@@ -246,6 +268,7 @@ def render(
     frames: int = typer.Option(10, min=1, help="Frames to time after the warm-up."),
     view: str = typer.Option("mouth", help="mouth (the robot's CameraBottom) or overview (third person, for people)."),
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges; drawn with --seed."),
+    as_json: bool = json_option(),
 ) -> None:
     """Render one mouth-camera (or overview) frame of the home posture to a PNG and print the render cost."""
     import time
@@ -300,25 +323,33 @@ def render(
     output.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(output), frame[:, :, ::-1]):
         raise ValueError(f"could not write {output}; expected a writable path ending in .png")
-    typer.echo(json.dumps({"output": str(output), "width": width, "height": height,
-                           "ms_per_frame_median": round(1000 * float(np.median(times)), 2),
-                           "conditions": scene.conditions.summary()}))
+    rendered = {"output": str(output), "width": width, "height": height,
+                "ms_per_frame_median": round(1000 * float(np.median(times)), 2), "conditions": scene.conditions.summary()}
+    if as_json:
+        print_json({**rendered, "written": [str(output)]})
+    else:
+        typer.echo(f"{view} view, {width}x{height}, {rendered['ms_per_frame_median']} ms a frame (median of {frames}), "
+                   f"conditions {scene.conditions.summary().get('preset', conditions)}")
+    wrote(str(output))
 
 
 @robot_app.command("urdf")
 def urdf(
-    output: Optional[Path] = typer.Option(None, "--out", "-o", help="Where to write (default: the packaged robot_sim/assets/pepper.urdf)."),
+    output: Path = out_file(Path("runs/robot/pepper.urdf"), "the URDF (.urdf; default runs/robot/pepper.urdf: the "
+                            "packaged robot_sim/assets/pepper.urdf changes only when named here)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes named after the links (<Link>.dae)."),
+    as_json: bool = json_option(),
 ) -> None:
     """Write the primitive Pepper URDF (optionally with licensed meshes swapped in for the primitives)."""
-    from ncbot.robot_sim.pepper_model import PACKAGED_URDF, write_pepper_urdf
+    from ncbot.robot_sim.pepper_model import write_pepper_urdf
 
-    if output is not None:
-        check_writable_file(output, "--out", (".urdf",))
+    check_writable_file(output, "--out", (".urdf",))
     check_meshes(meshes)
-
-    path = write_pepper_urdf(output or PACKAGED_URDF, meshes)
-    typer.echo(str(path))
+    output.parent.mkdir(parents=True, exist_ok=True)
+    path = write_pepper_urdf(output, meshes)
+    if as_json:
+        print_json({"meshes": None if meshes is None else str(meshes), "written": [str(path)]})
+    wrote(str(path))
 
 
 def register(app: typer.Typer) -> None:

@@ -1,10 +1,9 @@
-"""The command line follows one convention (docs/design.md, "CLI conventions"): who opens is `--first`, a checkpoint
-is a positional CHECKPOINT, outputs are `--out/-o`, a cell is written b2, `ncbot --version` works, and the rough edges
-each stop with one line naming what to do."""
+"""The command line follows one convention (docs/cli.md): who opens is `--first`, a checkpoint is a positional
+CHECKPOINT, a cell is written b2, `ncbot --version` works, and the rough edges each stop with one line naming what to
+do (the options every command shares: tests/cli/test_cli_convention.py)."""
 from __future__ import annotations
 
 import json
-import re
 import tomllib
 from pathlib import Path
 
@@ -74,19 +73,6 @@ def test_version_prints_the_package_version() -> None:
 ])
 def test_old_spellings_are_unknown_options(command: list[str], old: str) -> None:
     one_line_error(ncbot(*command), f"No such option: {old}")
-
-
-def test_every_writing_command_names_its_output_out_with_short_o() -> None:
-    commands = [["train"], ["eval"], ["ablate"], ["table"], ["train-value"], ["ladder"], ["play"], ["reproduce"],
-                ["logs", "curve"], ["logs", "to-rerun"], ["robot", "play"], ["robot", "serve"], ["robot", "render"],
-                ["robot", "urdf"], ["vision", "train"], ["vision", "eval"], ["vision", "generate"]]
-    for command in commands:
-        result = ncbot(*command, "--help")
-        assert result.returncode == 0, result.stderr
-        text = re.sub(r"\s+", " ", result.stdout)
-        assert re.search(r"--out\b.*-o\b|-o\b.*--out\b", text), (command, result.stdout)
-        for old in ("--log-dir", "--mcap ", "--output", "--checkpoint", "--seat", "--starts"):
-            assert old not in text, (command, old)
 
 
 def test_checkpoint_is_positional_and_says_what_it_expects(tmp_path: Path) -> None:
@@ -203,7 +189,7 @@ def test_ctrl_c_advises_what_fits_the_command(tmp_path: Path, monkeypatch, capsy
             main(args)
         assert done.value.code == 130
         assert capsys.readouterr().err.strip() == expected
-    assert "train --resume" in resume_advice(["train", "x.yaml"]) and resume_advice(["play"]) == ""
+    assert resume_advice(["train", "x.yaml"]) == "" and resume_advice(["play"]) == ""  # train names its folder itself
 
 
 def test_table_labels_rows_by_the_runs_hidden_widths(tmp_path: Path) -> None:

@@ -71,7 +71,7 @@ def test_ncbot_configs_lists_prints_and_refuses(tmp_path: Path) -> None:
 
 def test_train_takes_a_name_and_names_its_run_after_it(tmp_path: Path) -> None:
     done = _ncbot("train", "default", "collector.total_frames=1024", "collector.init_random_frames=512", "eval.games=10",
-                  "eval.periodic_games=10", "train.eval_every_frames=1024", "--no-mcap", "--no-progress", cwd=tmp_path)
+                  "eval.periodic_games=10", "train.eval_every_frames=1024", "--no-log", "--no-progress", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "runs" / "default" / "checkpoint.pt").is_file()
 

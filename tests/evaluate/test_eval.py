@@ -29,7 +29,8 @@ def test_eval_json_has_exactly_the_documented_keys(checkpoint: Path) -> None:
     result = ncbot("eval", str(checkpoint), "--games", "40", "--first", "human", "--seed", "1", "--json")
     assert result.returncode == 0, result.stderr
     data = json.loads(result.stdout)
-    assert set(data) == KEYS
+    assert set(data) == KEYS | {"opens", "second"}  # the games of each seat played, keyed as eval.json keys them
+    assert data["opens"] == "human" and {key: data["second"][key] for key in KEYS} == {key: data[key] for key in KEYS}
     assert data["games"] == 40
     assert abs(data["win"] + data["draw"] + data["loss"] + data["truncated"] - 1) < 1e-9
     assert data["task_success"] == pytest.approx(data["win"] + data["draw"])

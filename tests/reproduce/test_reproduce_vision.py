@@ -65,7 +65,7 @@ def test_train_budget_cli_and_weights_option(tmp_path: Path) -> None:
     cell = tmp_path / "cell.png"
     cv2.imwrite(str(cell), cells[0])
     used = _vision("classify", str(cell), "--weights", str(weights), "--json")
-    assert used.returncode == 0 and json.loads(used.stdout)["label"] in ("nought", "cross", "nothing")
+    assert used.returncode == 0 and json.loads(used.stdout)["images"][0]["label"] in ("nought", "cross", "nothing")
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a checkpoint")
     for command in (("classify", str(cell)), ("read", str(cell), "--grid", "3")):

@@ -141,7 +141,7 @@ def test_render_command_shows_a_preset(tmp_path, sapien_render_system):
 
     output = tmp_path / "atrium.png"
     result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "render", "--conditions", "atrium",
-                             "--seed", "3", "-o", str(output), "--width", "160", "--height", "120", "--frames", "1"],
+                             "--seed", "3", "-o", str(output), "--width", "160", "--height", "120", "--frames", "1", "--json"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["conditions"]["preset"] == "atrium"

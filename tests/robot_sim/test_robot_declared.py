@@ -22,7 +22,7 @@ def test_rendered_four_sheet_reads_back_as_sixteen_empty_cells(tmp_path):
     assert rendered.returncode == 0, rendered.stderr
     read = _ncbot("vision", "read", str(frame), "--grid", "4x4", "--json")
     assert read.returncode == 0, read.stderr
-    assert json.loads(read.stdout)["cells"] == [""] * 16
+    assert json.loads(read.stdout)["images"][0]["cells"] == [""] * 16
 
 
 def test_rendered_connect_four_marks_read_back_in_their_cells(tmp_path):
@@ -31,7 +31,7 @@ def test_rendered_connect_four_marks_read_back_in_their_cells(tmp_path):
                       "-o", str(frame))
     assert rendered.returncode == 0, rendered.stderr
     read = _ncbot("vision", "read", str(frame), "--grid", "6x7", "--json")
-    cells = json.loads(read.stdout)["cells"]
+    cells = json.loads(read.stdout)["images"][0]["cells"]
     expected = [""] * 42
     expected[0], expected[31], expected[38] = "x", "o", "x"  # a1 top-left; d5, d6 near the robot
     assert cells == expected

@@ -9,18 +9,20 @@ import pytest
 pytestmark = pytest.mark.sapien
 
 
-def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_system, tmp_path):
-    """With real speech (the CLI's default): the robot speaks, hears the person through pocketsphinx, and the
-    log holds both voices' audio, decodable back to samples."""
+def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_system, tmp_path, capfd):
+    """`ncbot robot play --json` with real speech (the default): the robot speaks, hears the person through
+    pocketsphinx, and the log holds both voices' audio, decodable back to samples."""
     from ncbot.logs import LogReader, read_episodes
-    from ncbot.robot_sim.game_config import RobotPlayConfig
-    from ncbot.robot_sim.play import play_robot_games
     from ncbot.speech import SAMPLE_RATE
     from ncbot.speech.audio import samples_from_raw_audio
+    from tests.cli.conftest import run_main
 
-    config = RobotPlayConfig(game="standard", games=1, seed=5, camera_width=320, camera_height=240,
-                             robot_frame_period=1.0, speech="real")
-    report = play_robot_games(config, out_dir=tmp_path, progress=False)
+    code, out, err = run_main(capfd, "robot", "play", "--games", "1", "--seed", "5", "--width", "320", "--height", "240",
+                              "--robot-frame-period", "1.0", "--out", tmp_path, "--no-progress", "--json")
+    assert code == 0, err
+    assert err.strip().splitlines()[-1].startswith(f"wrote the games' MCAP log, snapshots and report.json to {tmp_path}")
+    report = json.loads(out)
+    assert report.pop("written") == [str(tmp_path)]
 
     assert report["games"] == 1 and report["wins"] + report["draws"] + report["losses"] == 1, report
     assert report["misrecognised_moves"] == 0 and report["unseen_moves"] == 0, report
@@ -168,7 +170,7 @@ def test_render_command_writes_the_mouth_camera_view(tmp_path):
 
     output = tmp_path / "mouth.png"
     result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "render", "-o", str(output),
-                             "--width", "160", "--height", "120", "--marks", "xb2,oa1", "--frames", "2"],
+                             "--width", "160", "--height", "120", "--marks", "xb2,oa1", "--frames", "2", "--json"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)

@@ -67,3 +67,56 @@ def test_disabled_progress_prints_nothing(capsys) -> None:
         for _ in range(5):
             bar.update(1)
     assert capsys.readouterr().err == ""
+
+
+def test_work_past_its_estimate_reads_100_percent_not_more() -> None:
+    import io
+
+    from ncbot.pipelines.progress import progress_bar
+
+    stream = io.StringIO()
+    bar = progress_bar(total=20000, desc="train", unit="frame", unit_scale=True, stream=stream)
+    for _ in range(10):  # whole collector batches: 20480 frames for a budget of 20000
+        bar.update(2048)
+    bar.close()
+    last = stream.getvalue().splitlines()[-1]
+    assert last.startswith("train: 100% 20.5k/20.5k frame"), last
+    import re
+
+    assert max(int(p) for p in re.findall(r"(\d+)%", stream.getvalue())) == 100
+    resumed = io.StringIO()
+    progress_bar(total=100, initial=120, unit="game", stream=resumed).close()  # resumed past its total
+    assert "100% 120/120 game" in resumed.getvalue()
+
+
+def test_rates_read_as_people_write_them() -> None:
+    from ncbot.pipelines.progress import rate_text
+
+    assert [rate_text(r) for r in (7463.1, 312.4, 42.25, 4.21, 0.349)] == ["7.5k", "312", "42.2", "4.2", "0.35"]
+
+
+def test_an_error_inside_a_bar_leaves_no_progress_line(capsys) -> None:
+    import pytest
+
+    from ncbot.pipelines.progress import progress_bar
+
+    with pytest.raises(ValueError):
+        with progress_bar(total=5, desc="eval", unit="game") as bar:
+            bar.update(0)
+            raise ValueError("games must be a positive number")
+    assert capsys.readouterr().err == ""
+
+
+def test_silence_turns_every_bar_off(capsys) -> None:
+    from ncbot.pipelines.progress import progress_bar, silence
+
+    silence()
+    try:
+        with progress_bar(total=3, desc="quiet") as bar:
+            bar.update(3)
+    finally:
+        silence(False)
+    assert capsys.readouterr().err == ""
+    with progress_bar(total=1, desc="loud") as bar:
+        bar.update(1)
+    assert "loud: 100%" in capsys.readouterr().err

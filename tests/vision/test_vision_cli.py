@@ -1,4 +1,4 @@
-"""`ncbot vision ...`: the JSON contract and exit codes the robot simulator relies on."""
+"""`ncbot vision ...`: the JSON object of `--json` (docs/cli.md), one error line per unreadable image, exit codes."""
 import json
 import subprocess
 import sys
@@ -24,13 +24,16 @@ def test_read_json_contract_and_exit_codes(tmp_path) -> None:
     broken = tmp_path / "broken.png"
     broken.write_bytes(b"no image")
     out = _ncbot("read", str(good), str(blank), str(broken), str(tmp_path / "missing.png"), "--grid", "3", "--json")
-    assert out.returncode == 0, out.stderr
-    lines = [json.loads(line) for line in out.stdout.splitlines()]
-    assert [line["image"] for line in lines] == [str(good), str(blank), str(broken), str(tmp_path / "missing.png")]
-    assert lines[0]["cells"] == frame.board
-    assert all("error" in line and "cells" not in line for line in lines[1:])
-    none_read = _ncbot("read", str(blank), "--json")
-    assert none_read.returncode == 2 and "error" in json.loads(none_read.stdout)
+    assert out.returncode == 2, out.stderr  # an image could not be read: named on stderr, the others still read
+    images = json.loads(out.stdout)["images"]
+    assert [image["image"] for image in images] == [str(good), str(blank), str(broken), str(tmp_path / "missing.png")]
+    assert images[0]["cells"] == frame.board
+    assert all("error" in image and "cells" not in image for image in images[1:])
+    errors = out.stderr.strip().splitlines()
+    assert len(errors) == 3 and all(line.startswith("ncbot: error: ") for line in errors)
+    assert [str(blank) in errors[0], str(broken) in errors[1], "missing.png" in errors[2]] == [True] * 3
+    one = _ncbot("read", str(good), "--json")
+    assert one.returncode == 0 and json.loads(one.stdout) == {"images": [{"image": str(good), "cells": frame.board}]}
     bad_grid = _ncbot("read", str(good), "--grid", "4")
     assert bad_grid.returncode == 2 and "grid must be 3" in bad_grid.stderr and "Traceback" not in bad_grid.stderr
 
@@ -43,10 +46,10 @@ def test_classify_json(tmp_path) -> None:
         cv2.imwrite(str(paths[-1]), cv2.resize(cell, (64, 64)))  # any size is accepted
     out = _ncbot("classify", *map(str, paths), "--json")
     assert out.returncode == 0, out.stderr
-    lines = [json.loads(line) for line in out.stdout.splitlines()]
+    images = json.loads(out.stdout)["images"]
     names = ["nought", "cross", "nothing"]
-    assert [line["label"] for line in lines] == [names[i] for i in labels]
-    assert all(len(line["scores"]) == 3 for line in lines)
+    assert [image["label"] for image in images] == [names[i] for i in labels]
+    assert all(len(image["scores"]) == 3 for image in images)
 
 
 def test_generate_writes_labelled_images(tmp_path) -> None:

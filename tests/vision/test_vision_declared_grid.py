@@ -69,7 +69,7 @@ def test_cli_reads_rows_x_cols_as_json_and_refuses_a_bad_grid(tmp_path) -> None:
     out = subprocess.run([sys.executable, "-m", "ncbot", "vision", "read", str(image), "--grid", "4x4", "--json"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    assert json.loads(out.stdout)["cells"] == _board(4, 4, marks)
+    assert json.loads(out.stdout)["images"][0]["cells"] == _board(4, 4, marks)
     bad = subprocess.run([sys.executable, "-m", "ncbot", "vision", "read", str(image), "--grid", "2x12"],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
