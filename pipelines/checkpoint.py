@@ -282,9 +282,17 @@ def agent_state(config: Any, parts: Any, run_id: str) -> dict[str, Any]:
     from ncbot.modules.device import to_cpu
 
     counters = parts.counters
-    return {"format": FORMAT, "config": config.to_dict(), "n_features": parts.env.n_features,
-            "n_actions": parts.env.n_actions, "qnet": to_cpu(parts.qnet.state_dict()), "frames": counters["frames"],
-            "updates": counters["updates"], "episodes": counters["episodes"], "run_id": run_id}
+    return agent_checkpoint(config, parts.env.n_features, parts.env.n_actions, to_cpu(parts.qnet.state_dict()),
+                            run_id, frames=counters["frames"], updates=counters["updates"],
+                            episodes=counters["episodes"])
+
+
+def agent_checkpoint(config: Any, n_features: int, n_actions: int, qnet: dict[str, Any], run_id: str,
+                     **counters: Any) -> dict[str, Any]:
+    """What a final agent file holds, for a training run (`agent_state`) and an agent that learned from play
+    (`ncbot.pipelines.online`): the format, the resolved config, the network's sizes and weights, the counters."""
+    return {"format": FORMAT, "config": config.to_dict(), "n_features": n_features, "n_actions": n_actions,
+            "qnet": qnet, **counters, "run_id": run_id}
 
 
 def training_state(config: Any, parts: Any, run_id: str, wall_time: float, cpu_time: float | None,

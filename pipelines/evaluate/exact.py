@@ -122,15 +122,20 @@ class ExactResult:
         return asdict(self)
 
 
+def enumerable(game: str) -> bool:
+    """Whether exact evaluation covers `game`: a board of 3x3 squares, whose random user's branches it enumerates."""
+    from ncbot.envs.games import make_game
+
+    return make_game(game).n_cells == CELLS
+
+
 def exact_seat(config, policy, first: str, dialogue_seeds: list[int]) -> ExactResult:
     """Enumerate every user-move branch with ``first`` (robot | human) opening, under each dialogue draw; see the
     module doc. The result's ``seat`` is the robot's (``run_env.robot_seat``)."""
     from ncbot.modules.networks.recurrent import memory_env
     from ncbot.pipelines.run_env import make_run_env, robot_seat
 
-    from ncbot.envs.games import make_game
-
-    if make_game(config.env.game).n_cells != CELLS:  # the user's choices are then checked move by move (BranchUser)
+    if not enumerable(config.env.game):  # the user's choices are then checked move by move (BranchUser)
         raise ValueError(f"exact evaluation enumerates 3x3 games only; this agent plays {config.env.game!r}")
     if not dialogue_seeds:
         raise ValueError("exact evaluation needs at least one dialogue seed")

@@ -88,6 +88,13 @@ def atomic_torch_save(obj: Any, path: str | Path) -> Path:
     return atomic_save(obj, path)
 
 
+def exact_applies(game: str) -> bool:
+    """Whether `exact_task_success` can score `game` (a 3x3 board)."""
+    from ncbot.pipelines.evaluate.exact import enumerable
+
+    return enumerable(game)
+
+
 def exact_task_success(config: Any, policy: Any, seed: int) -> float:
     """3x3: task success against the random user over every branch of its moves, mean of both seats."""
     from ncbot.pipelines.evaluate.exact import exact_seat
@@ -97,12 +104,12 @@ def exact_task_success(config: Any, policy: Any, seed: int) -> float:
 
 def save_agent(path: str | Path, config: Any, data: dict[str, Any], qnet: Any, **counters: Any) -> Path:
     """The agent as a final checkpoint (`ncbot robot play CKPT`, `ncbot eval CKPT` load it), written atomically."""
-    from ncbot.pipelines.checkpoint import FORMAT, atomic_save
+    from ncbot.pipelines.checkpoint import agent_checkpoint, atomic_save
 
-    final = {"format": FORMAT, "config": config.to_dict(), "n_features": data["n_features"],
-             "n_actions": data["n_actions"], "qnet": {k: v.detach().clone() for k, v in qnet.state_dict().items()},
-             "frames": int(data.get("frames", 0)), "updates": int(data.get("updates", 0)),
-             "episodes": int(data.get("episodes", 0)), "run_id": str(data.get("run_id", "")), **counters}
+    final = agent_checkpoint(config, data["n_features"], data["n_actions"],
+                             {k: v.detach().clone() for k, v in qnet.state_dict().items()}, str(data.get("run_id", "")),
+                             frames=int(data.get("frames", 0)), updates=int(data.get("updates", 0)),
+                             episodes=int(data.get("episodes", 0)), **counters)
     return atomic_save(final, path)
 
 

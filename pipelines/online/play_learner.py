@@ -138,10 +138,10 @@ class PlayLearner:
 
     # ------------------------------------------------------------------ learning
     def gate(self, opponent: Any = "random") -> float:
-        """Task success of the current greedy agent against `opponent`: the random user on 3x3 exactly, over every
+        """Task success of the current greedy agent against `opponent`: the random user on a 3x3 board exactly, over every
         branch of its moves from both seats (`ncbot.pipelines.evaluate.exact`); else, and against the model of the
         person, in the gate's test games."""
-        if opponent == "random" and self.config.env.game == "standard":
+        if opponent == "random" and agent_parts.exact_applies(self.config.env.game):
             return agent_parts.exact_task_success(self.config, self.policy, GATE_SEED)
         result = agent_parts.test_games(self.config, self.policy, self.settings.gate_games, GATE_SEED, opponent)
         return float(result.task_success)
