@@ -6,19 +6,19 @@ raises ValueError/FileNotFoundError, which `ncbot.pipelines.cli.app.main` prints
 """
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from ncbot.pipelines.cli.conventions import json_option, no_progress_option, out_folder, print_json, progress_alias, wrote
 from ncbot.pipelines.outputs import check_writable_dir
 
 
 def learn_command(
     logs: list[Path] = typer.Argument(..., help="Run folders (or .mcap files) of ncbot robot play / robot serve, in the order the games were played."),
-    out: Path = typer.Option(..., "--out", "-o", help="The learning folder (state.json, reader/, play/); one that holds learning resumes after its games."),
+    out: Path = out_folder(..., "the learning (state.json, reader/, play/, learning.png); one that holds learning resumes after its games."),
     weights: Optional[Path] = typer.Option(None, help="Cell classifier to start from (default: the shipped one)."),
     agent: Optional[Path] = typer.Option(None, help="The agent whose play learns too: a checkpoint .pt of ncbot train or its run folder; without it only the reader learns."),
     every: int = typer.Option(1, min=1, help="Update the reader after every N games."),
@@ -28,8 +28,9 @@ def learn_command(
     label_check: bool = typer.Option(True, help="Leave out settled cells whose ink contradicts their label (--no-label-check: learn from every label, to measure what the check guards against)."),
     opponent: str = typer.Option("random", help="Also test the play before / after against this opponent (envs.opponents name)."),
     test_games: int = typer.Option(600, min=2, help="Test games per opponent for the play's before / after."),
-    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (per_game, learned_weights, learning)."),
-    progress: bool = typer.Option(True, help="Show games learned, rate and ETA on stderr."),
+    as_json: bool = json_option(),
+    no_progress: bool = no_progress_option(),
+    _progress: bool = progress_alias(),
 ) -> None:
     """Learn the reader (and, with --agent, the play) from logged robot games, game by game."""
     from ncbot.pipelines.online.learning import LearnSettings
@@ -58,7 +59,8 @@ def learn_command(
                                           f"learning from {len(logs)} log(s): handwriting {', '.join(styles)}"))
     report = {"per_game": learning.per_game, "learned_weights": learning.reader_weights, "learning": summary}
     if as_json:
-        typer.echo(json.dumps(report))
+        print_json({**report, "written": [str(out)]})
+        wrote(f"the learned state to {out}")
         return
     for entry in learning.per_game:
         reader = entry.get("reader") or {}
@@ -67,7 +69,7 @@ def learn_command(
                    f"{'kept' if reader.get('kept') else 'rolled back' if reader.get('updated') else 'none'}")
     for style, values in (summary["reader"] or {}).get("accuracy", {}).items():
         typer.echo(f"held-out {style} cells read right: {100 * values['before']:.2f}% -> {100 * values['after']:.2f}%")
-    typer.echo(f"learned state: {out} (reader {learning.reader_weights}, figure {summary['figure']})")
+    wrote(f"the learned state to {out} (reader {learning.reader_weights}, figure {summary['figure']})")
 
 
 def register(app: typer.Typer) -> None:

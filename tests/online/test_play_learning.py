@@ -142,8 +142,8 @@ def test_learn_cli_learns_from_a_log_once_and_rejects_bad_input_in_one_line(chec
     assert [entry["game"] for entry in report["per_game"]] == [0, 1]
     assert all(entry["play"]["transitions"] > 0 for entry in report["per_game"])
     assert Path(report["learned_weights"]).is_file() and Path(report["learning"]["figure"]).is_file()
-    code, stdout, _ = ncbot_here("learn", str(tmp_path / "log"), "--out", str(out), "--no-progress", "--test-games", "20")
-    assert code == 0 and stdout.strip().splitlines()[-1].startswith(f"learned state: {out}")
+    code, stdout, stderr = ncbot_here("learn", str(tmp_path / "log"), "--out", str(out), "--no-progress", "--test-games", "20")
+    assert code == 0 and stderr.strip().splitlines()[-1].startswith(f"wrote the learned state to {out}")
     assert json.loads((out / "state.json").read_text())["games"] == 2, "a folder that holds learning resumes"
     train_log = tmp_path / "trained"
     train(load_config(write_tiny_config(tmp_path), ["collector.total_frames=128", "logger.mcap=true"]), train_log)
