@@ -1,7 +1,7 @@
 """Optional extras: a command whose extra is not installed stops with ONE line naming the pip command to run.
 
 Why: the base install (`pip install ncbot`) trains, evaluates, ablates and reads logs; the simulated robot
-(sapien), speech recognition (pocketsphinx), the browser server (fastapi, uvicorn, websockets), the rerun export,
+(sapien), speech recognition (pocketsphinx; pyroomacoustics and webrtcvad for Pepper's microphone array), the browser server (fastapi, uvicorn, websockets), the rerun export,
 OpenSpiel's bots and the Ray backend are extras (pyproject.toml). `require(extra, module)` checks at a command's
 entry that the module is installed -- without importing it, so nothing heavy starts and no import-time side
 effect runs early (sapien reads the Vulkan set-up when it is imported) -- and raises `MissingExtra` otherwise;
@@ -17,6 +17,8 @@ import importlib.util
 OPTIONAL_MODULES = {
     "sapien": ("robot", "sapien"),
     "pocketsphinx": ("speech", "pocketsphinx"),
+    "pyroomacoustics": ("speech", "pyroomacoustics"),
+    "webrtcvad": ("speech", "webrtcvad-wheels"),
     "fastapi": ("serve", "fastapi"),
     "uvicorn": ("serve", "uvicorn"),
     "websockets": ("serve", "websockets"),
