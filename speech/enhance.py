@@ -29,10 +29,12 @@ from ncbot.speech.array import steering_vectors
 
 BEAMFORMERS = ("none", "ds", "mvdr")
 STEERINGS = ("camera", "doa")
-NFFT, HOP = 512, 256
+#: 128 ms frames: long enough for a reverberant room's early reflections to stay within one frame (chosen on the
+#: tuning set: 2048 heard fewer word errors than 1024 and 512 in babble at 3-10 dB)
+NFFT, HOP = 2048, 1024
 NOISE_SHARE = 0.4  # MVDR fallback: the share of frames, those least from the beam's direction, taken as noise
 NOISE_MARGIN_S = 0.1  # MVDR: noise frames stay this far from the reply the VAD found
-MIN_NOISE_FRAMES = 8
+MIN_NOISE_FRAMES = 2
 PRESENCE_BAND = (300.0, 3000.0)
 LOADING = 1e-3  # diagonal loading of the noise covariance, relative to its mean power per frequency
 POSTFILTER_FLOOR = 0.3  # the post-filter's smallest amplitude gain (-10 dB)

@@ -5,7 +5,8 @@ Why impulse responses once per game: the positions stay put for a game, so the r
 0.1-3 CPU s, more for long reverberation) and each utterance is then a few FFT convolutions. The walls' absorption
 comes from the wanted reverberation time by Sabine's formula and is then corrected until the simulated room's
 own RT60 (Schroeder decay of the person-to-microphone response) is within 10 % of it: the image-source model
-rings longer than Sabine predicts, so without the correction a "0.6 s" room measures about 0.9 s.
+rings longer than Sabine predicts, so without the correction a "0.6 s" room measures about 0.9 s. A room too
+large to be as dry as asked gets the driest walls (`DRIEST`) and rings as long as they give (`measured_rt60`).
 Coordinates: the robot's world frame (x ahead of the robot's home, y left, z up, m); the robot's origin sits at
 `RoomLayout.robot_origin` on the room's floor, so the room spans x in [-origin_x, length - origin_x].
 """
@@ -21,6 +22,7 @@ from ncbot.speech.array import HOME_HEAD, HeadPose, array_centre, mic_positions,
 Point = tuple[float, float, float]
 WALL_MARGIN = 0.3  # m: no mouth or microphone closer to a wall than this
 CALIBRATION_STEPS = 4
+DRIEST = 0.99  # the most a wall may absorb: a room too large for the RT60 asked rings as long as this gives
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,20 @@ class RoomLayout:
                                  f"the {size[0]:g} x {size[1]:g} x {size[2]:g} m room with {WALL_MARGIN} m to spare")
 
 
+def sabine(rt60: float, dimensions: Point) -> tuple[float, int]:
+    """Wall absorption (energy) for `rt60` by Sabine's formula, at most `DRIEST`, and the image-source order that
+    reaches c * rt60 metres (pyroomacoustics' `inverse_sabine`, which refuses a room too large to be that dry)."""
+    from itertools import combinations
+
+    from ncbot.speech.array import SPEED_OF_SOUND
+
+    volume = float(np.prod(dimensions))
+    surface = 2.0 * sum(a * b for a, b in combinations(dimensions, 2))
+    absorption = 24.0 * np.log(10.0) * volume / (SPEED_OF_SOUND * surface * rt60)
+    reach = min(a * b / np.hypot(a, b) for a, b in combinations(dimensions, 2))
+    return float(min(absorption, DRIEST)), int(np.ceil(SPEED_OF_SOUND * rt60 / reach - 1))
+
+
 class Room:
     """The simulated room of one `RoomLayout`: `rirs[source][mic]` (source 0 the person, 1.. the talkers), the
     microphones' world positions `mics` (3, 4) and the RT60 the simulation measures (`measured_rt60`)."""
@@ -64,14 +80,13 @@ class Room:
         self.layout = layout
         self.mics = mic_positions(layout.head, geometry_scale)
         sources = [layout.mouth, *layout.talkers]
-        absorption, max_order = pra.inverse_sabine(layout.rt60, list(layout.dimensions))
-        absorption = float(absorption)
+        absorption, max_order = sabine(layout.rt60, layout.dimensions)
         measured = layout.rt60
         for _ in range(CALIBRATION_STEPS):  # one source, one microphone: a few % of the full simulation's cost
             measured = self._measured_rt60(pra, absorption, max_order, sources[0])
             if abs(measured - layout.rt60) <= 0.1 * layout.rt60:
                 break
-            absorption = float(np.clip(absorption * measured / layout.rt60, 0.01, 0.99))
+            absorption = float(np.clip(absorption * measured / layout.rt60, 0.01, DRIEST))
         self.absorption = absorption
         room = self._shoebox(pra, absorption, max_order)
         room.add_microphone_array(np.stack([layout.to_room(m) for m in self.mics.T], axis=1))
