@@ -87,6 +87,9 @@ def play(
     speech: str = typer.Option("real", help="real: the robot speaks (espeak-ng), the person answers (flite) over the conditions' noise and the robot hears it through pocketsphinx, audio in the MCAP log; text: nothing spoken or heard (simulated ASR, quicker)."),
     meshes: Optional[Path] = typer.Option(None, help="Folder of licensed Pepper meshes (<Link>.dae) to draw instead of primitives."),
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
+    ears: str = typer.Option("array", help="Real speech: array = Pepper's four head microphones in the game's room (then --enhancement); mono = one microphone, the noise mixed into the reply."),
+    enhancement: str = typer.Option("mvdr+vad", help="The array's enhancement: none|ds|mvdr [+vad] [+postfilter] [+doa] (docs/speech.md)."),
+    answers: str = typer.Option("confidence", help="A cell said aloud after an unseen move: confidence = accept, confirm or ask for a touch on the tablet by the recogniser's confidence; confirm = confirm every cell, ask up to 3 times."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
     as_json: bool = typer.Option(False, "--json", help="Accepted for scripts: the report is always printed as one JSON object."),
 ) -> None:
@@ -110,6 +113,8 @@ def play(
     require("robot", "sapien", what="ncbot robot play")
     if speech == "real":
         require("speech", "pocketsphinx", what="ncbot robot play --speech real")
+        if ears == "array":
+            require("speech", "pyroomacoustics", "webrtcvad", what="ncbot robot play --ears array")
     if rrd:
         require("rerun", "rerun", what="ncbot robot play --rrd")
     import torch
@@ -130,7 +135,8 @@ def play(
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
-        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech)
+        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech, ears=ears,
+        enhancement=enhancement, answers=answers)
     config.validate()
     try:
         with torch.no_grad():
