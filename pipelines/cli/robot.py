@@ -167,6 +167,7 @@ def serve(
     conditions: str = typer.Option("lab", help="The field's conditions: lab, office, atrium, random, or a YAML file of ranges (docs/robot.md)."),
     answer_seconds: float = typer.Option(30.0, help="Seconds the robot waits for the person's answer before it hears silence."),
     parallel: bool = typer.Option(True, help="Sessions render at once (--no-parallel: one simulator lock for all)."),
+    moves: str = typer.Option("camera", help="Where the robot learns the person's moves: camera (its chest tablet when the camera misses one) or tablet (every move touched on the tablet)."),
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
     from ncbot.robot_sim.conditions import load_conditions
@@ -174,6 +175,8 @@ def serve(
     load_conditions(conditions)  # a bad preset or file: one line now, not a failed game later
     if answer_seconds <= 0:
         raise ValueError(f"--answer-seconds must be positive; got {answer_seconds}")
+    if moves not in ("camera", "tablet"):
+        raise ValueError(f"--moves must be camera or tablet; got {moves!r}")
     if idle_seconds <= 0:
         raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
     check_writable_dir(out, "--out")
@@ -190,7 +193,7 @@ def serve(
     config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
                          camera_width=width, camera_height=height, idle_seconds=idle_seconds,
                          max_sessions=max_sessions, audio=audio, seed=seed, conditions=conditions,
-                         answer_seconds=answer_seconds, parallel=parallel)
+                         answer_seconds=answer_seconds, parallel=parallel, moves=moves)
     def listening() -> None:
         typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})",
                    err=True)
