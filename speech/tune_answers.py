@@ -190,6 +190,7 @@ def main(argv: list[str] | None = None) -> None:
     chosen, figures = choose(trials)
     confirm_all = evaluate(Replays(trials), AnswerThresholds(1.01, 0.0, 0.0, 3))
     meta = {"command": f"python -m ncbot.speech.tune_answers --trials {args.trials}", "trials": len(trials),
+            "date": time.strftime("%Y-%m-%d"),
             "tablet_cost": TABLET_COST,
             "set": "tuning: flite voices at rate 0.85/1.15, espeak-ng talkers en-us+m3 en-gb+f2 en+m1, "
                    f"rooms of trial_sets.TUNING_ROOMS, seeds from {trial_sets.TUNING_SEED}",
