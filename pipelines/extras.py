@@ -1,8 +1,9 @@
 """Optional extras: a command whose extra is not installed stops with ONE line naming the pip command to run.
 
 Why: the base install (`pip install ncbot`) trains, evaluates, ablates and reads logs; the simulated robot
-(sapien), speech recognition (pocketsphinx), the browser server (fastapi, uvicorn, websockets), the rerun export,
-OpenSpiel's bots and the Ray and Slurm backends are extras (pyproject.toml). `require(extra, module)` checks at a command's
+(sapien), speech recognition (pocketsphinx; pyroomacoustics and webrtcvad for Pepper's microphone array), the browser
+server (fastapi, uvicorn, websockets), the rerun export, OpenSpiel's bots and the Ray and Slurm backends are extras
+(pyproject.toml). `require(extra, module)` checks at a command's
 entry that the module is installed -- without importing it, so nothing heavy starts and no import-time side
 effect runs early (sapien reads the Vulkan set-up when it is imported) -- and raises `MissingExtra` otherwise;
 the CLI's error boundary (pipelines/errors.py) prints its message as one line and exits 2. `extra_line` is the
@@ -17,6 +18,8 @@ import importlib.util
 OPTIONAL_MODULES = {
     "sapien": ("robot", "sapien"),
     "pocketsphinx": ("speech", "pocketsphinx"),
+    "pyroomacoustics": ("speech", "pyroomacoustics"),
+    "webrtcvad": ("speech", "webrtcvad-wheels"),
     "fastapi": ("serve", "fastapi"),
     "uvicorn": ("serve", "uvicorn"),
     "websockets": ("serve", "websockets"),

@@ -91,6 +91,20 @@ class ConditionRanges:
     #: kinds (one drawn per game) and the SNR range in dB (drawn per utterance); None = a quiet room, clean.
     speech_noise: tuple[str, ...] = ("babble",)
     speech_snr_db: Range | None = None
+    #: The room as sound sees it (`ncbot.speech.acoustic_scene`; heard through Pepper's four head microphones with
+    #: `ears: array`, where `speech_snr_db` is the SNR at the array): size ranges (length ahead of the robot, width,
+    #: height; m) and reverberation time RT60 (s), drawn per game.
+    room_size: tuple[Range, Range, Range] = ((6.0, 7.0), (5.0, 6.0), (2.8, 3.0))
+    room_rt60: Range = (0.3, 0.45)
+    #: Babble talkers round the robot (how many, drawn per game; a bystander of the scene is one of them), their
+    #: distance from the robot's head (m), and talkers at fixed places besides them ([x, y, mouth height], robot
+    #: frame, m). Diffuse noise (`white`) has no place: it fills the room.
+    speech_talkers: tuple[int, int] = (0, 0)
+    talker_distance: Range = (1.5, 4.0)
+    talker_positions: tuple[tuple[float, float, float], ...] = ()
+    #: The person across the table: mouth height (m) and sideways offset from the sheet's centre line (m).
+    person_mouth_height: Range = (1.45, 1.65)
+    person_offset: Range = (-0.1, 0.1)
     #: The sheet is not flat (drawn apart from the rest, see `sample_sheet_shape`): a curl lifts one edge
     #: (height in m at that edge), a fold left a crease across the sheet that tents it (crease height in m).
     curl_probability: float = 0.0
@@ -105,6 +119,13 @@ class ConditionRanges:
     #: "pen" and "hasty" are what the reader was trained on, "marker" its tuning style, "sketch" and "hershey" held
     #: out; a person writing in a held-out style is someone whose hand the reader never saw.
     handwriting: tuple[str, ...] = ("pen",)
+
+    def acoustics(self):
+        """The room's ranges as `ncbot.speech.acoustic_scene.AcousticRanges`."""
+        from ncbot.speech.acoustic_scene import AcousticRanges
+
+        return AcousticRanges(self.room_size, self.room_rt60, self.speech_talkers, self.talker_distance,
+                              self.talker_positions, self.person_mouth_height, self.person_offset)
 
     def validate(self) -> None:
         for item in dataclasses.fields(self):
@@ -132,6 +153,12 @@ class ConditionRanges:
         if self.speech_snr_db is not None and not (len(self.speech_snr_db) == 2 and -10 <= self.speech_snr_db[0] <= self.speech_snr_db[1] <= 60):
             raise ValueError(f"conditions {self.name!r}: speech_snr_db must be (low, high) dB within [-10, 60], or null "
                              f"for clean speech; got {self.speech_snr_db}")
+        acoustics = self.acoustics()
+        acoustics.validate(self.name)
+        if ("babble" in self.speech_noise and self.speech_snr_db is not None and acoustics.talkers[1] == 0
+                and not acoustics.talker_positions):
+            raise ValueError(f"conditions {self.name!r}: babble noise needs talkers in the room: speech_talkers must "
+                             f"allow at least one (or give talker_positions); got {self.speech_talkers}")
         if min(self.curl_height[0], self.fold_height[0]) < 0 or max(self.curl_height[1], self.fold_height[1]) > 0.03:
             raise ValueError(f"conditions {self.name!r}: curl_height and fold_height must lie in [0, 0.03] m (a sheet on a "
                              f"table, not a roll); got curl {self.curl_height}, fold {self.fold_height}")
@@ -197,6 +224,18 @@ PRESETS: dict[str, ConditionRanges] = {
 for _name, _kinds, _snr in (("office", ("babble",), (20.0, 30.0)), ("atrium", ("babble",), (10.0, 20.0)),
                             ("random", ("white", "babble"), (5.0, 30.0))):
     PRESETS[_name] = dataclasses.replace(PRESETS[_name], speech_noise=_kinds, speech_snr_db=_snr)
+# The rooms (docs/speech.md, "The room as sound sees it"): the lab is a small quiet room; an office a furnished room
+# with two or three colleagues talking; the atrium a tall glass and stone hall, reverberant, with groups standing
+# round (children among the players); random anything from a booth to a hall.
+PRESETS["office"] = dataclasses.replace(
+    PRESETS["office"], room_size=((7.0, 10.0), (6.0, 9.0), (2.7, 3.2)), room_rt60=(0.4, 0.7), speech_talkers=(2, 3),
+    talker_distance=(2.0, 5.0), person_offset=(-0.3, 0.3))
+PRESETS["atrium"] = dataclasses.replace(
+    PRESETS["atrium"], room_size=((15.0, 25.0), (12.0, 20.0), (6.0, 10.0)), room_rt60=(1.0, 1.6),
+    speech_talkers=(4, 8), talker_distance=(1.5, 6.0), person_mouth_height=(1.15, 1.65), person_offset=(-0.3, 0.3))
+PRESETS["random"] = dataclasses.replace(
+    PRESETS["random"], room_size=((4.0, 25.0), (4.0, 20.0), (2.6, 10.0)), room_rt60=(0.2, 1.6), speech_talkers=(1, 8),
+    talker_distance=(1.2, 6.0), person_mouth_height=(1.15, 1.7), person_offset=(-0.3, 0.3))
 
 
 def load_conditions(spec: str | Path) -> ConditionRanges:

@@ -9,6 +9,8 @@ from ncbot.robot_sim.human import HumanConfig
 from ncbot.robot_sim.scene import check_game
 
 SPEECH_MODES = ("real", "text")
+EARS = ("array", "mono")
+ANSWER_POLICIES = ("confidence", "confirm")
 
 
 @dataclass
@@ -48,6 +50,18 @@ class RobotPlayConfig:
     #: the words said at uniform random confidences (the training env's default). `ncbot robot play` defaults to
     #: real; this dataclass to text, so library callers (tests, `robot serve`) keep their behaviour unless asked.
     speech: str = "text"
+    #: With real speech, what takes the person's voice in: array = Pepper's four head microphones in the game's
+    #: room (speech.room, drawn from the conditions), then `enhancement`; mono = one microphone with the noise
+    #: mixed into the reply (how the training channel model was fitted).
+    ears: str = "array"
+    #: The array's enhancement (`ncbot.speech.enhance.Enhancement` spec): none|ds|mvdr [+vad] [+postfilter] [+doa].
+    enhancement: str = "mvdr+vad"
+    #: How a cell said aloud after an unseen move is settled (robot_sim.where): confidence = accept, confirm or ask
+    #: for a touch on the tablet, by the recogniser's confidence (`answer_thresholds`); confirm = confirm every cell,
+    #: ask at most 3 times, then look again.
+    answers: str = "confidence"
+    #: The thresholds file of `answers: confidence` (None: the shipped speech/data/answer_thresholds.json).
+    answer_thresholds: str | None = None
     agent_name: str = "lookahead"
     #: Folder of licensed Pepper meshes replacing the primitive visuals (see robot_sim.pepper_model).
     meshes_dir: str | None = None
@@ -65,6 +79,13 @@ class RobotPlayConfig:
             raise ValueError(f"first must be one of {', '.join(FIRST_CHOICES)}; got {self.first!r}")
         if self.speech not in SPEECH_MODES:
             raise ValueError(f"speech must be one of {', '.join(SPEECH_MODES)}; got {self.speech!r}")
+        if self.ears not in EARS:
+            raise ValueError(f"ears must be one of {', '.join(EARS)}; got {self.ears!r}")
+        if self.answers not in ANSWER_POLICIES:
+            raise ValueError(f"answers must be one of {', '.join(ANSWER_POLICIES)}; got {self.answers!r}")
+        from ncbot.speech.enhance import Enhancement
+
+        Enhancement.parse(self.enhancement)
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100]; got {self.jpeg_quality}")
         self.condition_ranges()

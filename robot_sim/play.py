@@ -1,24 +1,21 @@
 """The closed loop: Pepper plays whole games in the simulator against the simulated human.
 
-The robot perceives only through rendered mouth-camera frames (the vision package's move recogniser,
-Algorithm 1 of the paper) and the dialogue: with `speech: real` it speaks its templates and hears the simulated
-person's spoken replies through the real recogniser (`ncbot.robot_sim.speech`), with `speech: text` the env's
-simulated ASR gives it the words said at random confidences. It decides with a policy over the SAME
-dialogue env state the agent was trained on, and acts through the simulator. The glue is an "external"
-opponent handed to the env: when the env needs the human's move, the simulated person draws on the sheet
-(choosing on the TRUE board), the recogniser watches the frames, and the cell it reports is what the env,
-and therefore the robot's state, believes. Wins, draws and losses are judged on the true board; every move
-the recogniser got wrong is counted.
+The robot perceives only through rendered mouth-camera frames (the vision package's move recogniser, Algorithm 1 of
+the paper) and the dialogue: with `speech: real` it speaks its templates and hears the simulated person's spoken
+replies through the real recogniser (`ncbot.robot_sim.speech`), with `speech: text` the env's simulated ASR gives it
+the words said at random confidences. It decides with a policy over the SAME dialogue env state the agent was trained
+on, and acts through the simulator. The glue is an "external" opponent handed to the env: when the env needs the
+human's move, the simulated person draws on the sheet (choosing on the TRUE board), the recogniser watches the frames,
+and the cell it reports is what the env, and therefore the robot's state, believes. Wins, draws and losses are judged
+on the true board; every move the recogniser got wrong is counted.
 
 One game = one episode: everything goes through `ncbot.logs.EpisodeLogger` (camera frames as
 `foxglove.CompressedImage`, joint states, transforms, dialogue, with real speech every utterance's audio as
 `foxglove.RawAudio` on `/audio/robot` and `/audio/user` and what was heard on `/dialogue`, the believed board per
-step, and the true board per step in the episode summary); a PNG snapshot of the camera view closes each game.
-"""
+step, and the true board per step in the episode summary); a PNG snapshot of the camera view closes each game."""
 from __future__ import annotations
 
 import math
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -38,8 +35,8 @@ from ncbot.robot_sim.reach import check_reach
 from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, placed_by_hand
 from ncbot.robot_sim.settlement import moves_from_boards
 from ncbot.robot_sim.sheet import MARK_OF_PLAYER, ROBOT_INK, MarkSpec
-from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog
-from ncbot.robot_sim.where import ASK_WHERE, LOOK_AGAIN, ask_where
+from ncbot.robot_sim.speech import GameSpeech, Speaker, SpeechLog, aim, speech_summary
+from ncbot.robot_sim.where import ASK_TABLET, ASK_WHERE, LOOK_AGAIN, ask_where, count_settled
 
 __all__ = ["RobotPlayConfig", "RobotGameRunner", "play_robot_games"]  # the config is here for `ncbot robot play`
 ROBOT_PEN_MM = 2.0  # the robot writes with a felt-tip marker
@@ -52,7 +49,8 @@ class RobotGameRunner:
                  logger: Any = None, human_cell: Callable[[Any, int], int] | None = None,
                  on_frame: Callable[[np.ndarray, float], None] | None = None,
                  episode_tags: dict[str, Any] | None = None,
-                 user_reply: Callable[[Any, int], None] | None = None, network: Any = None) -> None:
+                 user_reply: Callable[[Any, int], None] | None = None, network: Any = None,
+                 tablet: Callable[[np.ndarray], int] | None = None) -> None:
         """`human_cell(true_state, human_mark)` lets a real person choose the cell the simulated hand draws
         (`ncbot robot serve`: a click in the browser) instead of the simulated opponent model; the robot still
         learns the move only through its camera. `on_frame` sees every rendered mouth-camera frame;
@@ -61,8 +59,11 @@ class RobotGameRunner:
         (serve: a button or typed words) replaces the env's simulated user's reply; its words are then heard
         at confidence 1 (as `ncbot play` does for typed text). `network`: the module behind `policy` when `policy`
         wraps it (serve's locked call); a recurrent one (agent.memory) gets its hidden state carried through each
-        game's dialogue by the env (`modules.networks.recurrent.memory_env`), from zero at every game."""
+        game's dialogue by the env (`modules.networks.recurrent.memory_env`), from zero at every game.
+        `tablet(legal)`: the cell a real person touches on the robot's chest tablet (serve: a tap on the page) when
+        the robot asks after a move its camera missed; without it the simulated person touches the cell drawn."""
         config.validate()
+        self.tablet = tablet
         self.human_cell = human_cell
         self.user_reply = user_reply
         self.on_frame = on_frame
@@ -75,8 +76,8 @@ class RobotGameRunner:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         self.logger = logger
         self._ranges = config.condition_ranges()
-        self.speech = GameSpeech(config.game, self._ranges) if config.speech == "real" else None
-        self.speaker = self._robot_speaker()
+        self.speech = GameSpeech.for_play(config) if config.speech == "real" else None
+        self.speaker = Speaker.for_robot(self.out_dir / "speech" if (config.audio and self.out_dir) else None, self.speech)
         self.records: list[GameRecord] = []
         from ncbot.envs.games import make_game
         from ncbot.vision.recogniser import MoveRecogniser
@@ -89,15 +90,6 @@ class RobotGameRunner:
                                          classifier=load_classifier(config.weights) if config.weights else None)
         self.last_frame: np.ndarray | None = None
         self.on_view: Callable[[np.ndarray, int], None] | None = None  # (BGR frame, moves made) of every look after a move
-
-    def _robot_speaker(self) -> Speaker:
-        """The robot's voice: espeak-ng with real speech (or for --audio WAVs when installed), else text only."""
-        from ncbot.speech.tts import ROBOT_VOICE
-
-        audio_dir = self.out_dir / "speech" if (self.config.audio and self.out_dir) else None
-        if self.speech is not None:
-            return Speaker(audio_dir, ROBOT_VOICE, self.speech.cache)
-        return Speaker(audio_dir, ROBOT_VOICE if audio_dir and shutil.which("espeak-ng") else None)
 
     # ------------------------------------------------------------------ logging of sensor streams
     def _log_frame(self, frame: np.ndarray, t: float) -> None:
@@ -161,7 +153,11 @@ class RobotGameRunner:
         if not found:
             record.unseen_moves += 1
             self._keep_evidence(f"unseen-{record.human_moves:02d}-true{true_cell}")
-            if self.speech is None:  # text: the robot asks and the person's answer comes through the dialogue
+            if self.speech is None and self.tablet is not None:  # a person at the tablet (serve): their touch
+                self._say(ASK_TABLET)
+                cell = int(self.tablet(legal))
+                record.tablet_fallbacks += 1
+            elif self.speech is None:  # text: the robot asks and the person's answer comes through the dialogue
                 self._say(ASK_WHERE)
                 cell = true_cell
             else:
@@ -188,16 +184,17 @@ class RobotGameRunner:
 
     def _ask_where(self, true_cell: int, legal: np.ndarray, watch: Callable[[np.ndarray, float], None],
                    found: list) -> int | None:
-        """Real speech, after an unseen move: the cell the person's spoken answers settle (robot_sim.where); if
-        they settle nothing, the robot says so and looks again (None: that look found a move, now in `found`),
-        and failing that takes the cell drawn, as text mode does."""
+        """Real speech, after an unseen move: the cell the person's spoken answers settle (robot_sim.where: by
+        confidence, a touch on the tablet settles what they do not); when every cell is confirmed and the answers
+        settle nothing, the robot says so and looks again (None: that look found a move, now in `found`), and
+        failing that takes the cell drawn, as text mode does."""
         record = self._record
-        cell = ask_where(true_cell, legal, self._answer_ears, self._say,
-                         lambda answer, question: self._speech_log.answer(answer, question, self.scene.time))
-        if cell is not None:
-            record.cells_from_answers += 1
-            record.misheard_cells += int(cell != true_cell)  # the robot's board now holds the mark in the wrong cell
-            return cell
+        touch = self.tablet or (lambda legal: true_cell)  # the simulated person touches the cell they drew
+        settled = ask_where(true_cell, legal, self._answer_ears, self._say,
+                            lambda answer, question: self._speech_log.answer(answer, question, self.scene.time),
+                            self.speech.thresholds, touch)
+        if count_settled(record, settled, true_cell):
+            return settled.cell
         record.answer_fallbacks += 1
         self._say(LOOK_AGAIN)
         self._watch_still(watch, found)
@@ -289,7 +286,7 @@ class RobotGameRunner:
         first = cfg.first
         if first == "alternate":
             first = "robot" if index % 2 == 0 else "human"
-        hearing = self.speech.hearing(seed) if self.speech is not None else None
+        hearing = self.speech.game_hearing(seed, self.scene) if self.speech is not None else None
         heard = {"asr_confidence": (1.0, 1.0)} if self.user_reply is not None else {}
         if hearing is not None:
             heard["hearing"] = hearing
@@ -306,19 +303,22 @@ class RobotGameRunner:
         self._record = record = GameRecord(index=index, outcome="unfinished", robot_first=robot_first, actions=0,
                                            conditions={**self.scene.conditions.summary(), "handwriting": handwriting})
         if hearing is not None:
-            record.conditions = {**record.conditions, "speech": {"voice": hearing.voice.spec, "noise": hearing.kind,
-                                                                 "snr_db": hearing.snr_db}}
+            record.conditions = {**record.conditions, "speech": speech_summary(hearing)}
         self._speech_log = SpeechLog(self.logger, record)
         self._log_frame(self.scene.render(), self.scene.time)
         self._home_frame = self.last_frame  # the sheet as the robot sees it from home, nobody's hand over it
         self._sheet_estimate = localise_sheet(self.scene, self.last_frame)
         if self._sheet_estimate is None:
             raise ValueError("the mouth camera cannot see the game sheet at the home posture; check the scene configuration")
+        aim(hearing, self._sheet_estimate)  # the person plays across the sheet the camera found
+        previous = -1
         while True:
             started, cpu_started = time.perf_counter(), time.process_time()
             render_started, tts_started = self._render_seconds, record.robot_tts_seconds
             td = self.policy(td)
             action = int(td["action"].reshape(-1)[0])
+            record.dialogue_repeats += int(action == previous and action >= env.cells)  # the same question again
+            previous = action
             self._act(action, env)
             if action < env.cells:
                 self._check_own_mark(action)

@@ -72,6 +72,18 @@ class GameRecord:
     settled_moves: list[tuple[int, int]] | None = None
     #: What the robot learned from this game (`ncbot robot play --learn`), else None.
     learned: dict[str, Any] | None = None
+    #: How answered cells were settled (robot_sim.where): taken as heard, confirmed aloud, touched on the tablet;
+    #: confirmations asked; "where did you draw?" asked again; a dialogue question the robot asked again at once.
+    cells_accepted: int = 0
+    confirmations: int = 0
+    tablet_fallbacks: int = 0
+    where_repeats: int = 0
+    dialogue_repeats: int = 0
+    #: Pepper's array (`ears: array`): CPU seconds of each reply's enhancement, what aimed each beam (camera | doa)
+    #: and how far each beam was from the person's true direction (degrees).
+    enhancement_cpu_seconds: list[float] = field(default_factory=list)
+    steered_by: dict[str, int] = field(default_factory=dict)
+    beam_errors_deg: list[float] = field(default_factory=list)
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -85,6 +97,9 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         return round(float(np.mean(values)), 3) if values else None
 
     real = config.speech == "real"  # with text speech nothing is heard: the ASR keys are null
+    array = real and config.ears == "array"
+    asr_cpu = [s for r in records for s in r.asr_cpu_seconds]
+    enhance_cpu = [s for r in records for s in r.enhancement_cpu_seconds]
     said = sum(r.asr_words for r in records)
     heard = [c for r in records for c in r.asr_confidences]
     replies = sum(r.utterances.get("user", 0) for r in records)
@@ -112,11 +127,26 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "cells_from_answers": sum(r.cells_from_answers for r in records) if real else None,
         "misheard_cells": sum(r.misheard_cells for r in records) if real else None,
         "answer_fallbacks": sum(r.answer_fallbacks for r in records) if real else None,
+        "hearing": config.ears if real else None,
+        "answers": config.answers if real else None,
+        "cells_accepted": sum(r.cells_accepted for r in records) if real else None,
+        "confirmations": sum(r.confirmations for r in records) if real else None,
+        "tablet_fallbacks": sum(r.tablet_fallbacks for r in records),
+        "repeated_questions": sum(r.where_repeats + r.dialogue_repeats for r in records),
+        "where_repeats": sum(r.where_repeats for r in records),
+        "dialogue_repeats": sum(r.dialogue_repeats for r in records),
+        "enhancement": config.enhancement if array else None,
+        "steered_by_camera": sum(r.steered_by.get("camera", 0) for r in records) if array else None,
+        "steered_by_doa": sum(r.steered_by.get("doa", 0) for r in records) if array else None,
+        "beam_error_deg": mean([e for r in records for e in r.beam_errors_deg]) if array else None,
+        "enhancement_cpu_seconds_per_utterance": mean(enhance_cpu) if array else None,
+        "enhancement_to_asr_cpu": (round(float(np.mean(enhance_cpu)) / max(float(np.mean(asr_cpu)), 1e-9), 3)
+                                   if array and enhance_cpu and asr_cpu else None),
         "render_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_render_seconds]),
         "tts_seconds_per_robot_turn": mean([s for r in records for s in r.robot_move_tts_seconds]) if real else None,
         "person_tts_seconds_per_utterance": mean([s for r in records for s in r.person_tts_seconds]) if real else None,
         "asr_seconds_per_utterance": mean([s for r in records for s in r.asr_seconds]) if real else None,
-        "asr_cpu_seconds_per_utterance": mean([s for r in records for s in r.asr_cpu_seconds]) if real else None,
+        "asr_cpu_seconds_per_utterance": mean(asr_cpu) if real else None,
         "human_moves": sum(r.human_moves for r in records),
         "robot_moves": sum(r.robot_moves for r in records),
         "own_mark_misread": sum(r.own_mark_misreads for r in records),

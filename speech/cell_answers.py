@@ -101,7 +101,8 @@ def yes_or_no(words: Sequence[str]) -> bool | None:
 
 class AnswerEars:
     """The person (``voice``) says an answer over ``kind`` noise at ``snr_db`` (a level, a (low, high) range drawn
-    per utterance, or None = clean; noise from ``seed``) and the recogniser for the question hears it. Every answer
+    per utterance, or None = clean; noise from ``seed``), taken in by ``ears`` (default one microphone; Pepper's
+    array in a room: ``ncbot.speech.ears.ArrayEars``) and the recogniser for the question hears it. Every answer
     is kept in ``log`` as a ``HeardUtterance`` whose ``understood`` is the cell heard (-1: no cell phrase) or, for a
     confirmation, 1 yes, 0 no, -1 neither."""
 
@@ -109,9 +110,12 @@ class AnswerEars:
                  voice: Voice = PERSON_VOICE,
                  snr_db: float | tuple[float, float] | None = None, kind: str = "babble",
                  babble_pool: Sequence[np.ndarray] = (), seed: int | Sequence[int] = 0,
-                 cache: SpeechCache | None = None) -> None:
+                 cache: SpeechCache | None = None, ears=None) -> None:
+        from ncbot.speech.ears import MonoEars
+
         if kind == "babble" and snr_db is not None and not babble_pool:
             raise ValueError("babble noise needs a babble_pool of other utterances (e.g. the robot's templates)")
+        self.ears = ears if ears is not None else MonoEars(kind, babble_pool)
         self.grid = grid
         self.cells = cells if cells is not None else Recogniser(answer_sentences(grid))
         self.confirm = confirm if confirm is not None else Recogniser(confirm_sentences())
@@ -129,8 +133,7 @@ class AnswerEars:
         return self._hear(text, self.confirm, lambda words: {True: 1, False: 0, None: -1}[yes_or_no(words)])
 
     def _hear(self, text: str, recogniser: Recogniser, meaning: Callable[[Sequence[str]], int]) -> HeardUtterance:
-        utterance = say_in_noise_and_hear(text, recogniser, self.voice, self.cache, self.kind, self.snr_db, self.rng,
-                                          self.babble_pool, lambda heard: meaning(heard.words),
-                                          said=" ".join(words_of(text)))
+        utterance = say_in_noise_and_hear(text, recogniser, self.voice, self.cache, self.ears, self.snr_db, self.rng,
+                                          lambda heard: meaning(heard.words), said=" ".join(words_of(text)))
         self.log.append(utterance)
         return utterance

@@ -19,7 +19,7 @@ import torch
 from ncbot.speech.align import word_errors
 from ncbot.speech.asr import Heard, Recogniser
 from ncbot.speech.channel import ChannelModel
-from ncbot.speech.noise import add_noise
+from ncbot.speech.ears import EarTake, MonoEars
 from ncbot.speech.tts import PERSON_VOICE, SpeechCache, Voice
 from ncbot.speech.understand import closest_utterance, utterance_table
 
@@ -84,10 +84,10 @@ def heard_tensors(heard: Heard, utterance_texts: Sequence[str], env_words: Seque
 
 @dataclass(frozen=True)
 class HeardUtterance:
-    """One utterance the robot heard for real: what was said, the noisy audio it heard, and what came out."""
+    """One utterance the robot heard for real: what was said, the audio it heard, and what came out."""
 
     said: str
-    samples: np.ndarray  # int16, 16 kHz mono, noise included
+    samples: np.ndarray  # int16, 16 kHz mono, noise included: what the recogniser decoded
     heard: Heard
     understood: int  # utterance id, -1 silence
     snr_db: float | None  # None: clean
@@ -95,40 +95,51 @@ class HeardUtterance:
     asr_cpu_s: float
     tts_wall_s: float
     asr_wall_s: float
+    #: what the microphones took in, (C, n) int16 (one microphone: the samples themselves) and, for the array, the
+    #: enhancement's work (`ncbot.speech.enhance.Enhanced`)
+    take: EarTake | None = None
+
+    @property
+    def channels(self) -> np.ndarray:
+        return self.samples[None, :] if self.take is None else self.take.channels
 
 
 SnrSpec = float | tuple[float, float] | None
 
 
-def say_in_noise_and_hear(text: str, recogniser: Recogniser, voice: Voice, cache: SpeechCache, kind: str,
-                          snr_db: SnrSpec, rng: np.random.Generator, babble_pool: Sequence[np.ndarray],
-                          meaning: Callable[[Heard], int], said: str | None = None) -> HeardUtterance:
-    """`voice` says `text` (from `cache`), `kind` noise at `snr_db` (a (low, high) range: a level drawn from `rng`
-    first, then the noise) is added, `recogniser` decodes it; ``understood`` = `meaning(heard)`, ``said`` = the
-    words logged as said (default `text`; its punctuation is spoken as pauses). One path for every reply the
-    robot hears, so dialogue replies and cell answers are spoken, noised, timed and logged alike."""
+def say_in_noise_and_hear(text: str, recogniser: Recogniser, voice: Voice, cache: SpeechCache, ears,
+                          snr_db: SnrSpec, rng: np.random.Generator, meaning: Callable[[Heard], int],
+                          said: str | None = None) -> HeardUtterance:
+    """`voice` says `text` (from `cache`), `ears` (`ncbot.speech.ears`: one microphone or the array) take it in
+    over their noise at `snr_db` (a (low, high) range: a level drawn from `rng` first, then the noise),
+    `recogniser` decodes what they pass on; ``understood`` = `meaning(heard)`, ``said`` = the words logged as
+    said (default `text`; its punctuation is spoken as pauses). One path for every reply the robot hears, so
+    dialogue replies and cell answers are spoken, noised, timed and logged alike."""
     wall = time.perf_counter()
     samples, tts_cpu = cache.speak(text, voice)
     level = float(rng.uniform(*snr_db)) if isinstance(snr_db, tuple) else snr_db
-    samples = add_noise(samples, kind, level, rng, babble_pool)
+    take = ears.take(samples, level, rng)
     tts_wall = time.perf_counter() - wall
     wall, started = time.perf_counter(), time.process_time()
-    heard = recogniser.recognise(samples)
+    heard = recogniser.recognise(take.samples)
     asr_cpu, asr_wall = time.process_time() - started, time.perf_counter() - wall
-    return HeardUtterance(text if said is None else said, samples, heard, meaning(heard), level, tts_cpu, asr_cpu,
-                          tts_wall, asr_wall)
+    return HeardUtterance(text if said is None else said, take.samples, heard, meaning(heard), level, tts_cpu,
+                          asr_cpu, tts_wall, asr_wall, take)
 
 
 class RecogniserHearing:
     """Real ears for the robot's game loop: speaks each utterance with ``voice``, adds ``kind`` noise at
     ``snr_db`` (a level, a (low, high) range drawn uniformly per utterance, or None = clean) and decodes it;
     every utterance heard is kept in ``log`` (audio for the MCAP log, words for the game report's ASR figures).
-    ``seed`` seeds the noise; ``cache`` (shared with the robot's voice) keeps each clean utterance's speech."""
+    ``seed`` seeds the noise; ``cache`` (shared with the robot's voice) keeps each clean utterance's speech.
+    ``ears``: what takes the reply in (``ncbot.speech.ears``; default one microphone with ``kind`` noise from
+    ``babble_pool``, Pepper's array in a room otherwise)."""
 
     def __init__(
         self, utterance_texts: Sequence[str], env_words: Sequence[str], recogniser: Recogniser | None = None,
         voice: Voice = PERSON_VOICE, snr_db: SnrSpec = None, kind: str = "babble",
         babble_pool: Sequence[np.ndarray] = (), seed: int | Sequence[int] = 0, cache: SpeechCache | None = None,
+        ears=None,
     ) -> None:
         from ncbot.envs.dialogue import tokenize
 
@@ -136,6 +147,7 @@ class RecogniserHearing:
             raise ValueError(f"snr_db must be a level, (low, high) with low <= high, or None for clean; got {snr_db!r}")
         if kind == "babble" and snr_db is not None and not babble_pool:
             raise ValueError("babble noise needs a babble_pool of other utterances (e.g. the robot's templates)")
+        self.ears = ears if ears is not None else MonoEars(kind, babble_pool)
         self.texts = [" ".join(tokenize(t)) for t in utterance_texts]
         self.env_words = list(env_words)
         self.recogniser = recogniser if recogniser is not None else Recogniser()
@@ -164,7 +176,7 @@ class RecogniserHearing:
             return int(results[0][2][0])
 
         self.log.append(say_in_noise_and_hear(self.texts[utterance], self.recogniser, self.voice, self.cache,
-                                              self.kind, self.snr_db, self.rng, self.babble_pool, meaning))
+                                              self.ears, self.snr_db, self.rng, meaning))
         return results[0]
 
     def word_error_rate(self) -> float | None:

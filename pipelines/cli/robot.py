@@ -113,6 +113,9 @@ def play(
     person: str = typer.Option("person", help="Whose learning this is (--learn): its state lives in OUT/learning/PERSON."),
     learn_every: int = typer.Option(1, min=1, help="Update the reader after every N games (--learn)."),
     wrong_claims: float = typer.Option(0.0, help="Share of the simulated person's moves they claim in another cell when a game is settled (wrong labels for --learn)."),
+    ears: str = typer.Option("array", help="Real speech: array = Pepper's four head microphones in the game's room (then --enhancement); mono = one microphone, the noise mixed into the reply."),
+    enhancement: str = typer.Option("mvdr+vad", help="The array's enhancement: none|ds|mvdr [+vad] [+postfilter] [+doa] (docs/speech.md)."),
+    answers: str = typer.Option("confidence", help="A cell said aloud after an unseen move: confidence = accept, confirm or ask for a touch on the tablet by the recogniser's confidence; confirm = confirm every cell, ask up to 3 times."),
 ) -> None:
     """Play whole games: the robot sees only rendered frames and hears only the dialogue; prints what happened."""
     from ncbot.pipelines.run_env import check_first
@@ -135,6 +138,8 @@ def play(
     require("robot", "sapien", what="ncbot robot play")
     if speech == "real":
         require("speech", "pocketsphinx", what="ncbot robot play --speech real")
+        if ears == "array":
+            require("speech", "pyroomacoustics", "webrtcvad", what="ncbot robot play --ears array")
     if rrd:
         require("rerun", "rerun", what="ncbot robot play --rrd")
     import torch
@@ -155,8 +160,8 @@ def play(
         human=HumanConfig(opponent=opponent, show_arm=occlusion, wait_probability=wait_probability,
                           nudge_probability=nudge_probability, wrong_claims=wrong_claims),
         ultimate_robot_draws=robot_draws, audio=audio, agent_name=agent_name, robot_frame_period=robot_frame_period,
-        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech,
-        weights=None if weights is None else str(weights))
+        meshes_dir=None if meshes is None else str(meshes), conditions=conditions, speech=speech, ears=ears,
+        enhancement=enhancement, answers=answers, weights=None if weights is None else str(weights))
     config.validate()
     bar = None if no_progress else progress_bar
     try:
@@ -218,6 +223,7 @@ def serve(
     weights: Optional[Path] = typer.Option(None, help="Cell classifier weights the robot reads with; default: the shipped ones."),
     learn: bool = typer.Option(False, help="Learn from each person's games (the reader; the play too with a checkpoint), kept in OUT/learning/PARTICIPANT and resumed when the participant code comes back."),
     pooled: bool = typer.Option(False, help="With --learn: one learning from everyone's games (OUT/learning/pooled)."),
+    moves: str = typer.Option("camera", help="Where the robot learns the person's moves: camera (its chest tablet when the camera misses one) or tablet (every move touched on the tablet)."),
 ) -> None:
     """Let people play the simulated robot in a browser: open http://HOST:PORT/ in one tab per person."""
     from ncbot.robot_sim.conditions import load_conditions
@@ -225,6 +231,8 @@ def serve(
     load_conditions(conditions)  # a bad preset or file: one line now, not a failed game later
     if answer_seconds <= 0:
         raise ValueError(f"--answer-seconds must be positive; got {answer_seconds}")
+    if moves not in ("camera", "tablet"):
+        raise ValueError(f"--moves must be camera or tablet; got {moves!r}")
     if idle_seconds <= 0:
         raise ValueError(f"--idle-seconds must be positive; got {idle_seconds}")
     check_writable_dir(out, "--out")
@@ -244,7 +252,7 @@ def serve(
     config = ServeConfig(game=game, checkpoint=None if checkpoint is None else str(checkpoint), out=str(out),
                          camera_width=width, camera_height=height, idle_seconds=idle_seconds,
                          max_sessions=max_sessions, audio=audio, seed=seed, conditions=conditions,
-                         answer_seconds=answer_seconds, parallel=parallel,
+                         answer_seconds=answer_seconds, parallel=parallel, moves=moves,
                          weights=None if weights is None else str(weights), learn=learn, pooled=pooled)
     def listening() -> None:
         typer.echo(f"ncbot robot serve: http://{host}:{port}/ (game {game}, conditions {conditions}, logs in {out})",

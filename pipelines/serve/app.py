@@ -1,7 +1,8 @@
 """The web app of `ncbot robot serve` (FastAPI + uvicorn): the page, one websocket per tab, sessions, idle reaper.
 
 Protocol (JSON text frames from the page, each may carry `"session"`; a mismatch is an error):
-`{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "act", "act": NAME}` (an
+`{"type": "start", "first": "robot"|"human"}`, `{"type": "move", "cell": N}`, `{"type": "tap", "cell": N}` (a touch on
+the robot's chest tablet, when it asks after missing a move), `{"type": "act", "act": NAME}` (an
 answer button), `{"type": "say", "text": "..."}` (a typed answer), `{"type": "view", "view": "overview"|"mouth"}`, `{"type": "again"}`, `{"type": "close"}`. The server sends
 `{"type": "state", ...}` (the whole page state), `{"type": "audio", "url": ...}`, `{"type": "error", "error": ...}` and camera frames
 as binary JPEG messages. Any bad request gets an error and changes nothing; the server never dies from a client.
@@ -254,6 +255,8 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
             session.start(message.get("first", "robot"), message.get("participant", ""))
         elif kind == "move":
             session.move(message.get("cell"))
+        elif kind == "tap":
+            session.tap(message.get("cell"))
         elif kind == "act":
             session.act(message.get("act"))
         elif kind == "say":
@@ -269,7 +272,7 @@ def _handle(sessions: Sessions, session: Session, raw: dict[str, Any]) -> dict[s
         elif kind == "ping":
             return {"type": "pong"}
         else:
-            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, act, say, view, again, close, ping")
+            raise SessionError(f"unknown message type {str(kind)[:40]!r}; types: start, move, tap, act, say, view, again, close, ping")
         return None
     except SessionError as error:
         return {"type": "error", "error": str(error), "request": request}

@@ -17,77 +17,19 @@ import threading
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ncbot.pipelines.serve.state import (PERSON_SIDE, SEAT_CHOICES, ServeConfig, SessionClosed,  # noqa: F401
+                                         SessionError, Snapshot)
+
 #: Serial mode (`parallel=False`): serialises every SAPIEN / policy call of every session in this process.
 SIM_LOCK = threading.Lock()
 #: Parallel mode: the policy is one object shared by every session, so its calls still take turns (~ms each).
 POLICY_LOCK = threading.Lock()
-SEAT_CHOICES = ("robot", "human")  # who opens a browser game: the env's FIRST_CHOICES a person can pick
-PERSON_SIDE = {"win": "loss", "loss": "win", "draw": "draw", "unfinished": "unfinished"}
-
-
-class SessionError(ValueError):
-    """A request this session cannot take (the message is sent to the client; nothing changed)."""
-
-
-class SessionClosed(RuntimeError):
-    """Raised inside the game thread when the session is closed while the robot waits for the person."""
-
-
-@dataclass
-class ServeConfig:
-    """What `ncbot robot serve` can change."""
-
-    game: str = "standard"
-    checkpoint: str | None = None
-    out: str = "runs/study"
-    camera_width: int = 320
-    camera_height: int = 240
-    overview_width: int = 480
-    overview_height: int = 360
-    #: Sessions with no message for this long are closed and their log finished.
-    idle_seconds: float = 300.0
-    max_sessions: int = 8
-    #: Minimum wall seconds between two frames pushed to a tab (the scene renders more often).
-    frame_interval: float = 0.3
-    audio: bool = True
-    seed: int = 0
-    #: The field's conditions (robot_sim.conditions): lab, office, atrium, random, or a YAML file of ranges.
-    conditions: str = "lab"
-    #: Seconds the robot waits for the person's answer to an utterance before it takes silence.
-    answer_seconds: float = 30.0
-    #: Sessions render at once (own scenes); False: one simulator lock for the whole process.
-    parallel: bool = True
-    #: The cell classifier to read with (None: the shipped one); learn from the games (`ncbot.pipelines.online.
-    #: serving`), per participant or `pooled`.
-    weights: str | None = None
-    learn: bool = False
-    pooled: bool = False
-
-
-@dataclass
-class Snapshot:
-    """What the page shows, sent whole on every change (so a reloaded tab is up to date at once)."""
-
-    screen: str = "start"        # start | game | over | closed
-    board: list[str] = field(default_factory=list)
-    status: str = "Choose who opens, then press Start."
-    robot_says: str = ""
-    says_seq: int = 0
-    your_turn: bool = False
-    outcome: str | None = None   # the person's side: win | loss | draw | unfinished
-    games: int = 0
-    mark: str = ""
-    legal: list[int] = field(default_factory=list)  # cells the person may click now (Ultimate: one small board)
-    answering: bool = False      # the robot waits for the person's answer (buttons / typed words)
-    acts: list[str] = field(default_factory=list)  # the answer buttons that make sense now (`data-act`)
-    heard: str = ""              # what the robot understood of the person's last answer
-
 
 class Session:
     """A person's session: create, `start(first)`, `move(cell)` per turn, `again()`, `close()`."""
@@ -107,6 +49,7 @@ class Session:
         self.dialogue: list[dict[str, Any]] = []
         self._moves: queue.Queue[int | None] = queue.Queue()
         self._answers: queue.Queue[dict[str, Any] | None] = queue.Queue()
+        self._taps: queue.Queue[int | None] = queue.Queue()
         self._answer_model = None  # pipelines.serve.answers.EnvAnswers of the game being played
         self._answer_type = 0  # the act type the person is answering
         self._sim = SIM_LOCK if not config.parallel else threading.Lock()
@@ -143,7 +86,8 @@ class Session:
 
     def idle_for(self, now: float) -> float:
         """Seconds the session has waited for the person (0 while the robot acts or waits for the simulator)."""
-        waiting = self._awaiting or self.snapshot.answering or self.snapshot.screen in ("start", "over")
+        waiting = (self._awaiting or self.snapshot.answering or self.snapshot.tablet
+                   or self.snapshot.screen in ("start", "over"))
         return now - self.last_seen if waiting else 0.0
 
     def start(self, first: Any, participant: Any = "") -> None:
@@ -168,23 +112,45 @@ class Session:
         self._publish_state()
         self._commands.put("play")
 
-    def move(self, cell: Any) -> None:
-        """The person's click: validated against the TRUE board; the game thread then draws it."""
-        cells = self.config_cells
+    def _check_cell(self, cell: Any) -> None:
+        cells = self.rules.n_cells
         if isinstance(cell, bool) or not isinstance(cell, int):
             raise SessionError(f"cell must be an integer in [0, {cells}); got {cell!r}")
         if not 0 <= cell < cells:
             raise SessionError(f"cell {cell} is out of range; cells are 0 to {cells - 1}")
+
+    def _in_column(self, cell: int, legal: list[int]) -> int:
+        """Gravity: a click anywhere in a column plays its lowest empty square (SessionError when it is full)."""
+        if not getattr(self.rules, "gravity", False):
+            return cell
+        from ncbot.pipelines.serve.board import column_drop
+
+        drop = column_drop(cell, legal, self.rules.cols)
+        if drop is None:
+            raise SessionError(f"column {self.rules.cell_name(cell)[0]} is full; click another column")
+        return drop
+
+    def tap(self, cell: Any) -> None:
+        """The person touches a cell on the robot's chest tablet (only when the robot asked): the cell they drew in."""
+        self._check_cell(cell)
+        with self._lock:
+            if not self.snapshot.tablet:
+                raise SessionError("the robot is not asking for a touch on its tablet now")
+            cell = self._in_column(cell, self.snapshot.legal)
+            if cell not in self.snapshot.legal:
+                raise SessionError(f"cell {self.rules.cell_name(cell)} is already taken on the robot's board; "
+                                   "touch the cell you drew in")
+            self.snapshot = replace(self.snapshot, tablet=False, legal=[], status="The robot takes your touch.")
+        self._publish_state()
+        self._taps.put(cell)
+
+    def move(self, cell: Any) -> None:
+        """The person's click: validated against the TRUE board; the game thread then draws it."""
+        self._check_cell(cell)
         with self._lock:  # two tabs of one session may click at once: only one click is taken
             if not self._awaiting:
                 raise SessionError("it is not your turn; wait for the robot")
-            if getattr(self.rules, "gravity", False):  # a click anywhere in a column: its lowest empty square
-                from ncbot.pipelines.serve.board import column_drop
-
-                drop = column_drop(cell, self._legal, self.rules.cols)
-                if drop is None:
-                    raise SessionError(f"column {self.rules.cell_name(cell)[0]} is full; click another column")
-                cell = drop
+            cell = self._in_column(cell, self._legal)
             if cell not in self._legal:
                 taken = self.snapshot.board[cell] if self.snapshot.board else ""
                 name = self.rules.cell_name(cell)  # what the person reads on the board
@@ -244,16 +210,13 @@ class Session:
         self.closed.set()
         self._moves.put(None)
         self._answers.put(None)
+        self._taps.put(None)
         self._commands.put(None)
         self.snapshot = replace(self.snapshot, screen="closed", status="This session was closed.", your_turn=False)
         self._publish_state()
         if self._thread is None:
             return
         self._thread.join(timeout=60)
-
-    @property
-    def config_cells(self) -> int:
-        return self.rules.n_cells
 
     def state_message(self) -> dict[str, Any]:
         return {"type": "state", "session": self.id, "game": self.config.game, "view": self.view,
@@ -294,7 +257,7 @@ class Session:
         config = RobotPlayConfig(game=self.config.game, games=1, seed=self.config.seed, first=self._first,
                                  camera_width=self.config.camera_width, camera_height=self.config.camera_height,
                                  human=HumanConfig(), agent_name=self.agent_name, conditions=self.config.conditions,
-                                 weights=self.config.weights)
+                                 weights=self.config.weights, **self.config.perception())
         from ncbot.pipelines.online.serving import session_learning  # --learn: this person's learning, else None
 
         learning = session_learning(self.config, self.participant or f"session-{self.id}",
@@ -312,7 +275,8 @@ class Session:
             with torch.no_grad(), self._sim:
                 runner = RobotGameRunner(config, self._policy, out_dir=self.dir, logger=logger,
                                          human_cell=self._wait_for_click, on_frame=self._frame,
-                                         episode_tags=tags, user_reply=self._wait_for_answer, network=self.policy)
+                                         episode_tags=tags, user_reply=self._wait_for_answer, network=self.policy,
+                                         tablet=self._wait_for_tap)
                 runner.speaker = BroadcastSpeaker(self.utterance, self.config.audio)
                 self._runner = runner
                 if learning is not None:
@@ -350,7 +314,7 @@ class Session:
     def _play_one(self, runner, index: int, learning=None) -> None:
         robot_mark = "x" if self._first == "robot" else "o"
         person_mark = "o" if robot_mark == "x" else "x"
-        self.snapshot = replace(self.snapshot, screen="game", board=[""] * self.config_cells, outcome=None,
+        self.snapshot = replace(self.snapshot, screen="game", board=[""] * self.rules.n_cells, outcome=None,
                                 status="The robot's turn.", your_turn=False, mark=person_mark, heard="")
         self._publish_state()
         record = runner.play_game(index)
@@ -405,6 +369,16 @@ class Session:
             return self._wait(self._moves)
         finally:
             self._awaiting = False
+
+    def _wait_for_tap(self, legal: np.ndarray) -> int:
+        """The runner's `tablet` hook: after a missed move, any cell free on the robot's board may be touched."""
+        self._refresh_board(self._runner)
+        self.touch()
+        with self._lock:
+            self.snapshot = replace(self.snapshot, tablet=True, your_turn=False, legal=np.flatnonzero(legal).tolist(),
+                                    status="Touch the robot's tablet: click the cell you drew in.")
+        self._publish_state()
+        return self._wait(self._taps)  # `tap` closed the request
 
     def _wait_for_answer(self, env, action: int) -> None:
         """The runner's `user_reply` hook: the person answers the robot's utterance; the env hears it as the user."""

@@ -14,7 +14,7 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     pocketsphinx, and the log holds both voices' audio, decodable back to samples."""
     from ncbot.logs import LogReader, read_episodes
     from ncbot.speech import SAMPLE_RATE
-    from ncbot.speech.audio import samples_from_raw_audio
+    from ncbot.speech.audio import channels_from_raw_audio
     from tests.cli.conftest import run_main
 
     code, out, err = run_main(capfd, "robot", "play", "--games", "1", "--seed", "5", "--width", "320", "--height", "240",
@@ -48,17 +48,24 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
     boards = [m.data for m in reader.messages() if m.topic == "/board"]
     assert boards[-1]["cells"] == extra["true_boards"][-1]
 
-    # Speech: every utterance of both speakers is on /audio/*, 16 kHz mono pcm-s16, audible, as long as noted on
-    # /dialogue beside its text; the person's turns carry what the recogniser heard with per-word confidences.
+    # Speech: every utterance of both speakers is on /audio/*, 16 kHz pcm-s16, audible, as long as noted on
+    # /dialogue beside its text: the robot's voice mono, the person's as Pepper's four microphones took it in, and
+    # beside it the enhanced mono the recogniser decoded; the person's turns carry what the recogniser heard with
+    # per-word confidences and what the array did (the beam aimed across the sheet the camera found).
     assert report["asr_utterances"] >= 5 and 0.0 <= report["asr_word_error_rate"] <= 0.5, report
     assert 0.5 < report["asr_mean_confidence"] <= 1.0 and report["robot_utterances"] > report["robot_moves"]
-    audio = {"/audio/robot": [], "/audio/user": []}
+    assert report["hearing"] == "array" and report["enhancement"] == "mvdr+vad" and report["steered_by_doa"] == 0
+    assert report["steered_by_camera"] == report["asr_utterances"] and report["beam_error_deg"] < 15.0
+    assert 0 < report["enhancement_to_asr_cpu"] < 2.0 and "room" in report["game_conditions"][0]["speech"]
+    audio = {"/audio/robot": [], "/audio/user": [], "/audio/user/enhanced": []}
     for message in reader.messages(list(audio)):
-        assert (message.data.format, message.data.sample_rate, message.data.number_of_channels) == ("pcm-s16", SAMPLE_RATE, 1)
-        samples = samples_from_raw_audio(message.data)
-        assert 0.3 < samples.size / SAMPLE_RATE < 5.0 and np.abs(samples).max() > 2000  # a spoken utterance
-        audio[message.topic].append((round(message.data.timestamp.ToNanoseconds() / 1e9, 4), samples.size))
+        channels = 4 if message.topic == "/audio/user" else 1
+        assert (message.data.format, message.data.sample_rate, message.data.number_of_channels) == ("pcm-s16", SAMPLE_RATE, channels)
+        samples = channels_from_raw_audio(message.data)
+        assert 0.3 < samples.shape[1] / SAMPLE_RATE < 7.0 and np.abs(samples).max() > 2000  # a spoken utterance
+        audio[message.topic].append((round(message.data.timestamp.ToNanoseconds() / 1e9, 4), samples.shape[1]))
     assert len(audio["/audio/robot"]) == report["robot_utterances"] and len(audio["/audio/user"]) == report["asr_utterances"]
+    assert np.allclose([t for t, _ in audio.pop("/audio/user/enhanced")], [t for t, _ in audio["/audio/user"]])
     noted = {"/audio/robot": [], "/audio/user": []}
     turns = [m.data for m in reader.messages(["/dialogue"])]
     for turn in turns:
@@ -66,11 +73,13 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
             assert item["text"]
             noted[item["topic"]].append((item["t"], item["seconds"] * SAMPLE_RATE))
     for topic, logged in audio.items():  # the same utterances, in order, at the same times and lengths
-        assert [t for t, _ in noted[topic]] == [t for t, _ in logged]
+        assert len(noted[topic]) == len(logged)
+        assert np.allclose([t for t, _ in noted[topic]], [t for t, _ in logged], atol=2e-4)  # both rounded to 0.1 ms
         assert np.allclose([n for _, n in noted[topic]], [n for _, n in logged], atol=1.0)
     heard = [t for t in turns if t["speaker"] == "user"]
     assert heard and all(len(t["heard_words"]) == len(t["heard"].split()) for t in heard)
     assert all(0.0 <= c <= 1.0 for t in heard for _, c in t["heard_words"])
+    assert all(t["ears"]["steered_by"] == "camera" for t in heard if t.get("heard_words"))
 
     # --rrd: the run exports to a rerun recording with the camera frames.
     from ncbot.logs.rerun_export import export_to_rerun
@@ -81,7 +90,8 @@ def test_a_whole_game_is_played_from_rendered_frames_and_logged(sapien_render_sy
 
 def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_system, tmp_path):
     """Real speech, a camera that never confirms a move: every human move is asked about ("where did you draw?"),
-    the person's spoken cell is heard by pocketsphinx and confirmed, and the answers are in the log."""
+    the person's spoken cell is heard through Pepper's array by pocketsphinx and settled by its confidence
+    (taken, confirmed, or touched on the tablet), and the answers are in the log."""
     from ncbot.logs import LogReader
     from ncbot.robot_sim.game_config import RobotPlayConfig
     from ncbot.robot_sim.play import play_robot_games
@@ -91,16 +101,18 @@ def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_
                              confirm_frames=10_000, max_perception_frames=1)
     report = play_robot_games(config, out_dir=tmp_path, progress=False)
     assert report["unseen_moves"] == report["human_moves"] >= 2 and report["misrecognised_moves"] == 0, report
-    # the lab is quiet: every answer settles its move, in the cell drawn, and the game ends as it should
-    assert report["cells_from_answers"] == report["unseen_moves"] and report["misheard_cells"] == 0, report
+    # the lab is quiet: every answer settles its move in the cell drawn (or the tablet does), no question is asked
+    # twice, and the game ends as it should
+    assert report["cells_from_answers"] + report["tablet_fallbacks"] == report["unseen_moves"], report
+    assert report["misheard_cells"] == 0 and report["where_repeats"] == 0 and report["answers"] == "confidence"
     assert report["answer_fallbacks"] == 0 and report["unfinished"] == 0 and report["cell_answer_word_error_rate"] == 0.0
-    assert report["cell_answers"] == 2 * report["unseen_moves"]  # the cell, then "yes, that is right"
+    assert report["cell_answers"] == report["unseen_moves"] + report["confirmations"]
     reader = LogReader(tmp_path)
     users = sum(1 for _ in reader.messages(["/audio/user"]))
     assert users == report["asr_utterances"] + report["cell_answers"]
     answers = [a for m in reader.messages(["/dialogue"]) for a in m.data.get("cell_answers", [])]
     assert len(answers) == report["cell_answers"] and answers[0]["question"] == ASK_WHERE
-    assert [a["understood"] for a in answers[1::2]] == [1] * report["unseen_moves"]
+    assert all(a["ears"]["steered_by"] == "camera" for a in answers)
     boards = [m.data for m in reader.messages(["/board"])]
     assert boards[-1]["cells"] == [e for e in reader.messages(["/episode"])][-1].data["extra"]["true_boards"][-1]
 
@@ -112,7 +124,10 @@ def test_robot_cli_rejects_bad_input_with_one_line(tmp_path, monkeypatch, capsys
 
     for args, needle in ((["--rrd"], "--rrd needs --out"), ([str(tmp_path / "missing.pt")], "not found"),
                          (["--game", "chess"], "game must be one of"), (["--meshes", str(tmp_path / "none")], "meshes folder"),
-                         (["--speech", "loud"], "--speech must be real or text")):
+                         (["--speech", "loud"], "--speech must be real or text"),
+                         (["--ears", "stereo"], "ears must be one of array, mono"),
+                         (["--enhancement", "gsc"], "is not beamformer"),
+                         (["--answers", "guess"], "answers must be one of confidence, confirm")):
         monkeypatch.setattr(sys, "argv", ["ncbot", "robot", "play", "--no-progress", *args])
         with pytest.raises(SystemExit) as exit_info:
             main()
@@ -140,6 +155,19 @@ def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
         assert key in real and key in text
     with pytest.raises(ValueError, match="speech must be one of real, text"):
         RobotPlayConfig(speech="loud").validate()
+    # what the array and the dialogue did: null in text mode (and the array's keys with one microphone)
+    array_keys = ("enhancement", "steered_by_camera", "steered_by_doa", "beam_error_deg",
+                  "enhancement_cpu_seconds_per_utterance", "enhancement_to_asr_cpu")
+    assert all(text[k] is None for k in (*array_keys, "hearing", "answers", "cells_accepted", "confirmations"))
+    record.enhancement_cpu_seconds, record.asr_cpu_seconds = [0.01, 0.03], [0.05, 0.05]
+    record.steered_by, record.beam_errors_deg = {"camera": 2}, [3.0, 5.0]
+    record.confirmations, record.tablet_fallbacks, record.where_repeats, record.dialogue_repeats = 2, 1, 1, 3
+    array = games_report([record], RobotPlayConfig(speech="real"))
+    assert [array[k] for k in array_keys] == ["mvdr+vad", 2, 0, 4.0, 0.02, 0.4]
+    assert (array["hearing"], array["answers"], array["confirmations"], array["tablet_fallbacks"]) == ("array", "confidence", 2, 1)
+    assert array["repeated_questions"] == 4 and array["where_repeats"] == 1 and array["dialogue_repeats"] == 3
+    mono = games_report([record], RobotPlayConfig(speech="real", ears="mono"))
+    assert mono["hearing"] == "mono" and all(mono[k] is None for k in array_keys)
 
 
 def test_lookahead_policy_is_seeded_and_respects_masks():

@@ -107,3 +107,62 @@ def test_misheard_replies_go_through_the_env_as_user_acts():
     misheard = [h for h in hearing.log if h.understood < 0 or hearing.texts[h.understood] != h.said]
     assert len(misheard) >= len(hearing.log) // 3 and hearing.word_error_rate() > 0.3
     assert any(a == b for a, b in zip(actions, actions[1:]))  # the robot asked again
+
+
+def test_presets_carry_their_rooms_and_a_yaml_file_can_set_and_place_them(tmp_path):
+    from ncbot.robot_sim.conditions import PRESETS, load_conditions
+
+    lab, office, atrium = PRESETS["lab"], PRESETS["office"], PRESETS["atrium"]
+    assert lab.speech_talkers == (0, 0) and lab.room_rt60[1] <= office.room_rt60[1] <= atrium.room_rt60[0]
+    assert atrium.room_size[0][0] >= 15.0 and atrium.speech_talkers[0] >= 4 and atrium.person_mouth_height[0] < 1.3
+    path = tmp_path / "hall.yaml"
+    path.write_text("base: atrium\nspeech_snr_db: [3, 10]\nroom_rt60: [0.8, 1.0]\nspeech_talkers: [2, 2]\n"
+                    "talker_positions: [[2.0, -1.0, 1.7]]\nroom_size: [[12, 14], [9, 10], [4, 5]]\n")
+    hall = load_conditions(path)
+    assert hall.room_rt60 == (0.8, 1.0) and hall.talker_positions == ((2.0, -1.0, 1.7),)
+    assert hall.acoustics().room_size == ((12, 14), (9, 10), (4, 5))
+    for bad, needle in (("room_rt60: [1.0, 0.5]", "room_rt60 range must be"),
+                        ("room_rt60: [0.05, 0.5]", "room_rt60 must be"),
+                        ("room_size: [[2, 3], [5, 6], [3, 3]]", "room_size must"),
+                        ("speech_talkers: [0, 30]", "speech_talkers must"),
+                        ("talker_positions: [[1.0, 2.0]]", "talker_positions must"),
+                        ("speech_snr_db: [5, 10]\nspeech_talkers: [0, 0]", "babble noise needs talkers")):
+        path.write_text(f"base: lab\n{bad}\n")
+        with pytest.raises(ValueError, match=needle):
+            load_conditions(path)
+
+
+def test_each_game_hears_through_peppers_array_in_its_own_seeded_room():
+    """A small office with `ears="array"`: each game's room is drawn from its seed (same seed, same room and the
+    same four signals), the beam is aimed by the array itself until the camera's sheet aims it, and the answers
+    to "where did you draw?" are heard in the same room."""
+    import dataclasses
+
+    from ncbot.robot_sim.conditions import PRESETS
+    from ncbot.robot_sim.localise import SheetEstimate
+    from ncbot.robot_sim.speech import ROOM_SALT, GameSpeech, aim, speech_summary
+    from ncbot.speech.acoustic_scene import draw_layout
+    from ncbot.speech.array import HOME_HEAD
+
+    small = dataclasses.replace(PRESETS["office"], room_size=((5.0, 6.0), (4.5, 5.0), (2.7, 2.8)), room_rt60=(0.3, 0.4))
+    speech = GameSpeech("standard", small, ears="array", enhancement="mvdr+vad")
+    said = torch.tensor([0, 3])
+    first, again = speech.hearing(7, HOME_HEAD, 0.0, bystander=True), speech.hearing(7, HOME_HEAD, 0.0, bystander=True)
+    other = draw_layout(small.acoustics(), np.random.default_rng([8, ROOM_SALT]), HOME_HEAD)
+    assert first.ears.room.layout == again.ears.room.layout != other
+    assert first.ears.room.layout.talkers[0] == (0.9, 0.9, 1.6)  # the scene's bystander talks too
+    first.hear(said[:1])
+    aim(first, SheetEstimate(np.array([0.3, 0.02, 0.75]), 0.0, 0.22, 512))
+    first.hear(said[1:])
+    again.hear(said)
+    assert [h.take.enhanced.steered_by for h in first.log] == ["doa", "camera"]
+    assert np.array_equal(first.log[0].take.channels, again.log[0].take.channels)
+    assert first.log[0].channels.shape[0] == 4 and first.log[0].samples.ndim == 1
+    assert 20 <= first.log[0].snr_db <= 30 and first.log[1].take.beam_error_deg < 20
+    ears = speech.answer_ears(7, first)
+    assert ears.ears is first.ears and ears.hear_cell("top left").take.channels.shape[0] == 4
+    room = speech_summary(first)["room"]
+    assert 0.3 <= room["rt60_s"] <= 0.4 and abs(room["measured_rt60_s"] - room["rt60_s"]) <= 0.1 * room["rt60_s"] + 0.01
+    assert 2 <= room["talkers"] <= 3
+    with pytest.raises(ValueError, match="ears must be one of array, mono"):
+        GameSpeech("standard", small, ears="stereo")

@@ -19,6 +19,7 @@ from ncbot.pipelines.serve.latency import latency_stats
 
 OUTCOMES = ("win", "loss", "draw")
 ANSWERING = "Answer the robot"
+TABLET = "Touch the robot's tablet"
 
 
 def open_chromium(width: int = 1100, height: int = 900):
@@ -128,24 +129,36 @@ def start_game(driver, url: str, first: str = "robot", screenshot: Path | None =
     driver.find_element(By.ID, "start-button").click()
 
 
-def play_to_end(driver, choose=None, on_turn=None, answer=None, timeout: float = 300.0) -> str:
+def touch_tablet(driver, cell: int) -> None:
+    """Touch `cell` on the robot's tablet (the page's board while the robot asks) and wait until it is taken."""
+    click_cell(driver, cell)
+    wait_for(driver, lambda d: not status(d).startswith(TABLET), timeout=30, what="the touch to be taken")
+
+
+def play_to_end(driver, choose=None, on_turn=None, answer=None, tablet=None, timeout: float = 300.0) -> str:
     """Click a cell on every 'Your turn' and answer the robot whenever it waits for an answer, until the status
     ends with an outcome; returns it (the person's side).
 
     `choose(board) -> cell` picks the cell (default: the first free one); `on_turn(driver, turn)` runs before
     each click (tests use it to click a taken cell or reload the page); `answer(driver, n)` answers the n-th
-    time the robot waits (default: `answer_with_button`, a cooperative person).
+    time the robot waits (default: `answer_with_button`, a cooperative person); `tablet(driver, cell)` touches
+    the robot's tablet when it asks after missing a move (default: `touch_tablet` on the cell just drawn).
     """
     deadline = time.monotonic() + timeout
     turn = answers = 0
+    cell = -1
     while time.monotonic() < deadline:
-        text = wait_for(driver, lambda d: (s := status(d)) and (s.startswith(("Your turn", ANSWERING)) or s.endswith(OUTCOMES)) and s,
+        text = wait_for(driver, lambda d: (s := status(d)) and (s.startswith(("Your turn", ANSWERING, TABLET))
+                                                                 or s.endswith(OUTCOMES)) and s,
                         timeout=max(1.0, deadline - time.monotonic()), what="your turn, an answer or the game's end")
         if text.endswith(OUTCOMES):
             return text.rsplit(" ", 1)[-1]
         if text.startswith(ANSWERING):
             (answer or (lambda d, n: answer_with_button(d)))(driver, answers)
             answers += 1
+            continue
+        if text.startswith(TABLET):
+            (tablet or touch_tablet)(driver, cell)
             continue
         if on_turn is not None:
             on_turn(driver, turn)

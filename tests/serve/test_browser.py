@@ -173,3 +173,41 @@ def test_a_whole_connect_four_game_through_the_page_by_columns(tmp_path):
         below = cell + rules.cols
         assert not mark or below >= len(final) or final[below], (cell, final)
     assert final[(rules.rows - 1) * rules.cols + clicked[0]] == "X"  # the first click dropped to the bottom row
+
+
+def test_the_person_touches_the_robots_tablet_when_its_camera_misses_a_move(tmp_path):
+    """`--moves tablet`: the robot's camera never confirms a move, so after every mark the person draws the robot
+    asks for a touch on its chest tablet (the page's board); a touch on a cell taken on the robot's board is
+    refused, the right touch settles the move, and the robot's belief ends equal to the true board."""
+    from ncbot.logs import LogReader
+    from ncbot.robot_sim.where import ASK_TABLET
+    from tests.serve.chromium import TABLET, touch_tablet
+
+    out, seen = tmp_path / "study", {}
+
+    def tablet(driver, cell: int) -> None:
+        assert driver.find_element(By.ID, "robot-says").text == ASK_TABLET
+        if "refused" not in seen:  # first, a cell the robot's own mark holds (the robot opened: it plays x)
+            taken = next(i for i, mark in enumerate(board(driver)) if mark == "X")
+            click_cell(driver, taken)
+            seen["refused"] = wait_for(driver, lambda d: d.find_element(By.ID, "error").text, timeout=20, what="the error")
+            assert status(driver).startswith(TABLET)
+            assert "tablet" in driver.find_element(By.ID, "board").get_attribute("class")
+        touch_tablet(driver, cell)
+        seen["touches"] = seen.get("touches", 0) + 1
+
+    with running_server(out, "--moves", "tablet", "--idle-seconds", "60", "--width", "160", "--height", "120") as url:
+        driver = open_chromium()
+        try:
+            start_game(driver, url + "/", first="robot")
+            outcome = play_to_end(driver, tablet=tablet)
+            assert outcome in ("win", "loss", "draw")
+        finally:
+            driver.quit()
+        study = summarize_study(out)
+    assert "already taken on the robot's board" in seen["refused"]
+    assert study["games"] == 1 and study["misrecognised_moves"] == 0 and study["unseen_moves"] == seen["touches"] >= 2
+    reader = LogReader(next(out.glob("session-*")))
+    episode = [m.data for m in reader.messages(["/episode"])][-1]
+    boards = [m.data for m in reader.messages(["/board"])]
+    assert boards[-1]["cells"] == episode["extra"]["true_boards"][-1]

@@ -65,7 +65,8 @@ def _junk(own: str, other: str, taken: int) -> list:
             b"\x00\xff binary", "x" * 5000, json.dumps({"type": "move"}), json.dumps({"type": "start", "first": "robot"}),
             json.dumps({"type": "again"}), json.dumps({"type": "act", "act": "shout"}), json.dumps({"type": "view", "view": "x-ray"}),
             json.dumps({"type": "act", "act": "yes"}), json.dumps({"type": "say", "text": "hello"}),  # no answer awaited
-            json.dumps({"type": "say", "text": 42}), json.dumps({"type": "say", "text": "yes " * 60}), json.dumps({"type": "say"})]
+            json.dumps({"type": "say", "text": 42}), json.dumps({"type": "say", "text": "yes " * 60}), json.dumps({"type": "say"}),
+            json.dumps({"type": "tap", "cell": 4}), json.dumps({"type": "tap", "cell": "4"})]  # no tablet touch asked
     cells = [-1, 9, 81, 1000, 2**40, "4", 4.5, None, True, [4], {"c": 4}, taken]
     requests = list(base) + [json.dumps({"type": "move", "cell": c}) for c in cells]
     requests += [json.dumps({"type": "move", "cell": 0, "session": other}), json.dumps({"type": "move", "cell": 0, "session": "f" * 16}),
@@ -92,6 +93,7 @@ def test_forged_and_junk_requests_get_errors_and_change_nothing(tmp_path):
             assert any("taken" in m["error"] for m in answers) and any("out of range" in m["error"] for m in answers)
             assert any("another session" in m["error"] for m in answers) and any("not JSON" in m["error"] for m in answers)
             assert any("not waiting for an answer" in m["error"] for m in answers)
+            assert any("not asking for a touch on its tablet" in m["error"] for m in answers)
             # Plain HTTP junk: clear 4xx answers.
             for path in ("/api/session/zzz", f"/api/session/{'0' * 16}", f"/audio/{a}/../../etc/passwd",
                          f"/audio/{a}/utterance-9999.wav", "/frame/nope.jpg"):
@@ -158,7 +160,8 @@ def test_serve_cli_rejects_bad_input_with_one_line(tmp_path):
     bad_yaml = tmp_path / "conditions.yaml"
     bad_yaml.write_text("base: office\nlight_intensity: [0.3, 0.5]\nglitter: 3\n")
     for args in ([str(tmp_path / "missing.pt")], ["--game", "chess"], ["--idle-seconds", "0"],
-                 ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"]):
+                 ["--conditions", "basement"], ["--conditions", str(bad_yaml)], ["--answer-seconds", "0"],
+                 ["--moves", "telepathy"]):
         result = subprocess.run([sys.executable, "-m", "ncbot", "robot", "serve", *args],
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 2, result.stderr

@@ -76,12 +76,75 @@ def test_the_robot_asks_confirms_and_asks_again_at_most_three_times(ears_parts):
 
     said, heard = [], []
     legal = np.ones(9, bool)
-    cell = ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: heard.append((u, q)))
-    assert cell == 2 and said == [ASK_WHERE, "Did you say top right?"] and [u.understood for u, _ in heard] == [2, 1]
+    settled = ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: heard.append((u, q)))
+    assert (settled.cell, settled.how, settled.asks, settled.confirmations) == (2, "confirmed", 1, 1)
+    assert said == [ASK_WHERE, "top right, is that right?"] and [u.understood for u, _ in heard] == [2, 1]
     said.clear()
     legal[2] = False  # the robot believes the cell taken: the answer cannot settle the move
-    assert ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: None) is None
+    settled = ask_where(2, legal, _ears(ears_parts), said.append, lambda u, q: None)
+    assert settled.cell is None and settled.how is None and settled.asks == MAX_ASKS
     assert said == [ASK_WHERE] + [ASK_AGAIN] * (MAX_ASKS - 1)
+
+
+def test_by_confidence_a_sure_cell_is_taken_a_doubtful_one_confirmed_and_the_rest_touched(ears_parts):
+    """Clean answers are heard sure (posteriors near 1): with the accept threshold below that the cell is taken
+    at once; above it, confirmed aloud; with every threshold out of reach, the tablet settles it after `asks`."""
+    from ncbot.robot_sim.where import ASK_AGAIN, ASK_TABLET, ASK_WHERE, ask_where
+    from ncbot.speech.answer_policy import AnswerThresholds
+
+    legal, touched = np.ones(9, bool), []
+
+    def tablet(free):
+        touched.append(free.copy())
+        return 7
+
+    cases = ((AnswerThresholds(0.5, 0.3, 0.5), "accepted", [ASK_WHERE]),
+             (AnswerThresholds(1.01, 0.3, 0.5), "confirmed", [ASK_WHERE, "bottom middle, is that right?"]),
+             (AnswerThresholds(1.01, 1.01, 1.01, asks=2), "tablet", [ASK_WHERE, ASK_AGAIN, ASK_TABLET]))
+    for thresholds, how, questions in cases:
+        said = []
+        settled = ask_where(7, legal, _ears(ears_parts), said.append, lambda u, q: None, thresholds, tablet)
+        assert (settled.cell, settled.how) == (7, how) and said == questions
+    assert len(touched) == 1 and touched[0].all()
+    with pytest.raises(ValueError, match="needs the tablet"):
+        ask_where(7, legal, _ears(ears_parts), said.append, lambda u, q: None, cases[0][0])
+
+
+def test_answer_thresholds_are_saved_read_and_checked(tmp_path):
+    from ncbot.speech.answer_policy import DEFAULT_THRESHOLDS, AnswerThresholds, phrase_confidence
+
+    shipped = AnswerThresholds.load()
+    assert shipped.confirm <= shipped.accept and "tuning" in shipped.meta["set"] and DEFAULT_THRESHOLDS.is_file()
+    path = AnswerThresholds(0.8, 0.4, 0.7, 2, {"command": "x"}).save(tmp_path / "t.json")
+    assert AnswerThresholds.load(path) == AnswerThresholds(0.8, 0.4, 0.7, 2)
+    assert phrase_confidence([0.9, 0.4, 0.8]) == 0.4 and phrase_confidence([]) == 0.0
+    for text, needle in (("{", "not a JSON file"), ('{"format": "other"}', "not an answer thresholds file"),
+                         ('{"format": "ncbot-answer-thresholds/1", "accept": 0.5}', "need accept, confirm, yes")):
+        (tmp_path / "bad.json").write_text(text)
+        with pytest.raises(ValueError, match=needle):
+            AnswerThresholds.load(tmp_path / "bad.json")
+    with pytest.raises(ValueError, match="confirm <= accept"):
+        AnswerThresholds(0.4, 0.8, 0.5)
+    with pytest.raises(FileNotFoundError, match="tune_answers"):
+        AnswerThresholds.load(tmp_path / "none.json")
+
+
+def test_replaying_recorded_answers_follows_the_robots_questions():
+    """The tuning's replay of a setting asks, accepts, confirms and turns to the tablet as robot_sim.where does."""
+    from ncbot.speech.answer_policy import AnswerThresholds
+    from ncbot.speech.tune_answers import Answer, Replays, Trial, choose, evaluate
+
+    sure_right, doubt_right_yes = Answer(4, True, 0.95, True, 0.9), Answer(4, True, 0.6, True, 0.9)
+    sure_wrong_no_as_yes, nothing = Answer(5, True, 0.7, True, 0.8), Answer(-1, False, 0.0, None, 0.0)
+    trials = [Trial(4, (sure_right, nothing, nothing)), Trial(4, (nothing, doubt_right_yes, nothing)),
+              Trial(4, (sure_wrong_no_as_yes, sure_right, nothing)), Trial(4, (nothing, nothing, nothing))]
+    settled, turns = Replays(trials).replay(AnswerThresholds(0.9, 0.5, 0.85, asks=2))
+    # the third trial's wrong cell gets an unsure "yes" (0.8 < 0.85): asked again, the sure right cell is taken
+    assert settled.tolist() == [4, 4, 4, -1] and turns.tolist() == [1, 3, 3, 3]
+    # the wrong cell, heard at 0.7 and confirmed by a "yes" at 0.8: settled wrongly when the yes threshold is lower
+    assert evaluate(Replays(trials), AnswerThresholds(0.9, 0.5, 0.75, asks=2))[0] == 1
+    chosen, figures = choose(trials)
+    assert evaluate(Replays(trials), chosen)[0] == 0 and figures["turns_per_move"] <= 2.0
 
 
 def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
@@ -93,7 +156,7 @@ def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
     for seed in range(3):
         ears = _ears(ears_parts, snr_db=(-5.0, 0.0), kind="white", seed=seed)
         legal = np.ones(9, bool)
-        outcomes.append(ask_where(6, legal, ears, lambda text: None, lambda u, q: None))
+        outcomes.append(ask_where(6, legal, ears, lambda text: None, lambda u, q: None).cell)
         assert all(-5.0 <= h.snr_db <= 0.0 and h.understood >= -1 for h in ears.log)
         assert len(ears.log) >= 2 and not np.array_equal(ears.log[0].samples, ears_parts["cache"].speak("bottom left", ears.voice)[0])
     assert all(o is None or 0 <= o < 9 for o in outcomes)
