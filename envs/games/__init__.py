@@ -13,15 +13,11 @@ Why one registry: every part of the stack asks its game object, never the game's
 """
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import inspect
-import sys
-from hashlib import sha1
-from pathlib import Path
 from typing import Any
 
 from ncbot.envs.core import check_free_move
+from ncbot.fileio.import_path import absolute_import_path, import_object
 from ncbot.envs.declaration import BUILT_IN, declared_game, game_choices_text  # noqa: F401  (re-exported)
 from ncbot.envs.games.protocol import Game, PROTOCOL_ATTRIBUTES, PROTOCOL_METHODS
 
@@ -106,41 +102,13 @@ def _register_object(game: Any) -> Game:
 
 def _plugin_id(game: str) -> str:
     """``MODULE:CLASS`` as it is; ``PATH.py:CLASS`` with the file's absolute path."""
-    where, _, name = game.rpartition(":")
-    if not name.isidentifier() or not where:
-        raise ValueError(f"game {game!r}: an import path is MODULE:CLASS or PATH.py:CLASS, e.g. "
-                         "my_pkg.games:Misere or docs/examples/misere.py:Misere")
-    if where.endswith(".py"):
-        return f"{Path(where).expanduser().resolve()}:{name}"
-    if not all(part.isidentifier() for part in where.split(".")):
-        raise ValueError(f"game {game!r}: {where!r} is neither a module name nor a .py file")
-    return game
+    return absolute_import_path(game, "game")
 
 
 def _import_class(game: str) -> type:
     """The class an import path names, imported now; one-line ValueError for a module or file that does not import,
     a missing class, or a class that lacks part of the protocol."""
-    where, _, name = game.rpartition(":")
-    try:
-        if where.endswith(".py"):
-            path = Path(where)
-            if not path.is_file():
-                raise ValueError(f"game file {where} not found (expected a Python file defining class {name})")
-            module_name = f"ncbot_game_{path.stem}_{sha1(where.encode()).hexdigest()[:8]}"
-            spec = importlib.util.spec_from_file_location(module_name, path)
-            module = importlib.util.module_from_spec(spec)
-            sys.modules[module_name] = module  # dataclasses and pickling look the module up by name
-            spec.loader.exec_module(module)
-        else:
-            module = importlib.import_module(where)
-    except ValueError:
-        raise
-    except Exception as error:  # noqa: BLE001 - a user's module may raise anything while it imports
-        detail = str(error).splitlines()[0] if str(error) else ""
-        raise ValueError(f"game {game} does not import: {type(error).__name__}: {detail}") from None
-    cls = getattr(module, name, None)
-    if cls is None:
-        raise ValueError(f"game {game}: {where} defines no {name!r}")
+    cls = import_object(game, "game")
     _check_class(cls, game)
     return cls
 
