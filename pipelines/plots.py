@@ -140,7 +140,8 @@ def plot_agent_curves(curves: dict[str, list[list[dict[str, Any]]]], path: str |
         ax.set_xlabel("env frames")
         ax.set_title(label, fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:  # a seat with no curve (no periodic evaluation) has nothing to name
+            ax.legend(fontsize=7)
     axes[0].set_ylabel("task success (greedy periodic evaluation)")
     fig.suptitle(title or "learning curves per agent (mean over seeds, band = min..max)")
     return save_figure(fig, path)

@@ -83,6 +83,7 @@ def draw_learning(per_game: list[dict[str, Any]], reader: dict[str, Any] | None,
         text = "held-out cells read right, before -> after:\n" + "\n".join(
             f"{style}: {100 * v['before']:.1f}% -> {100 * v['after']:.1f}%" for style, v in reader["accuracy"].items())
         bottom.text(1.01, 0.5, text, transform=bottom.transAxes, fontsize=8, va="center")
-    bottom.legend(loc="upper left", fontsize=8)
+    if bottom.get_legend_handles_labels()[0]:  # nothing drawn below (no reader update) names nothing
+        bottom.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
     return save_figure(fig, path)
