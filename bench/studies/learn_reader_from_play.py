@@ -4,7 +4,7 @@ then learning again offline from the frozen games' logs, from other starting cla
 deliberately wrong labels (a person who lies).
 
     python bench/studies/learn_reader_from_play.py --weights W.pt --styles sketch,hershey --games 20 --seed 0 \
-        --out runs/learn_reader [--offline-weights W1.pt,W2.pt] [--wrong-claims 0.1,0.25,0.5]
+        --out runs/learn_reader [--offline-weights W1.pt,W2.pt] [--wrong-claims 0.1,0.25,0.5] [--label-checks on,off]
 
 Each step is one `ncbot` command (printed before it runs) whose folder is kept: a step whose report is there is not
 run again, so the study resumes after a stop. Writes OUT/learn_reader.json and OUT/learn_reader.png.
@@ -21,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from ncbot.pipelines.evaluate.games import wilson_interval  # noqa: E402
 from ncbot.pipelines.plots import pyplot, save_figure  # noqa: E402
 
 
@@ -55,6 +56,37 @@ def per_game(report: dict, key: str) -> list[int]:
     return [entry.get(key) or 0 for entry in report["per_game"]]
 
 
+def wilson(right: int, total: int) -> dict:
+    return {"count": right, "of": total, "rate": round(right / total, 4) if total else None,
+            "wilson95": [round(b, 4) for b in wilson_interval(right, total)]}
+
+
+def summarise(data: dict) -> dict:
+    """The headline figures per style, each with its 95 % Wilson interval: moves misread or unseen (all games and
+    the second half), held-out cells read right before and after (the person's style and the other held-out
+    ones), the same after offline learning with wrong labels, and the CPU seconds of an update."""
+    summary = {}
+    for style, runs in data["styles"].items():
+        row = {}
+        for mode in ("frozen", "learning"):
+            wrong = np.add(runs[mode]["misrecognised"], runs[mode]["unseen"])
+            half = len(wrong) // 2
+            row[mode] = {"wrong_moves": wilson(int(wrong.sum()), runs[mode]["human_moves"]),
+                         "wrong_moves_second_half": int(wrong[half:].sum()),
+                         "losses": runs[mode]["outcomes"].count("loss")}
+        cells = data["cells_per_style"]
+        row["accuracy"] = {name: {when: wilson(round(value * cells), cells) for when, value in read.items()}
+                           for name, read in runs["learning"]["accuracy"].items()}
+        row["offline_accuracy"] = {name: {other: wilson(round(read["after"] * cells), cells)
+                                          for other, read in step["accuracy"].items()}
+                                   for name, step in runs["offline"].items()}
+        cpu = runs["learning"]["update_cpu_seconds"]
+        row["update_cpu_seconds"] = {"mean": round(float(np.mean(cpu)), 3), "max": round(max(cpu), 3),
+                                     "updates": len(cpu), "kept": sum(bool(k) for k in runs["learning"]["kept"])}
+        summary[style] = row
+    return summary
+
+
 def draw(data: dict, path: Path) -> Path:
     plt = pyplot()
     styles = list(data["styles"])
@@ -83,6 +115,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--offline-weights", default="")
     parser.add_argument("--wrong-claims", default="0.1,0.25,0.5")
+    parser.add_argument("--label-checks", default="on,off", help="the ink check in the wrong-label runs: on, off or both")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     data = {"weights": str(args.weights), "games": args.games, "seed": args.seed, "styles": {}}
@@ -94,6 +127,7 @@ def main() -> None:
                           "outcomes": [entry["outcome"] for entry in report["per_game"]],
                           "human_moves": sum(per_game(report, "human_moves"))}
             if mode == "learning":
+                data["cells_per_style"] = report["learning"]["reader"]["cells_per_style"]
                 runs[mode]["accuracy"] = report["learning"]["reader"]["accuracy"]
                 runs[mode]["update_cpu_seconds"] = [e["reader"]["cpu_seconds"] for e in report["per_game"]]
                 runs[mode]["kept"] = [e["reader"]["kept"] for e in report["per_game"]]
@@ -102,7 +136,8 @@ def main() -> None:
         starts = [args.weights] + [Path(w) for w in args.offline_weights.split(",") if w]
         shares = [float(c) for c in args.wrong_claims.split(",") if c]
         steps = [(index, 0.0, True) for index in range(len(starts))]  # lies: from the study's own start, with
-        steps += [(0, claims, check) for claims in shares for check in (True, False)]  # and without the ink check
+        checks = [{"on": True, "off": False}[c] for c in args.label_checks.split(",")]
+        steps += [(0, claims, check) for claims in shares for check in checks]  # with and without the ink check
         for index, claims, check in steps:
             name = f"start{index}-claims{claims}-{'check' if check else 'nocheck'}"
             report = offline(log, starts[index], claims, check, args.out / style / "offline" / name)
@@ -110,6 +145,8 @@ def main() -> None:
                                      "accuracy": report["learning"]["reader"]["accuracy"],
                                      "kept": sum(bool((e.get("reader") or {}).get("kept")) for e in report["per_game"])}
         data["styles"][style] = runs
+    data["summary"] = summarise(data)
+    print(json.dumps(data["summary"], indent=1))
     (args.out / "learn_reader.json").write_text(json.dumps(data, indent=1))
     draw(data, args.out / "learn_reader.png")
     print(f"wrote {args.out / 'learn_reader.json'} and {args.out / 'learn_reader.png'}")
