@@ -135,13 +135,7 @@ def play(
         raise ValueError(f"--robot-frame-period must be positive seconds; got {robot_frame_period}")
     if not 0.0 <= wait_probability <= 1.0 or not 0.0 <= nudge_probability <= 1.0:
         raise ValueError("--wait-probability and --nudge-probability must be in [0, 1]")
-    require("robot", "sapien", what="ncbot robot play")
-    if speech == "real":
-        require("speech", "pocketsphinx", what="ncbot robot play --speech real")
-        if ears == "array":
-            require("speech", "pyroomacoustics", "webrtcvad", what="ncbot robot play --ears array")
-    if rrd:
-        require("rerun", "rerun", what="ncbot robot play --rrd")
+    require_play_extras(speech, ears, rrd)
     import torch
 
     from ncbot.robot_sim.human import HumanConfig
@@ -187,6 +181,17 @@ def play(
         typer.echo(games_text(report))
     if out is not None:
         wrote(f"the games' MCAP log, snapshots and report.json to {out}" + (" and the rerun recording run.rrd" if rrd else ""))
+
+
+def require_play_extras(speech: str, ears: str, rrd: bool) -> None:
+    """One line naming the extra to install, before anything heavy loads, for what this `robot play` needs."""
+    require("robot", "sapien", what="ncbot robot play")
+    if speech == "real":
+        require("speech", "pocketsphinx", what="ncbot robot play --speech real")
+        if ears == "array":
+            require("speech", "pyroomacoustics", "webrtcvad", what="ncbot robot play --ears array")
+    if rrd:
+        require("rerun", "rerun", what="ncbot robot play --rrd")
 
 
 def games_text(report: dict) -> str:
