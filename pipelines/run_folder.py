@@ -113,6 +113,7 @@ class RunLock:
     def __init__(self, path: Path) -> None:
         import fcntl
 
+        self.created_folder = not path.exists()  # made here: a run refused before it claimed it leaves nothing
         path.mkdir(parents=True, exist_ok=True)
         self.path = path / LOCK_NAME
         self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
@@ -146,6 +147,7 @@ class RunFolder:
     lock: RunLock | None = None
     fresh: bool = False  # a new run: `claim` writes its identity (and clears an overwritten run first)
     overwrite: bool = False
+    claimed: bool = False
 
     @classmethod
     def open(cls, path: str | os.PathLike, *, resume: bool, overwrite: bool,
@@ -179,6 +181,7 @@ class RunFolder:
     def claim(self) -> None:
         """Make the folder this run's: an overwritten run's files go, and a fresh run (or a folder of an ncbot
         older than run ids) gets its identity, run.json."""
+        self.claimed = True
         if self.fresh and self.overwrite:
             clear_run(self.path)
         if self.fresh or read_run_id(self.path) is None:
@@ -210,8 +213,16 @@ class RunFolder:
         return cls(path, run_id or state.get("run_id") or uuid.uuid4().hex, state, chosen, notes)
 
     def release(self) -> None:
+        """Drop the lock; a folder this run made and never claimed (refused before it started: no room for a
+        checkpoint, a bad part) goes again, so a refusal leaves nothing behind."""
         if self.lock is not None:
             self.lock.release()
+            if not self.claimed and self.lock.created_folder:
+                self.lock.path.unlink(missing_ok=True)
+                try:
+                    self.path.rmdir()
+                except OSError:  # something else was written there meanwhile: keep it
+                    pass
 
 
 def read_run_id(path: Path) -> str | None:

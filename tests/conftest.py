@@ -108,3 +108,13 @@ def pytest_collection_modifyitems(config, items):
     reason = f"needs a CUDA GPU: torch {torch.__version__} sees none (run scripts/device_check.sh on a GPU machine)"
     for item in marked:
         item.add_marker(pytest.mark.skip(reason=reason))
+
+
+@pytest.fixture(autouse=True)
+def _progress_on_again():
+    """`--no-progress` silences every bar of the process (`ncbot.pipelines.progress.silence`); a command run in this
+    process by one test must not silence the bars another test reads."""
+    yield
+    from ncbot.pipelines.progress import silence
+
+    silence(False)

@@ -51,7 +51,7 @@ def learn_command(
     if not label_check:
         settings = replace(settings, reader=replace(settings.reader, filter_labels=False))
     learning = learn_from_logs(logs, out, settings, weights, agent, wrong_claims,
-                               progress_bar if progress else None)
+                               None if no_progress else progress_bar)
     styles = sorted({entry.get("handwriting") or "pen" for entry in learning.per_game} or {"pen"})
     summary = {"folder": str(out), "games_learned": learning.games, "reader": reader_before_after(learning, styles),
                "play": play_before_after(learning, [opponent], test_games), "play_weights": learning.play_weights}

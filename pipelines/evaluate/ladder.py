@@ -73,8 +73,11 @@ def run_ladder(checkpoint: str, *, games: int = 200, opponents: list[str] | None
         # the running matches (25 min each against mcts:10000); Pool.terminate stops the workers at once
         from ncbot.envs.games import named_games
 
+        # only this ladder's game is named again in a worker: another class named earlier in this process may no
+        # longer import, and a Pool whose initializer raises starts new workers forever
+        named = tuple(name for name in named_games() if name == game)
         pool = multiprocessing.get_context("spawn").Pool(min(workers, len(matches)), initializer=_load_worker_robot,
-                                                         initargs=(named_games(), *robot_spec))
+                                                         initargs=(named, *robot_spec))
         try:
             tasks = [(index, *match, games) for index, match in enumerate(matches)]
             for index, row in pool.imap_unordered(_play_worker_match, tasks):

@@ -224,6 +224,8 @@ NOT_RUN = {
     "play": "interactive: tests/evaluate/test_play.py plays it in a pseudo-terminal",
     "robot serve": "a server: tests/serve/test_serve.py runs it",
     "robot play": "a SAPIEN game takes about a minute: tests/robot_sim/test_robot_play.py plays one with --json",
+    "learn": "needs the log of a robot game: tests/online/test_play_learning.py runs it with --json and reads its "
+             "'wrote' line",
 }
 
 

@@ -258,7 +258,7 @@ def test_partial_reset_only_touches_selected_games() -> None:
     ({"batch_size": (2, 3)}, "batch_size must be a 1-tuple"),
     ({"first": "nobody"}, "first must be one of robot, human, alternate, random"),
     ({"free_move": "never"}, "free_move must be one of anywhere, open_subgrids"),
-    ({"opponent": "grandmaster"}, "opponent 'grandmaster' unknown"),
+    ({"opponent": "grandmaster"}, "unknown opponent 'grandmaster'"),
     ({"opponent": 3}, "opponent must be a name"),
     ({"asr_confidence": (0.5, 0.2)}, "asr_confidence must satisfy"),
     ({"max_actions": 0}, "max_actions must be a positive int"),

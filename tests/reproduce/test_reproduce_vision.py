@@ -24,8 +24,8 @@ TINY = Budget(name="tiny", seeds=1, rows=("standard",), max_games={"standard": 4
 TOY = VisionBudget("tiny", (6, 9), 1, 20, 2, 1, "TOY VISION BUDGET (test)", updates=8)
 
 
-def _vision(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ncbot", "vision", *args], capture_output=True, text=True)
+def _vision(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ncbot", "vision", *args], capture_output=True, text=True, cwd=cwd)
 
 
 def test_split_follows_the_paper_and_draws_are_nested(monkeypatch) -> None:
@@ -72,9 +72,13 @@ def test_train_budget_cli_and_weights_option(tmp_path: Path) -> None:
         wrong = _vision(*command, "--weights", str(bad))
         assert wrong.returncode == 2 and "Traceback" not in wrong.stderr, wrong.stderr
         assert len(wrong.stderr.strip().splitlines()) == 1 and f"classifier weights {bad}" in wrong.stderr
-    no_out = _vision("train", "--budget", "6")
-    assert no_out.returncode == 2 and no_out.stderr.strip() == \
-        "ncbot: error: --budget needs --out WEIGHTS.pt (it never overwrites the shipped weights)"
+    from ncbot.vision.classifier import DEFAULT_WEIGHTS
+
+    shipped = Path(DEFAULT_WEIGHTS).read_bytes()
+    no_out = _vision("train", "--budget", "6", "--no-progress", cwd=tmp_path)  # the default --out: under runs/, never the package
+    assert no_out.returncode == 0, no_out.stderr[-2000:]
+    assert (tmp_path / "runs" / "vision" / "cell_cnn.pt").is_file() and Path(DEFAULT_WEIGHTS).read_bytes() == shipped
+    assert no_out.stderr.strip().splitlines()[-1].startswith("wrote runs/vision/cell_cnn.pt")
 
 
 def test_reproduce_vision_toy_budget_writes_reports_and_resumes(tmp_path: Path, monkeypatch) -> None:

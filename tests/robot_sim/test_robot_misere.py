@@ -24,4 +24,4 @@ def test_the_misere_plugin_is_drawn_on_the_sheet_and_read_back(tmp_path):
     assert rendered.returncode == 0, rendered.stderr
     read = _ncbot("vision", "read", str(frame), "--grid", "3x3", "--json")
     assert read.returncode == 0, read.stderr
-    assert json.loads(read.stdout)["cells"] == ["x", "", "", "", "o", "", "o", "", "x"]  # row-major from a1
+    assert json.loads(read.stdout)["images"][0]["cells"] == ["x", "", "", "", "o", "", "o", "", "x"]  # row-major from a1
