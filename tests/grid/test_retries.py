@@ -103,7 +103,9 @@ def test_a_killed_grid_takes_its_training_along_and_the_next_grid_resumes_the_ru
     wait_for(lambda: not alive(child), "the orphaned ncbot train to die with its parent", timeout=30)
     from ncbot.pipelines.run_folder import lock_holder
 
-    assert lock_holder(run_dir) is None  # nothing holds the folder: the next grid can take it at once
+    # nothing holds the folder once the training's process has exited (the kernel drops its flock on exit, which a
+    # loaded machine may finish a moment after the pid stops answering): the next grid can take it
+    wait_for(lambda: lock_holder(run_dir) is None, "the run folder's lock to be free", timeout=30)
     again = ablate(str(path), "--seeds", "1", "--workers", "1", "collector.total_frames=2048", "--json")
     out, err = again.communicate(timeout=240)
     assert again.returncode == 0, err[-3000:]
