@@ -7,8 +7,9 @@ one (`ncbot.pipelines.online`, the games logged to MCAP and read back) against t
 Per seed: the frozen agent and the learning one play games 0..N-1 (seats alternating, game g's env seed
 1000 x seed + g: the person's dice are the same for both); afterwards both agents play `--test-games` test games
 against the person and against the random user (both seats, seed 8,000,009). Writes OUT/learn_play.json (every
-game's outcome, per seed and mode, the test games, CPU seconds per learning update) and OUT/learn_play.png (wins
-and losses per game over the sequence, mean over seeds). A learning sequence whose folder holds all its learned
+game's outcome, per seed and mode, the test games, each learning update's CPU seconds, whether it was kept and
+which of the gate's checks refused it, the kept agent's task success against the model of the person before each
+update) and OUT/learn_play.png (wins and losses per game over the sequence, mean over seeds). A learning sequence whose folder holds all its learned
 games is read back, not played again, so the study resumes after a stop (the frozen games are replayed). No
 rendering: what play learns does not depend on the camera (the reader has its own study,
 bench/studies/learn_reader_from_play.py).
@@ -39,17 +40,18 @@ from ncbot.pipelines.reproduce.seed_stats import proportion_interval, t_interval
 
 
 def run_sequence(checkpoint: Path, person: str, games: int, seed: int, folder: Path, learn: bool,
-                 updates: int) -> tuple[list[str], list[float], object]:
-    """The outcomes of one sequence of games, the CPU seconds of each learning update, and the final policy."""
+                 updates: int) -> tuple[list[str], list[dict], object]:
+    """The outcomes of one sequence of games, what each learning update did (`PlayUpdate.to_dict`: its gate's
+    figures, kept or not, CPU seconds), and the final policy."""
     settings = LearnSettings(reader=None, play=PlayLearning(seed=seed, updates=updates))
     learning = PersonLearning.open(folder / "learning", settings, checkpoint=checkpoint)
     if learn and learning.games >= games:  # a finished learning sequence is not played again
         done = learning.per_game[:games]
-        return [e["outcome"] for e in done], [e["play"]["cpu_seconds"] for e in done], learning.play
+        return [e["outcome"] for e in done], [e["play"] for e in done], learning.play
     if learn and learning.games:
         raise SystemExit(f"{folder} holds {learning.games} of {games} learned games; remove it to play them again")
     config, policy = learning.play.config, learning.play.policy
-    outcomes, cpu = [], []
+    outcomes, learned_plays = [], []
     with EpisodeLogger(folder / "log") as log:
         for game in range(games):
             game_seed = 1000 * seed + game
@@ -59,8 +61,19 @@ def run_sequence(checkpoint: Path, person: str, games: int, seed: int, folder: P
             if learn:
                 log.flush()
                 learned = learning.learn([], [], True, last_game(folder / "log", game_seed), {"outcome": outcome})
-                cpu.append(learned["play"]["cpu_seconds"])
-    return outcomes, cpu, learning.play
+                learned_plays.append(learned["play"])
+    return outcomes, learned_plays, learning.play
+
+
+def rolled_back_by(update: dict) -> str | None:
+    """Which of the gate's checks refused an update: "random user" (task success below the starting agent's),
+    "person model" (below the kept agent's against the model of the person), "both"; None when kept or not run."""
+    if not update["updated"] or update["kept"]:
+        return None
+    settings = PlayLearning()
+    random_user = update["gate_task_success"] < update["start_task_success"] - settings.gate_tolerance
+    person_model = update["person_task_success"] < update["kept_person_task_success"]
+    return "both" if random_user and person_model else "random user" if random_user else "person model"
 
 
 def tested(play, person: str, games: int) -> dict:
@@ -100,6 +113,10 @@ def summarise(data: dict) -> dict:
         summary[f"{name}_learning_minus_frozen"] = interval([run["learning"]["outcomes"].count(outcome) -
                                                                 run["frozen"]["outcomes"].count(outcome)
                                                                 for run in runs])
+    learned = [run["learning"] for run in runs]
+    summary["updates_kept_per_seed"] = [len(run["updates_kept"]) for run in learned]
+    summary["rolled_back_by"] = {reason: sum(run["rolled_back_by"].count(reason) for run in learned)
+                                 for reason in ("random user", "person model", "both")}
     cpu = [c for run in runs for c in run["learning"]["update_cpu_seconds"]]
     summary["update_cpu_seconds"] = {"mean": round(float(np.mean(cpu)), 3), "median": round(float(np.median(cpu)), 3),
                                      "max": round(max(cpu), 3), "updates": len(cpu)}
@@ -142,9 +159,13 @@ def main() -> None:
     for seed in [int(s) for s in args.seeds.split(",")]:
         run = {"seed": seed}
         for mode in ("frozen", "learning"):
-            outcomes, cpu, play = run_sequence(args.checkpoint, args.person, args.games, seed,
-                                               args.out / f"seed{seed}" / mode, mode == "learning", args.updates)
-            run[mode] = {"outcomes": outcomes, "update_cpu_seconds": cpu, "tests": tested(play, args.person, args.test_games)}
+            outcomes, learned, play = run_sequence(args.checkpoint, args.person, args.games, seed,
+                                                   args.out / f"seed{seed}" / mode, mode == "learning", args.updates)
+            run[mode] = {"outcomes": outcomes, "update_cpu_seconds": [u["cpu_seconds"] for u in learned],
+                         "updates_kept": [u["game"] for u in learned if u["kept"]],
+                         "rolled_back_by": [rolled_back_by(u) for u in learned],
+                         "person_model_task_success": [u["kept_person_task_success"] for u in learned],
+                         "tests": tested(play, args.person, args.test_games)}
             print(f"seed {seed} {mode}: {''.join(o[0] for o in outcomes)}", file=sys.stderr, flush=True)
         data["runs"].append(run)
     data["wall_seconds"] = round(time.time() - started, 1)
