@@ -2,7 +2,7 @@
 one (`ncbot.pipelines.online`, the games logged to MCAP and read back) against the same games played frozen.
 
     python bench/studies/learn_play_from_play.py CKPT --person rule --games 50 --seeds 0,1,2,3,4 \
-        --out runs/learn_play [--updates 100] [--test-games 1000]
+        --out runs/learn_play [--updates 100] [--test-games 1000] [--no-gate]
 
 Per seed: the frozen agent and the learning one play games 0..N-1 (seats alternating, game g's env seed
 1000 x seed + g: the person's dice are the same for both); afterwards both agents play `--test-games` test games
@@ -40,10 +40,10 @@ from ncbot.pipelines.reproduce.seed_stats import proportion_interval, t_interval
 
 
 def run_sequence(checkpoint: Path, person: str, games: int, seed: int, folder: Path, learn: bool,
-                 updates: int) -> tuple[list[str], list[dict], object]:
+                 updates: int, gate: bool = True) -> tuple[list[str], list[dict], object]:
     """The outcomes of one sequence of games, what each learning update did (`PlayUpdate.to_dict`: its gate's
     figures, kept or not, CPU seconds), and the final policy."""
-    settings = LearnSettings(reader=None, play=PlayLearning(seed=seed, updates=updates))
+    settings = LearnSettings(reader=None, play=PlayLearning(seed=seed, updates=updates, gate=gate))
     learning = PersonLearning.open(folder / "learning", settings, checkpoint=checkpoint)
     if learn and learning.games >= games:  # a finished learning sequence is not played again
         done = learning.per_game[:games]
@@ -149,18 +149,20 @@ def main() -> None:
     parser.add_argument("--seeds", default="0,1,2,3,4")
     parser.add_argument("--updates", type=int, default=PlayLearning().updates)
     parser.add_argument("--test-games", type=int, default=1000)
+    parser.add_argument("--no-gate", action="store_true", help="keep every update unchecked (what the gate refuses)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)
     started = time.time()
     data = {"person": args.person, "games": args.games, "checkpoint": str(args.checkpoint), "updates": args.updates,
             "test_games": args.test_games,
-            "settings": PlayLearning(updates=args.updates).__dict__, "runs": []}
+            "settings": PlayLearning(updates=args.updates, gate=not args.no_gate).__dict__, "runs": []}
     for seed in [int(s) for s in args.seeds.split(",")]:
         run = {"seed": seed}
         for mode in ("frozen", "learning"):
             outcomes, learned, play = run_sequence(args.checkpoint, args.person, args.games, seed,
-                                                   args.out / f"seed{seed}" / mode, mode == "learning", args.updates)
+                                                   args.out / f"seed{seed}" / mode, mode == "learning", args.updates,
+                                                   not args.no_gate)
             run[mode] = {"outcomes": outcomes, "update_cpu_seconds": [u["cpu_seconds"] for u in learned],
                          "updates_kept": [u["game"] for u in learned if u["kept"]],
                          "rolled_back_by": [rolled_back_by(u) for u in learned],

@@ -11,7 +11,7 @@ The update is kept only if it is not worse where it can be checked: against the 
 (on 3x3 exact, over every branch of the user's moves from both seats; else `gate_games` greedy test games from both
 seats) may be at most `gate_tolerance` below the starting agent's, and against the model of the person (`gate_games`
 test games, the same seeds every time) no lower than the agent's it would replace; otherwise the weights go back to
-the last kept ones.
+the last kept ones (`gate=False` keeps every update unchecked: to measure what the gate refuses).
 Every kept version is saved as a final checkpoint (`game-NNNN.pt`, loadable by `ncbot robot play` / `ncbot eval`).
 """
 from __future__ import annotations
@@ -45,6 +45,7 @@ class PlayLearning:
     gate_games: int = 2000        # test games an update must pass (against the model of the person; the random user
     #                               on games other than 3x3, which is scored exactly)
     gate_tolerance: float = 0.0   # task success it may lose against the random user, from the starting agent's
+    gate: bool = True             # False: every update is kept, unchecked (to measure what the gate refuses)
     play_buffer: int = 20_000
     sim_buffer: int = 50_000
     seed: int = 0
@@ -214,21 +215,23 @@ class PlayLearner:
                                  zip(saved["person_boards"], saved["person_legal"], saved["person_cells"]))
 
     def _update(self, report: PlayUpdate) -> None:
+        gated = self.settings.gate
         with torch.random.fork_rng():
             torch.manual_seed(self.settings.seed * 100_003 + self.games)
-            if self._start_success is None:
+            if gated and self._start_success is None:
                 self._start_success = self.gate()
-            report.kept_person_task_success = self.gate(self.person)
+            report.kept_person_task_success = self.gate(self.person) if gated else None
             before = copy.deepcopy(self.learner.state_dict()), copy.deepcopy(self.qnet.state_dict())
             self._simulate()
             generator = torch.Generator().manual_seed(self.settings.seed * 100_003 + self.games)
             for _ in range(self.settings.updates):
                 self.learner.update(self._batch(generator))
             self.updates += 1
-            report.gate_task_success, report.person_task_success = self.gate(), self.gate(self.person)
+            if gated:
+                report.gate_task_success, report.person_task_success = self.gate(), self.gate(self.person)
         report.updated, report.start_task_success = True, self._start_success
-        report.kept = report.gate_task_success >= self._start_success - self.settings.gate_tolerance and \
-            report.person_task_success >= report.kept_person_task_success
+        report.kept = not gated or (report.gate_task_success >= self._start_success - self.settings.gate_tolerance and
+                                    report.person_task_success >= report.kept_person_task_success)
         if not report.kept:
             self.learner.load_state_dict(before[0])  # back to the last kept weights (network, target, optimiser)
             self.qnet.load_state_dict(before[1])

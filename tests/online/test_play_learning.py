@@ -106,6 +106,19 @@ def test_a_game_makes_one_bounded_update_that_is_kept_or_rolled_back(checkpoint:
     assert all(torch.equal(kept[k], v) for k, v in learner.qnet.state_dict().items())
 
 
+def test_without_the_gate_every_update_is_kept_unchecked(checkpoint: Path, tmp_path: Path) -> None:
+    """gate=False (to measure what the gate refuses): the same bounded update, kept every time, no gate games."""
+    games = logged_games(checkpoint, tmp_path / "log", "rule", 2)
+    learner = PlayLearner.start(checkpoint, PlayLearning(**{**SMALL.__dict__, "gate": False}), tmp_path / "play")
+    learner._start_success = 2.0  # a gate would refuse every update against this
+    start = {k: v.clone() for k, v in learner.qnet.state_dict().items()}
+    reports = [learner.add_game(game) for game in games]
+    assert all(r.updated and r.kept and r.gate_task_success is None and r.kept_person_task_success is None
+               for r in reports)
+    assert learner.kept == 2 and Path(reports[-1].weights).is_file()
+    assert not all(torch.equal(start[k], v) for k, v in learner.qnet.state_dict().items())
+
+
 def _optimiser_steps(learner: PlayLearner) -> int:
     states = learner.learner.optimizer.state.values()
     return int(max((float(s["step"]) for s in states), default=0))
