@@ -22,7 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 KEYS = ("games", "human_moves", "misrecognised_moves", "unseen_moves", "misheard_cells", "asr_word_error_rate",
-        "asr_understood_rate", "repeated_questions", "dialogue_repeats", "where_repeats", "cells_accepted",
+        "asr_understood_rate", "asked_again", "repeated_questions", "dialogue_repeats", "where_repeats", "cells_accepted",
         "confirmations", "tablet_fallbacks", "answer_fallbacks", "cell_answer_word_error_rate", "unfinished",
         "beam_error_deg", "enhancement_cpu_seconds_per_utterance", "asr_cpu_seconds_per_utterance",
         "enhancement_to_asr_cpu", "cpu_seconds_per_robot_turn")
