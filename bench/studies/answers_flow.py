@@ -56,11 +56,18 @@ def step(question: str, utterance) -> dict:
             "word_sure": [round(float(c), 4) for c in utterance.heard.confidences]}
 
 
+def flow_json(record: dict, moves: list[dict]) -> str:
+    """The figures indented, then one move's path a line (small enough to keep beside the figures)."""
+    head = json.dumps(record, indent=1)[:-2]
+    return head + ',\n "moves": [\n' + ",\n".join(json.dumps(move) for move in moves) + "\n ]\n}\n"
+
+
 def parse_arms(text: str) -> tuple[tuple[str, str], ...]:
     arms = tuple(tuple(arm.split(":")) for arm in text.split(","))
     if not arms or any(arm not in ARMS for arm in arms):
-        raise SystemExit(f"ncbot: error: --arms takes EARS:POLICY pairs of {', '.join(':'.join(a) for a in ARMS)}; "
-                         f"got {text!r}")
+        print(f"ncbot: error: --arms takes EARS:POLICY pairs of {', '.join(':'.join(a) for a in ARMS)}; got {text!r}",
+              file=sys.stderr)
+        raise SystemExit(2)
     return arms  # type: ignore[return-value]
 
 
@@ -141,8 +148,8 @@ def main() -> None:
     if args.json:
         record = {"args": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()},
                   "thresholds": {"accept": thresholds.accept, "confirm": thresholds.confirm, "yes": thresholds.yes,
-                                 "asks": thresholds.asks}, "rows": rows, "moves": moves}
-        args.json.write_text(json.dumps(record, indent=1))
+                                 "asks": thresholds.asks}, "rows": rows}
+        args.json.write_text(flow_json(record, moves))
 
 
 if __name__ == "__main__":
