@@ -11,7 +11,9 @@ three orders of its answers (`rotations`: every answer is once the first one hea
 judged on every answer, not a third of them).
 
 The selection rule: kept are settings that settle no replayed trial in a wrong cell, and still none with all three
-thresholds `MARGIN` lower (room for voices, talkers and rooms the tuning did not hear). Chosen among them: the least
+thresholds `MARGIN` lower (room for voices, talkers and rooms the tuning did not hear), and whose yes threshold,
+`MARGIN` lower, is above every recorded "no" heard as a yes (`false_yeses`: each confirmation is evidence about
+the confirmation's decoder, also one after an answer the flow would not confirm). Chosen among them: the least
 cost per move, a spoken question or confirmation counting one and the tablet `TABLET_COST` (the robot's request and
 the person stepping up to touch its chest: with the tablet at one, a touch that never fails would always beat
 asking aloud, and the robot would never talk a cell through). The file records the exact one-sided 95 % upper
@@ -71,6 +73,10 @@ class Replays:
         self.sure = np.array([[a.sure for a in row] for row in answers])
         self.yes = np.array([[a.yes is True for a in row] for row in answers])
         self.yes_sure = np.array([[a.yes_sure for a in row] for row in answers])
+        # every recorded "no" (the cell heard was not theirs, or nothing was heard) heard as a yes: the confirmation's
+        # decoder errs the same whichever cell was asked about, so each one is evidence for the yes threshold
+        said_no = self.cell != self.true_cell[:, None]
+        self.no_heard_yes_sure = np.sort(self.yes_sure[said_no & self.yes])
 
     def replay(self, t: AnswerThresholds) -> tuple[np.ndarray, np.ndarray]:
         """Per trial, the cell `robot_sim.where.ask_where`'s confidence flow settles from the answers (-1: the
@@ -101,6 +107,11 @@ def zero_wrong_upper_95(trials: int) -> float:
     return 1.0 - 0.05 ** (1.0 / trials)
 
 
+def false_yeses(replays: Replays, t: AnswerThresholds) -> int:
+    """Recorded "no"s heard as a yes at least `t.yes` sure (on any answer, also one the flow never confirms)."""
+    return int(np.sum(replays.no_heard_yes_sure >= t.yes))
+
+
 def evaluate(replays: Replays, t: AnswerThresholds) -> tuple[int, float, float]:
     """(wrong cells settled, robot turns per move, share settled by the tablet)."""
     settled, turns = replays.replay(t)
@@ -114,8 +125,8 @@ def cost(turns: float, tablet: float) -> float:
 
 
 def choose(trials: Sequence[Trial]) -> tuple[AnswerThresholds, dict]:
-    """The safe setting (no wrong cell in any rotation of the trials, even `MARGIN` lower) with the least cost per
-    move."""
+    """The safe setting (no wrong cell in any rotation of the trials and no recorded "no" heard as a sure yes, even
+    with the thresholds `MARGIN` lower) with the least cost per move."""
     replays, best = Replays(rotations(trials)), None
     for accept, confirm, yes, asks in itertools.product(GRID, GRID, GRID, (1, 2, 3)):
         if confirm > accept:
@@ -123,12 +134,13 @@ def choose(trials: Sequence[Trial]) -> tuple[AnswerThresholds, dict]:
         setting = AnswerThresholds(accept, confirm, yes, asks)
         lower = AnswerThresholds(max(accept - MARGIN, 0.0), max(confirm - MARGIN, 0.0), max(yes - MARGIN, 0.0), asks)
         wrong, turns, tablet = evaluate(replays, setting)
-        if wrong or evaluate(replays, lower)[0]:
+        if wrong or evaluate(replays, lower)[0] or false_yeses(replays, lower):
             continue
         key = (round(cost(turns, tablet), 6), tablet, -accept, -yes)
         if best is None or key < best[0]:
             best = (key, setting, {"turns_per_move": turns, "tablet_share": tablet, "cost_per_move": key[0],
-                                   "wrong_upper_95": zero_wrong_upper_95(len(trials))})
+                                   "wrong_upper_95": zero_wrong_upper_95(len(trials)),
+                                   "no_heard_as_yes": Replays(trials).no_heard_yes_sure.round(4).tolist()})
     if best is None:
         raise ValueError("no threshold setting settles every tuning trial safely")
     return best[1], best[2]
@@ -215,8 +227,9 @@ def main(argv: list[str] | None = None) -> None:
             "set": "tuning: flite voices at rate 0.85/1.15, espeak-ng talkers en-us+m3 en-gb+f2 en+m1, "
                    f"rooms of trial_sets.TUNING_ROOMS, seeds from {trial_sets.TUNING_SEED}",
             "snr_db": list(TUNING_SNR_DB), "noise": TUNING_NOISE, "ears": "array mvdr+vad",
-            "rule": "no wrong cell in any rotation of the trials, none with every threshold margin lower; "
-                    "least cost per move", "margin": MARGIN, **figures,
+            "rule": "no wrong cell in any rotation of the trials, none with every threshold margin lower, yes "
+                    "(margin lower) above every recorded no heard as a yes; least cost per move", "margin": MARGIN,
+            **figures,
             "confirm_every_cell": {"wrong": confirm_all[0], "turns_per_move": confirm_all[1],
                                    "left_unsettled": confirm_all[2]}}
     chosen = AnswerThresholds(chosen.accept, chosen.confirm, chosen.yes, chosen.asks, meta)
