@@ -30,7 +30,7 @@ from ncbot.robot_sim.human import SimulatedHuman
 from ncbot.robot_sim.localise import localise_sheet
 from ncbot.robot_sim.motion import RobotMotion
 from ncbot.robot_sim.perceived import PerceivedHumanOpponent, rgb_to_bgr as _rgb_to_bgr, write_png_atomic as _write_png_atomic
-from ncbot.robot_sim.report import GameRecord, annotated_snapshot, games_report, write_report
+from ncbot.robot_sim.report import GameRecord, annotated_snapshot, count_repeat, games_report, write_report
 from ncbot.robot_sim.reach import check_reach
 from ncbot.robot_sim.scene import PepperScene, SceneConfig, check_game, placed_by_hand
 from ncbot.robot_sim.settlement import moves_from_boards
@@ -311,13 +311,13 @@ class RobotGameRunner:
         if self._sheet_estimate is None:
             raise ValueError("the mouth camera cannot see the game sheet at the home posture; check the scene configuration")
         aim(hearing, self._sheet_estimate)  # the person plays across the sheet the camera found
-        previous = -1
+        previous, understood = -1, True  # understood: every reply of the last step was understood as said
         while True:
             started, cpu_started = time.perf_counter(), time.process_time()
             render_started, tts_started = self._render_seconds, record.robot_tts_seconds
             td = self.policy(td)
             action = int(td["action"].reshape(-1)[0])
-            record.dialogue_repeats += int(action == previous and action >= env.cells)  # the same question again
+            count_repeat(record, action == previous and action >= env.cells, understood)  # the same question again
             previous = action
             self._act(action, env)
             if action < env.cells:
@@ -333,7 +333,7 @@ class RobotGameRunner:
             heard_before = len(hearing.log) if hearing is not None else 0
             td = stepper.step(td)
             if hearing is not None:
-                self._speech_log.heard(hearing, hearing.log[heard_before:], self.scene.time)
+                understood = self._speech_log.heard(hearing, hearing.log[heard_before:], self.scene.time)
             self._speech_log.flush()
             record.actions += 1
             if self.logger is not None:

@@ -73,17 +73,27 @@ class GameRecord:
     #: What the robot learned from this game (`ncbot robot play --learn`), else None.
     learned: dict[str, Any] | None = None
     #: How answered cells were settled (robot_sim.where): taken as heard, confirmed aloud, touched on the tablet;
-    #: confirmations asked; "where did you draw?" asked again; a dialogue question the robot asked again at once.
+    #: confirmations asked; "where did you draw?" asked again; a dialogue act the robot said again at once (for any
+    #: reason: also after the person's "no thank you" heard right) and, of those, the ones said again right after
+    #: a reply the robot did not understand as said (heard as nothing or as another utterance: real speech only).
     cells_accepted: int = 0
     confirmations: int = 0
     tablet_fallbacks: int = 0
     where_repeats: int = 0
     dialogue_repeats: int = 0
+    dialogue_asked_again: int = 0
     #: Pepper's array (`ears: array`): CPU seconds of each reply's enhancement, what aimed each beam (camera | doa)
     #: and how far each beam was from the person's true direction (degrees).
     enhancement_cpu_seconds: list[float] = field(default_factory=list)
     steered_by: dict[str, int] = field(default_factory=dict)
     beam_errors_deg: list[float] = field(default_factory=list)
+
+
+def count_repeat(record: GameRecord, repeat: bool, understood: bool) -> None:
+    """Count a dialogue act said again at once; asked again (the robot did not understand) when the reply before it
+    was not understood as said."""
+    record.dialogue_repeats += int(repeat)
+    record.dialogue_asked_again += int(repeat and not understood)
 
 
 def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str, Any]:
@@ -135,6 +145,7 @@ def games_report(records: list[GameRecord], config: RobotPlayConfig) -> dict[str
         "repeated_questions": sum(r.where_repeats + r.dialogue_repeats for r in records),
         "where_repeats": sum(r.where_repeats for r in records),
         "dialogue_repeats": sum(r.dialogue_repeats for r in records),
+        "asked_again": sum(r.where_repeats + r.dialogue_asked_again for r in records),
         "enhancement": config.enhancement if array else None,
         "steered_by_camera": sum(r.steered_by.get("camera", 0) for r in records) if array else None,
         "steered_by_doa": sum(r.steered_by.get("doa", 0) for r in records) if array else None,

@@ -252,11 +252,12 @@ class SpeechLog:
         return t, {"steered_by": enhanced.steered_by, "span": span, "enhancement_cpu_s": round(enhanced.cpu_s, 4),
                    "beam_error_deg": None if take.beam_error_deg is None else round(take.beam_error_deg, 1)}
 
-    def heard(self, hearing, heard: list, scene_time: float) -> None:
-        """The person's replies `hearing` (a `RecogniserHearing`) heard in the last env step."""
+    def heard(self, hearing, heard: list, scene_time: float) -> bool:
+        """The person's replies `hearing` (a `RecogniserHearing`) heard in the last env step; whether the robot
+        understood every one as the utterance said (False: one was heard as nothing or as another utterance)."""
         from ncbot.speech.align import word_errors
 
-        record = self.record
+        record, all_understood = self.record, True
         for utterance in heard:
             _, ears = self._reply(utterance, scene_time)
             said = utterance.said.split()
@@ -264,7 +265,9 @@ class SpeechLog:
             record.asr_word_errors += word_errors(said, utterance.heard.words)
             record.asr_confidences.extend(utterance.heard.confidences)
             understood = utterance.understood
-            record.asr_understood += int(understood >= 0 and hearing.texts[understood] == utterance.said)
+            understood_as_said = understood >= 0 and hearing.texts[understood] == utterance.said
+            record.asr_understood += int(understood_as_said)
+            all_understood &= understood_as_said
             record.person_tts_seconds.append(utterance.tts_wall_s)
             record.asr_seconds.append(utterance.asr_wall_s)
             record.asr_cpu_seconds.append(utterance.asr_cpu_s)
@@ -273,6 +276,7 @@ class SpeechLog:
                                           heard_words=[[w, round(c, 3)] for w, c in
                                                        zip(utterance.heard.words, utterance.heard.confidences)],
                                           **({"ears": ears} if ears is not None else {}))
+        return all_understood
 
     def answer(self, utterance, question: str, scene_time: float) -> None:
         """One of the person's answers to the robot's `question` about an unseen move (a `HeardUtterance` whose

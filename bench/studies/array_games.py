@@ -4,11 +4,12 @@ recogniser's word error rate, misrecognised moves and misheard cells, repeated q
 touches, and the enhancement's CPU cost beside the recogniser's.
 
     python bench/studies/array_games.py --conditions results/array/crowded_atrium.yaml [--games 6] [--seed 31]
-        [--arms mono:confirm,array:confidence] [--unseen] [--width 320] [--json F]
+        [--arms mono:confirm,array:confidence] [--unseen] [--width 320] [--json F] [--out DIR]
 
 Every game of an arm uses the same game seeds (`--seed` * 1000 + game) as the other arm, so both hear the same
 person, room, talkers and noise draws. `--unseen`: the camera never confirms a move (every move asked about aloud,
-as bench/studies/where_answers.py). Prints one Markdown row per arm.
+as bench/studies/where_answers.py). `--out DIR`: each arm's games logged to DIR/EARS-POLICY (MCAP, snapshots,
+report.json: read back with `ncbot logs`). Prints one Markdown row per arm.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 KEYS = ("games", "human_moves", "misrecognised_moves", "unseen_moves", "misheard_cells", "asr_word_error_rate",
-        "asr_understood_rate", "repeated_questions", "dialogue_repeats", "where_repeats", "cells_accepted",
+        "asr_understood_rate", "asked_again", "repeated_questions", "dialogue_repeats", "where_repeats", "cells_accepted",
         "confirmations", "tablet_fallbacks", "answer_fallbacks", "cell_answer_word_error_rate", "unfinished",
         "beam_error_deg", "enhancement_cpu_seconds_per_utterance", "asr_cpu_seconds_per_utterance",
         "enhancement_to_asr_cpu", "cpu_seconds_per_robot_turn")
@@ -37,6 +38,7 @@ def main() -> None:
     parser.add_argument("--unseen", action="store_true", help="the camera never confirms a move: every move asked")
     parser.add_argument("--width", type=int, default=320, help="camera width; height is 3/4 of it")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--out", type=Path, help="log each arm's games (MCAP) under this folder")
     args = parser.parse_args()
     import torch
 
@@ -57,7 +59,8 @@ def main() -> None:
                                  human=HumanConfig(wait_probability=0.3, nudge_probability=0.3), **unseen)
         started = time.time()
         with torch.no_grad():
-            report = play_robot_games(config, progress=None)
+            out_dir = None if args.out is None else args.out / f"{ears}-{answers}"
+            report = play_robot_games(config, out_dir=out_dir, progress=None)
         reports[arm] = report
         print(f"| {args.conditions} | {ears} | {answers} | " + " | ".join(str(report.get(k)) for k in KEYS)
               + f" |  ({time.time() - started:.0f} s)", flush=True)

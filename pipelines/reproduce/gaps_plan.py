@@ -73,6 +73,13 @@ class GapRun:
     def folder(self, runs: Path) -> Path:
         return Path(runs) / self.name
 
+    @property
+    def part(self) -> str:
+        """The question of docs/reproduction.md this run belongs to, (a) to (e)."""
+        if self.question == "paper":
+            return "(e)" if self.row == "ultimate150" else "(b)"
+        return {"steps800k": "(a)", "offered": "(d)"}.get(self.question, "(c)")
+
 
 def plan() -> list[GapRun]:
     """Every run in the order the queue trains them: (d), (e), (a), (b), (c) (docs/reproduction.md)."""

@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import statistics
+import time
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from ncbot.pipelines.reproduce.two_sample import TwoSampleTest, holm, welch_diff
 
 RESULTS = Path(__file__).parents[2] / "results"
 POCOCK_SECOND_LOOK = 0.0304
+FAMILY = ("A1", "D1", "E1", "E2")
 LATE_CHECKPOINTS = tuple(range(200_000, 400_001, 50_000))  # E3: the five checkpoints from 200K to 400K frames
 GAMES = 3000
 
@@ -114,8 +116,10 @@ def family(runs: Runs) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         tests.append(_test("E2: Proposed + temporal at 150 units (new seeds) below 100 units (difference: 100 - 150)",
                            published("ultimate100", "proposed-temporal"), runs.final(temporal), 0.05, 0.028))
         notes.update(snapshot_noise(runs, temporal, plain, with_features, without))
-    for test, adjusted in zip(tests, holm([test["p"] for test in tests])):
-        test["holm_p"] = adjusted
+    # Holm's adjustment is over the whole family: until its four tests are read it is not printed
+    adjusted = holm([test["p"] for test in tests]) if len(tests) == len(FAMILY) else [None] * len(tests)
+    for test, holm_p in zip(tests, adjusted):
+        test["holm_p"] = holm_p
     return tests, notes
 
 
@@ -139,6 +143,27 @@ def snapshot_noise(runs: Runs, temporal: list[GapRun], plain: list[GapRun], with
             "E3: with > without on the late levels, one-sided Welch (t, df, p)": test.welch}
 
 
+def progress(runs: Runs) -> dict[str, tuple[int, int]]:
+    """(finished, planned) runs of each question, (a) to (e)."""
+    counts: dict[str, list[int]] = {}
+    for run in runs.plan:
+        done = counts.setdefault(run.part, [0, 0])
+        done[0] += (run.folder(runs.root) / "eval.json").is_file()
+        done[1] += 1
+    return {part: (done[0], done[1]) for part, done in sorted(counts.items())}
+
+
+def last_finished(runs: Runs) -> str:
+    """The UTC date the latest finished run wrote its final evaluation: the date the verdicts were measured."""
+    stamps = [path.stat().st_mtime for run in runs.plan if (path := run.folder(runs.root) / "eval.json").is_file()]
+    return time.strftime("%Y-%m-%d", time.gmtime(max(stamps))) if stamps else "no date (no run finished)"
+
+
+def complete(counts: dict[str, tuple[int, int]], part: str) -> bool:
+    done, planned = counts.get(part, (0, 0))
+    return planned > 0 and done == planned
+
+
 def logged(runs: Runs) -> list[tuple[GapRun, Path]]:
     """Every logged evaluation of (b) and (c) that is written, with the run it belongs to."""
     found = []
@@ -160,10 +185,13 @@ def _number(value: Any) -> str:
 
 
 def render(tests: list[dict[str, Any]], notes: dict[str, Any], sources: list[tuple[str, dict]], acts: list[tuple[str, dict]],
-           command: str) -> str:
+           command: str, finished: dict[str, tuple[int, int]], last_finished: str) -> str:
     lines = ["# The remaining gaps: the verdicts of the tests fixed before the runs", "",
              f"Made by `{command}` from the runs of `python -m ncbot.pipelines.reproduce.gaps run` and the published "
              "seeds CSVs; the plan, its seeds and what each outcome means: docs/reproduction.md, \"The remaining gaps\".",
+             "", f"Runs finished by {last_finished}, by question: " + ", ".join(f"{part} {done} of {planned}" for part, (done, planned)
+                                                            in finished.items()) + ". A question is read only when all"
+             " its runs are finished; Holm's p over the four is printed once the four are read.",
              "", "## The family (A1, D1, E1, E2)", "",
              "One-sided Welch's t-test over seeds (one sample = one seed's 3000 robot-first test games), each at its "
              "level; Holm over the four beside. Power: the Welch test as run, each side at its measured spread, to "
@@ -173,10 +201,10 @@ def render(tests: list[dict[str, Any]], notes: dict[str, Any], sources: list[tup
     for test in tests:
         lines.append(f"| {test['test']} | {test['n'][0]} vs {test['n'][1]} | {_number(test['means'])} | "
                      f"{_number(test['difference'])} {_number(test['interval'])} | {_number(test['t'])}, "
-                     f"{_number(test['df'])} | {_number(test['p'])} | {test['alpha']} | {_number(test['holm_p'])} | "
+                     f"{_number(test['df'])} | {_number(test['p'])} | {test['alpha']} | {_number(test['holm_p']) if test['holm_p'] is not None else 'pending'} | "
                      f"{test['power']:.2f} at {test['power_at']:.4f} | {test['minimum_effect']:.4f} | {test['verdict']} |")
     if not tests:
-        lines.append("| no question's runs are all finished | – | – | – | – | – | – | – | – | – | – |")
+        lines.append("| no test's runs are all finished | – | – | – | – | – | – | – | – | – | – |")
     lines += ["", "## Secondary readings (describe, decide nothing)", ""]
     lines += [f"- {name}: {_number(value)}" for name, value in notes.items()] or ["- none finished"]
     lines += ["", "## (b) Average reward per act by source (500 robot-first test games a checkpoint)", "",
@@ -200,15 +228,18 @@ def write_gaps_report(runs: Path, out: Path, command: str | None = None) -> list
 
     finished = Runs(runs)
     tests, notes = family(finished)
+    counts = progress(finished)
     sources, acts = [], []
-    for run, folder in logged(finished):
+    for run, folder in logged(finished):  # (b) and (c) read every logged evaluation, once their own runs finished
         name = f"{run.name}{'' if folder.name == 'acts' else ' at 400K'}"
-        sources.append((name, reward_sources(folder)))
-        acts.append((name, act_table(folder)))
+        if complete(counts, "(b)"):
+            sources.append((name, reward_sources(folder)))
+        if complete(counts, "(c)"):
+            acts.append((name, act_table(folder)))
     command = command or f"python -m ncbot.pipelines.reproduce.gaps report --runs {runs} --out {out}"
     out.mkdir(parents=True, exist_ok=True)
     markdown, data = out / "README.md", out / "verdicts.json"
-    atomic_write_text(render(tests, notes, sources, acts, command), markdown)
-    atomic_write_text(json.dumps({"command": command, "tests": tests, "notes": notes,
+    atomic_write_text(render(tests, notes, sources, acts, command, counts, last_finished(finished)), markdown)
+    atomic_write_text(json.dumps({"command": command, "finished": counts, "tests": tests, "notes": notes,
                                   "sources": dict(sources)}, indent=2, default=str) + "\n", data)
     return [markdown, data]

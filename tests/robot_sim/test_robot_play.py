@@ -107,6 +107,8 @@ def test_unseen_moves_are_asked_about_aloud_and_the_answers_heard(sapien_render_
     assert report["misheard_cells"] == 0 and report["where_repeats"] == 0 and report["answers"] == "confidence"
     assert report["answer_fallbacks"] == 0 and report["unfinished"] == 0 and report["cell_answer_word_error_rate"] == 0.0
     assert report["cell_answers"] == report["unseen_moves"] + report["confirmations"]
+    # asked again because a reply was not understood: a part of the dialogue's repeats, never more
+    assert report["where_repeats"] <= report["asked_again"] <= report["where_repeats"] + report["dialogue_repeats"]
     reader = LogReader(tmp_path)
     users = sum(1 for _ in reader.messages(["/audio/user"]))
     assert users == report["asr_utterances"] + report["cell_answers"]
@@ -166,6 +168,15 @@ def test_report_asr_keys_are_null_with_text_speech_and_filled_with_real():
     assert [array[k] for k in array_keys] == ["mvdr+vad", 2, 0, 4.0, 0.02, 0.4]
     assert (array["hearing"], array["answers"], array["confirmations"], array["tablet_fallbacks"]) == ("array", "confidence", 2, 1)
     assert array["repeated_questions"] == 4 and array["where_repeats"] == 1 and array["dialogue_repeats"] == 3
+    # asked again because the robot did not understand: "where?" again, and a dialogue act said again right after
+    # a reply not understood as said; a repeat after a reply understood (the person's "no thank you") is not one
+    from ncbot.robot_sim.report import count_repeat
+
+    record.dialogue_repeats = 0
+    for repeat, understood in ((True, False), (True, True), (False, False), (True, False)):
+        count_repeat(record, repeat, understood)
+    assert (record.dialogue_repeats, record.dialogue_asked_again) == (3, 2)
+    assert games_report([record], RobotPlayConfig(speech="real"))["asked_again"] == 1 + 2
     mono = games_report([record], RobotPlayConfig(speech="real", ears="mono"))
     assert mono["hearing"] == "mono" and all(mono[k] is None for k in array_keys)
 
