@@ -47,12 +47,16 @@ class Runs:
     def cell(self, question: str, row: str, cell: str) -> list[GapRun]:
         return [run for run in self.plan if (run.question, run.row, run.cell) == (question, row, cell)]
 
+    def final_evaluation(self, run: GapRun) -> Path:
+        """The run's eval.json: written last, so its presence marks the run finished."""
+        return run.folder(self.root) / "eval.json"
+
     def finished(self, runs: list[GapRun]) -> bool:
         """Every run of the question has its eval.json (and there are at least two to spread)."""
-        return len(runs) >= 2 and all((run.folder(self.root) / "eval.json").is_file() for run in runs)
+        return len(runs) >= 2 and all(self.final_evaluation(run).is_file() for run in runs)
 
     def final(self, runs: list[GapRun], seat: str = "first", key: str = "task_success") -> list[float]:
-        return [json.loads((run.folder(self.root) / "eval.json").read_text())[seat][key] for run in runs]
+        return [json.loads(self.final_evaluation(run).read_text())[seat][key] for run in runs]
 
     def checkpoint(self, run: GapRun, frames: int, seat: str = "first") -> float | None:
         path = run.folder(self.root) / "checkpoint_evals" / f"step-{frames:09d}-{seat}.json"
@@ -148,14 +152,14 @@ def progress(runs: Runs) -> dict[str, tuple[int, int]]:
     counts: dict[str, list[int]] = {}
     for run in runs.plan:
         done = counts.setdefault(run.part, [0, 0])
-        done[0] += (run.folder(runs.root) / "eval.json").is_file()
+        done[0] += runs.final_evaluation(run).is_file()
         done[1] += 1
     return {part: (done[0], done[1]) for part, done in sorted(counts.items())}
 
 
 def last_finished(runs: Runs) -> str:
     """The UTC date the latest finished run wrote its final evaluation: the date the verdicts were measured."""
-    stamps = [path.stat().st_mtime for run in runs.plan if (path := run.folder(runs.root) / "eval.json").is_file()]
+    stamps = [path.stat().st_mtime for run in runs.plan if (path := runs.final_evaluation(run)).is_file()]
     return time.strftime("%Y-%m-%d", time.gmtime(max(stamps))) if stamps else "no date (no run finished)"
 
 
