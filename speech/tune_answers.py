@@ -102,9 +102,11 @@ def rotations(trials: Sequence[Trial]) -> list[Trial]:
     return [Trial(t.true_cell, t.answers[k:] + t.answers[:k]) for t in trials for k in range(len(t.answers))]
 
 
-def zero_wrong_upper_95(trials: int) -> float:
-    """Exact (Clopper-Pearson) one-sided 95 % upper bound of a rate with 0 failures in `trials`."""
-    return 1.0 - 0.05 ** (1.0 / trials)
+def upper_bound_95(failures: int, trials: int) -> float:
+    """Exact (Clopper-Pearson) one-sided 95 % upper bound of a rate with `failures` in `trials`."""
+    from scipy.stats import beta
+
+    return 1.0 if failures >= trials else float(beta.ppf(0.95, failures + 1, trials - failures))
 
 
 def false_yeses(replays: Replays, t: AnswerThresholds) -> int:
@@ -139,7 +141,7 @@ def choose(trials: Sequence[Trial]) -> tuple[AnswerThresholds, dict]:
         key = (round(cost(turns, tablet), 6), tablet, -accept, -yes)
         if best is None or key < best[0]:
             best = (key, setting, {"turns_per_move": turns, "tablet_share": tablet, "cost_per_move": key[0],
-                                   "wrong_upper_95": zero_wrong_upper_95(len(trials)),
+                                   "wrong_upper_95": upper_bound_95(0, len(trials)),
                                    "no_heard_as_yes": Replays(trials).no_heard_yes_sure.round(4).tolist()})
     if best is None:
         raise ValueError("no threshold setting settles every tuning trial safely")

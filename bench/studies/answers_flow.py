@@ -38,15 +38,9 @@ from ncbot.speech.fit import babble_texts  # noqa: E402
 from ncbot.speech.room import Room  # noqa: E402
 from ncbot.speech.roundtrip import babble_pool  # noqa: E402
 from ncbot.speech.tts import SpeechCache  # noqa: E402
+from ncbot.speech.tune_answers import upper_bound_95  # noqa: E402
 
 ARMS = (("mono", "confirm"), ("mono", "confidence"), ("array", "confirm"), ("array", "confidence"))
-
-
-def upper_bound(failures: int, trials: int) -> float:
-    """One-sided 95 % Clopper-Pearson upper bound of a rate."""
-    from scipy.stats import beta
-
-    return 1.0 if failures >= trials else float(beta.ppf(0.95, failures + 1, trials - failures))
 
 
 def step(question: str, utterance) -> dict:
@@ -140,7 +134,7 @@ def main() -> None:
     for (ears_kind, policy), tally in counts.items():
         n = args.trials
         row = {"ears": ears_kind, "policy": policy, "moves": n, **tally,
-               "wrong_upper_95": upper_bound(tally["wrong"], n)}
+               "wrong_upper_95": upper_bound_95(tally["wrong"], n)}
         rows.append(row)
         print(f"| {ears_kind} | {'confirming every cell' if policy == 'confirm' else 'confidence'} | {n} | "
               f"{tally['wrong']} ({row['wrong_upper_95']:.3f}) | {tally['turns'] / n:.2f} | {tally['repeats'] / n:.2f} | "

@@ -151,7 +151,7 @@ def test_the_tuning_judges_a_one_question_setting_on_every_answer_not_only_the_f
     """A wrong cell heard sure as the second answer never reaches a one-question setting in the recorded order;
     the rotations make it the first answer once, so a setting that would accept it is not chosen."""
     from ncbot.speech.answer_policy import AnswerThresholds
-    from ncbot.speech.tune_answers import Answer, Replays, Trial, choose, evaluate, rotations, zero_wrong_upper_95
+    from ncbot.speech.tune_answers import Answer, Replays, Trial, choose, evaluate, rotations, upper_bound_95
 
     right, wrong_sure = Answer(4, True, 0.95, False, 0.9), Answer(5, True, 0.8, False, 0.9)
     trials = [Trial(4, (right, wrong_sure, right))] + [Trial(4, (right, right, right))] * 3
@@ -161,7 +161,7 @@ def test_the_tuning_judges_a_one_question_setting_on_every_answer_not_only_the_f
     assert evaluate(Replays(rotations(trials)), one_question)[0] == 1
     chosen, figures = choose(trials)
     assert chosen.accept > 0.8 + 0.05 and evaluate(Replays(rotations(trials)), chosen)[0] == 0
-    assert figures["wrong_upper_95"] == pytest.approx(zero_wrong_upper_95(4))
+    assert figures["wrong_upper_95"] == pytest.approx(upper_bound_95(0, 4))
     # a "no" heard as a yes 0.6 sure after an answer heard as nothing (never confirmed in the replay) still bounds
     # the yes threshold: the confirmation's decoder errs the same whichever cell it is asked about
     from ncbot.speech.tune_answers import false_yeses
@@ -173,7 +173,7 @@ def test_the_tuning_judges_a_one_question_setting_on_every_answer_not_only_the_f
     chosen, figures = choose(with_false_yes)
     assert chosen.yes > 0.6 + 0.05 and figures["no_heard_as_yes"] == [0.6]
     # 0 wrong of 400 allows at most 0.75 % at 95 % (exact bound 1 - 0.05 ** (1 / 400))
-    assert zero_wrong_upper_95(400) == pytest.approx(0.007461, abs=1e-5)
+    assert upper_bound_95(0, 400) == pytest.approx(0.007461, abs=1e-5)
 
 
 def test_a_noisy_answer_flows_through_without_a_crash(ears_parts):
