@@ -1,9 +1,10 @@
 """A model of how one person plays, fitted to their logged moves: the simulated opponent play learns against.
 
 Why: a few dozen games are far too few transitions to learn a new way of playing from them alone, but they are
-plenty to see how a person chooses: whether they take a winning square, block the robot's, make a fork, prefer some
-squares. The model scores every legal square by those features (takes a game-winning square, blocks the robot's,
-makes a fork, takes the square the robot would fork from, which square it is) and picks by a softmax; its weights are
+plenty to see how a person chooses: whether they take a winning square, block the robot's, make a fork, play as well
+as exact play would, prefer some squares. The model scores every legal square by those features (takes a game-winning
+square, blocks the robot's, makes a fork, takes the square the robot would fork from, is among the best squares by
+exact play, which square it is) and picks by a softmax; its weights are
 the maximum-likelihood fit to the person's moves with an L2 pull towards zero, which is the uniformly random user
 the agent was trained against. So with no games it is that user, and with each game it plays more like the person;
 the agent then learns against it in simulation (`ncbot.pipelines.online.play_learner`), as much as the per-game
@@ -30,18 +31,21 @@ class PersonMove:
     cell: int
 
 
-N_TACTICS = 4  # the features before the one-hot square: wins, blocks, forks, blocks a fork
+N_TACTICS = 5  # the features before the one-hot square: wins, blocks, forks, blocks a fork, best by exact play
 
 
 def move_features(rules: Game, boards: torch.Tensor) -> torch.Tensor:
-    """(B, cells, 4 + cells) float: does the square win the game for the person now, does it block the robot's win,
-    does it make a fork for the person, is it the square the robot would fork from, and which square it is (one-hot).
+    """(B, cells, 5 + cells) float: does the square win the game for the person now, does it block the robot's win,
+    does it make a fork for the person, is it the square the robot would fork from, is it among the best squares by
+    exact play (the game's solver; never on a game without one), and which square it is (one-hot).
     `rules`: the game object (``ncbot.envs.games``), whatever the game."""
     wins, blocks = rules.winning_cells(boards, PERSON), rules.winning_cells(boards, ROBOT)
     forks, robot_forks = fork_cells(rules, boards, PERSON), fork_cells(rules, boards, ROBOT)
     batch, cells = boards.shape
+    solver = rules.solver()
+    best = torch.zeros(batch, cells, dtype=torch.bool) if solver is None else solver.optimal_cells(boards, PERSON)
     where = torch.eye(cells).expand(batch, cells, cells)
-    tactics = torch.stack([wins, blocks, forks, robot_forks], dim=-1).float()
+    tactics = torch.stack([wins, blocks, forks, robot_forks, best], dim=-1).float()
     return torch.cat([tactics, where], dim=-1)
 
 
