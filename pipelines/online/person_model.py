@@ -1,12 +1,14 @@
 """A model of how one person plays, fitted to their logged moves: the simulated opponent play learns against.
 
 Why: a few dozen games are far too few transitions to learn a new way of playing from them alone, but they are
-plenty to see how a person chooses: whether they take a winning square, block the robot's, prefer some squares.
-The model scores every legal square by those features (takes a game-winning square, blocks the robot's, which square
-it is) and picks by a softmax; its weights are the maximum-likelihood fit to the person's moves with an L2 pull
-towards zero, which is the uniformly random user the agent was trained against. So with no games it is that user,
-and with each game it plays more like the person; the agent then learns against it in simulation
-(`ncbot.pipelines.online.play_learner`), as much as the per-game compute allows.
+plenty to see how a person chooses: whether they take a winning square, block the robot's, make a fork, play as well
+as exact play would, prefer some squares. The model scores every legal square by those features (takes a game-winning
+square, blocks the robot's, makes a fork, takes the square the robot would fork from, is among the best squares by
+exact play, which square it is) and picks by a softmax; its weights are
+the maximum-likelihood fit to the person's moves with an L2 pull towards zero, which is the uniformly random user
+the agent was trained against. So with no games it is that user, and with each game it plays more like the person;
+the agent then learns against it in simulation (`ncbot.pipelines.online.play_learner`), as much as the per-game
+compute allows.
 """
 from __future__ import annotations
 
@@ -29,13 +31,35 @@ class PersonMove:
     cell: int
 
 
+N_TACTICS = 5  # the features before the one-hot square: wins, blocks, forks, blocks a fork, best by exact play
+
+
 def move_features(rules: Game, boards: torch.Tensor) -> torch.Tensor:
-    """(B, cells, 2 + cells) float: does the square win the game for the person now, does it block the robot's win,
-    and which square it is (one-hot). `rules`: the game object (``ncbot.envs.games``), whatever the game."""
+    """(B, cells, 5 + cells) float: does the square win the game for the person now, does it block the robot's win,
+    does it make a fork for the person, is it the square the robot would fork from, is it among the best squares by
+    exact play (the game's solver; never on a game without one), and which square it is (one-hot).
+    `rules`: the game object (``ncbot.envs.games``), whatever the game."""
     wins, blocks = rules.winning_cells(boards, PERSON), rules.winning_cells(boards, ROBOT)
+    forks, robot_forks = fork_cells(rules, boards, PERSON), fork_cells(rules, boards, ROBOT)
     batch, cells = boards.shape
+    solver = rules.solver()
+    best = torch.zeros(batch, cells, dtype=torch.bool) if solver is None else solver.optimal_cells(boards, PERSON)
     where = torch.eye(cells).expand(batch, cells, cells)
-    return torch.cat([wins.float()[..., None], blocks.float()[..., None], where], dim=-1)
+    tactics = torch.stack([wins, blocks, forks, robot_forks, best], dim=-1).float()
+    return torch.cat([tactics, where], dim=-1)
+
+
+def fork_cells(rules: Game, boards: torch.Tensor, player: int) -> torch.Tensor:
+    """(B, cells) bool: the empty cells after which ``player`` has two or more cells that win at once (a fork: one
+    mark cannot block both). Why a feature: a perfect player beats a weaker one by forks, which the win and block
+    features cannot tell from any other square."""
+    batch, cells = boards.shape
+    empty = boards == 0
+    after = boards[:, None, :].repeat(1, cells, 1)   # (B, cells taken, cells)
+    diagonal = torch.arange(cells)
+    after[:, diagonal, diagonal] = torch.where(empty, player, after[:, diagonal, diagonal])
+    threats = rules.winning_cells(after.reshape(batch * cells, cells), player).reshape(batch, cells, cells)
+    return empty & (threats.sum(dim=-1) >= 2)
 
 
 class PersonModel(Opponent):
@@ -46,7 +70,7 @@ class PersonModel(Opponent):
     def __init__(self, game: str = "standard", free_move: str = "anywhere", seed: int = 0, l2: float = 1.0) -> None:
         super().__init__(game, free_move, seed)
         self.l2 = float(l2)
-        self.weights = torch.zeros(2 + self.n_cells)  # zero: the uniformly random user
+        self.weights = torch.zeros(N_TACTICS + self.n_cells)  # zero: the uniformly random user
 
     def logits(self, boards: torch.Tensor, legal: torch.Tensor) -> torch.Tensor:
         scores = move_features(self.rules, boards) @ self.weights

@@ -15,7 +15,8 @@ from ncbot.pipelines.config import load_config
 from ncbot.pipelines.online import agent_parts
 from ncbot.pipelines.online.learning import LearnSettings, PersonLearning
 from ncbot.pipelines.online.logged import game_transitions, read_games
-from ncbot.pipelines.online.person_model import PersonModel, person_moves
+from ncbot.envs.games import make_game
+from ncbot.pipelines.online.person_model import PersonModel, fork_cells, move_features, person_moves
 from ncbot.pipelines.online.play_learner import PlayLearner, PlayLearning
 from ncbot.pipelines.online.simulated import play_logged_game
 from ncbot.pipelines.run_env import make_run_env
@@ -80,11 +81,47 @@ def test_the_model_of_a_person_who_wins_and_blocks_learns_to_win_and_block(check
     rule, uniform = PersonModel(), PersonModel()
     assert rule.fit(moves["rule"]) > PersonModel().log_likelihood(moves["rule"]) + 0.1, "explains the moves better"
     uniform.fit(moves["random"])
-    assert rule.weights[0] > 1.0 and rule.weights[1] > 1.0, rule.weights  # takes wins, blocks the robot's
     assert abs(uniform.weights[:2]).max() < rule.weights[:2].min(), "the random user's model stays near uniform"
     board = torch.tensor([[1, 1, 0, 0, 2, 0, 0, 0, 0]])  # the robot threatens a1-b1-c1
-    legal = board == 0
-    assert torch.softmax(rule.logits(board, legal), dim=1)[0, 2] > 0.5, "the rule person's model blocks c1"
+    assert torch.softmax(rule.logits(board, board == 0), dim=1)[0, 2] > 0.5, "the rule person's model blocks c1"
+    board = torch.tensor([[2, 2, 0, 0, 1, 0, 0, 0, 1]])  # the person can win at c1
+    assert torch.softmax(rule.logits(board, board == 0), dim=1)[0, 2] > 0.5, "... and takes its win"
+
+
+def test_a_fork_is_two_winning_cells_after_the_move_in_every_game() -> None:
+    rules = make_game("standard")
+    board = torch.tensor([[2, 1, 0,
+                           0, 1, 0,
+                           0, 0, 2]])  # the person (2) holds a1, c3; the robot b1, b2
+    assert fork_cells(rules, board, 2).nonzero()[:, 1].tolist() == [6], "a3: threatens a2 and b3 at once"
+    # the robot threatens b3 already: any square that adds a second threat is its fork; b3 itself wins outright
+    assert fork_cells(rules, board, 1).nonzero()[:, 1].tolist() == [2, 3, 5, 6]
+    features = move_features(rules, board)
+    assert features[0, 7, :5].tolist() == [0.0, 1.0, 0.0, 0.0, 1.0], "b3 blocks the robot's win: the only best square"
+    assert features[0, 6, :5].tolist() == [0.0, 0.0, 1.0, 1.0, 0.0], "a3: the person's fork and the robot's"
+    corner = torch.tensor([[1, 0, 0, 0, 0, 0, 0, 0, 0]])
+    assert move_features(rules, corner)[0, :, 4].nonzero().view(-1).tolist() == [4], "after a corner only b2 draws"
+    for game in ("four", "connect_four", "ultimate"):  # any game: from its own winning_cells; no solver, no best square
+        rules = make_game(game)
+        boards = torch.zeros(2, len(rules.new().board), dtype=torch.long)
+        features = move_features(rules, boards)
+        assert features.shape == (2, boards.shape[1], 5 + boards.shape[1]) and not features[..., 4].any()
+        assert not fork_cells(rules, boards, 2).any(), f"{game}: no fork on an empty board"
+
+
+def test_the_model_of_a_perfect_player_learns_to_play_the_best_squares(checkpoint: Path, tmp_path: Path) -> None:
+    config, _ = agent_parts.load_saved_agent(checkpoint)
+    models = {}
+    for opponent in ("minimax", "random"):
+        games = logged_games(checkpoint, tmp_path / opponent, opponent, 24)
+        moves = [m for g in games for m in person_moves(g.extra["settled_moves"], g.summary["seat"] == "first",
+                                                        "standard", config.env.free_move)]
+        models[opponent] = PersonModel()
+        models[opponent].fit(moves)
+    minimax, uniform = models["minimax"].weights, models["random"].weights
+    assert minimax[4] > 2.0 and abs(uniform[4]) < 0.5, (minimax[:5], uniform[:5])  # best by exact play
+    # minimax takes any square that wins by force, so forks are a share of its choices, not all: a lean
+    assert minimax[2] > uniform[2], (minimax[:5], uniform[:5])
 
 
 def test_a_game_makes_one_bounded_update_that_is_kept_or_rolled_back(checkpoint: Path, tmp_path: Path) -> None:
