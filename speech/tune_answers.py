@@ -130,6 +130,8 @@ def choose(trials: Sequence[Trial]) -> tuple[AnswerThresholds, dict]:
     """The safe setting (no wrong cell in any rotation of the trials and no recorded "no" heard as a sure yes, even
     with the thresholds `MARGIN` lower) with the least cost per move."""
     replays, best = Replays(rotations(trials)), None
+    recorded = {"wrong_upper_95": upper_bound_95(0, len(trials)),
+                "no_heard_as_yes": Replays(trials).no_heard_yes_sure.round(4).tolist()}
     for accept, confirm, yes, asks in itertools.product(GRID, GRID, GRID, (1, 2, 3)):
         if confirm > accept:
             continue
@@ -141,8 +143,7 @@ def choose(trials: Sequence[Trial]) -> tuple[AnswerThresholds, dict]:
         key = (round(cost(turns, tablet), 6), tablet, -accept, -yes)
         if best is None or key < best[0]:
             best = (key, setting, {"turns_per_move": turns, "tablet_share": tablet, "cost_per_move": key[0],
-                                   "wrong_upper_95": upper_bound_95(0, len(trials)),
-                                   "no_heard_as_yes": Replays(trials).no_heard_yes_sure.round(4).tolist()})
+                                   **recorded})
     if best is None:
         raise ValueError("no threshold setting settles every tuning trial safely")
     return best[1], best[2]

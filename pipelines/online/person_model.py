@@ -4,11 +4,10 @@ Why: a few dozen games are far too few transitions to learn a new way of playing
 plenty to see how a person chooses: whether they take a winning square, block the robot's, make a fork, play as well
 as exact play would, prefer some squares. The model scores every legal square by those features (takes a game-winning
 square, blocks the robot's, makes a fork, takes the square the robot would fork from, is among the best squares by
-exact play, which square it is) and picks by a softmax; its weights are
-the maximum-likelihood fit to the person's moves with an L2 pull towards zero, which is the uniformly random user
-the agent was trained against. So with no games it is that user, and with each game it plays more like the person;
-the agent then learns against it in simulation (`ncbot.pipelines.online.play_learner`), as much as the per-game
-compute allows.
+exact play, which square it is) and picks by a softmax; its weights are the maximum-likelihood fit to the person's
+moves with an L2 pull towards zero, which is the uniformly random user the agent was trained against. So with no
+games it is that user, and with each game it plays more like the person; the agent then learns against it in
+simulation (`ncbot.pipelines.online.play_learner`), as much as the per-game compute allows.
 """
 from __future__ import annotations
 

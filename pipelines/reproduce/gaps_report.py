@@ -203,9 +203,10 @@ def render(tests: list[dict[str, Any]], notes: dict[str, Any], sources: list[tup
              "| test | seeds | means | difference [95 % Welch] | t, df | p | level | Holm p | power at | smallest effect "
              "| verdict |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for test in tests:
+        holm_text = "pending" if test["holm_p"] is None else _number(test["holm_p"])
         lines.append(f"| {test['test']} | {test['n'][0]} vs {test['n'][1]} | {_number(test['means'])} | "
                      f"{_number(test['difference'])} {_number(test['interval'])} | {_number(test['t'])}, "
-                     f"{_number(test['df'])} | {_number(test['p'])} | {test['alpha']} | {_number(test['holm_p']) if test['holm_p'] is not None else 'pending'} | "
+                     f"{_number(test['df'])} | {_number(test['p'])} | {test['alpha']} | {holm_text} | "
                      f"{test['power']:.2f} at {test['power_at']:.4f} | {test['minimum_effect']:.4f} | {test['verdict']} |")
     if not tests:
         lines.append("| no test's runs are all finished | – | – | – | – | – | – | – | – | – | – |")
@@ -234,11 +235,12 @@ def write_gaps_report(runs: Path, out: Path, command: str | None = None) -> list
     tests, notes = family(finished)
     counts = progress(finished)
     sources, acts = [], []
+    read_sources, read_acts = complete(counts, "(b)"), complete(counts, "(c)")
     for run, folder in logged(finished):  # (b) and (c) read every logged evaluation, once their own runs finished
         name = f"{run.name}{'' if folder.name == 'acts' else ' at 400K'}"
-        if complete(counts, "(b)"):
+        if read_sources:
             sources.append((name, reward_sources(folder)))
-        if complete(counts, "(c)"):
+        if read_acts:
             acts.append((name, act_table(folder)))
     command = command or f"python -m ncbot.pipelines.reproduce.gaps report --runs {runs} --out {out}"
     out.mkdir(parents=True, exist_ok=True)
